@@ -1,0 +1,1 @@
+"""pinquad: EM identification of a quadcopter's mass and inertia."""

@@ -1,0 +1,200 @@
+"""The one place that owns frames, Euler order and quaternion order.
+
+World frame: z up, gravity ``GRAVITY`` [m/s^2] along -z. Body frame: x forward, y left,
+z up (thrust axis).
+
+Euler angles ``(roll phi, pitch theta, yaw psi)`` [rad] follow the paper's Euler-rate
+matrix ``E^{-1}`` and its flatness extraction (``theta = asin(-R[2,0])``,
+``phi = atan2(R[2,1], R[2,2])``, ``psi = atan2(R[1,0], R[0,0])``). Both are those of the
+intrinsic z-y-x sequence, whose body-to-world rotation is
+
+    R(phi, theta, psi) = Rz(psi) @ Ry(theta) @ Rx(phi).
+
+The paper prints the transpose of this matrix (world-to-body) under the name R^E_B; we
+use the matrix that agrees with its Euler-rate matrix and its flatness equations.
+
+Quaternions: Pinocchio stores ``(x, y, z, w)``; viser and GTSAM take ``(w, x, y, z)``;
+log files use ``quat_w, quat_x, quat_y, quat_z``. Convert only through this module.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+GRAVITY = 9.81
+"""Standard gravity used throughout [m/s^2]."""
+
+Array = NDArray[np.float64]
+
+
+def wrap_angle(angle: Array | float) -> Array | float:
+    """Wrap angles [rad] to (-pi, pi]."""
+    wrapped = np.mod(np.asarray(angle, dtype=float) + math.pi, 2.0 * math.pi) - math.pi
+    wrapped = np.where(wrapped == -math.pi, math.pi, wrapped)
+    if np.ndim(wrapped) == 0:
+        return float(wrapped)
+    return wrapped
+
+
+def rotation_from_euler(euler: Array) -> Array:
+    """Body-to-world rotation ``R = Rz(psi) Ry(theta) Rx(phi)``.
+
+    euler: (..., 3) roll, pitch, yaw [rad]. Returns (..., 3, 3).
+    """
+    euler = np.asarray(euler, dtype=float)
+    phi, theta, psi = euler[..., 0], euler[..., 1], euler[..., 2]
+    cf, sf = np.cos(phi), np.sin(phi)
+    ct, st = np.cos(theta), np.sin(theta)
+    cp, sp = np.cos(psi), np.sin(psi)
+    rot = np.empty(euler.shape[:-1] + (3, 3))
+    rot[..., 0, 0] = ct * cp
+    rot[..., 0, 1] = sf * st * cp - cf * sp
+    rot[..., 0, 2] = cf * st * cp + sf * sp
+    rot[..., 1, 0] = ct * sp
+    rot[..., 1, 1] = sf * st * sp + cf * cp
+    rot[..., 1, 2] = cf * st * sp - sf * cp
+    rot[..., 2, 0] = -st
+    rot[..., 2, 1] = sf * ct
+    rot[..., 2, 2] = cf * ct
+    return rot
+
+
+def euler_from_rotation(rot: Array) -> Array:
+    """Inverse of :func:`rotation_from_euler` (paper's flatness extraction).
+
+    rot: (..., 3, 3) body-to-world. Returns (..., 3) roll, pitch, yaw [rad];
+    pitch in [-pi/2, pi/2].
+    """
+    rot = np.asarray(rot, dtype=float)
+    theta = np.arcsin(np.clip(-rot[..., 2, 0], -1.0, 1.0))
+    phi = np.arctan2(rot[..., 2, 1], rot[..., 2, 2])
+    psi = np.arctan2(rot[..., 1, 0], rot[..., 0, 0])
+    return np.stack([phi, theta, psi], axis=-1)
+
+
+def euler_rate_matrix_inv(euler: Array) -> Array:
+    """The paper's ``E^{-1}(Theta)``: Euler rates = E^{-1} @ body rates.
+
+    euler: (..., 3) [rad]. Returns (..., 3, 3) [1].
+    """
+    euler = np.asarray(euler, dtype=float)
+    phi, theta = euler[..., 0], euler[..., 1]
+    sf, cf = np.sin(phi), np.cos(phi)
+    tt, ct = np.tan(theta), np.cos(theta)
+    out = np.zeros(euler.shape[:-1] + (3, 3))
+    out[..., 0, 0] = 1.0
+    out[..., 0, 1] = sf * tt
+    out[..., 0, 2] = cf * tt
+    out[..., 1, 1] = cf
+    out[..., 1, 2] = -sf
+    out[..., 2, 1] = sf / ct
+    out[..., 2, 2] = cf / ct
+    return out
+
+
+def euler_rate_matrix(euler: Array) -> Array:
+    """The paper's ``E(Theta)``: body rates = E @ Euler rates. (..., 3) -> (..., 3, 3)."""
+    euler = np.asarray(euler, dtype=float)
+    phi, theta = euler[..., 0], euler[..., 1]
+    sf, cf = np.sin(phi), np.cos(phi)
+    st, ct = np.sin(theta), np.cos(theta)
+    out = np.zeros(euler.shape[:-1] + (3, 3))
+    out[..., 0, 0] = 1.0
+    out[..., 0, 2] = -st
+    out[..., 1, 1] = cf
+    out[..., 1, 2] = ct * sf
+    out[..., 2, 1] = -sf
+    out[..., 2, 2] = ct * cf
+    return out
+
+
+def quat_wxyz_from_rotation(rot: Array) -> Array:
+    """Unit quaternion (w, x, y, z), w >= 0, of a rotation matrix (..., 3, 3)."""
+    rot = np.asarray(rot, dtype=float)
+    flat = rot.reshape(-1, 3, 3)
+    out = np.empty((flat.shape[0], 4))
+    for i, r in enumerate(flat):
+        tr = r[0, 0] + r[1, 1] + r[2, 2]
+        if tr > 0.0:
+            s = 2.0 * math.sqrt(tr + 1.0)
+            q = (0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s)
+        elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
+            s = 2.0 * math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
+            q = ((r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s)
+        elif r[1, 1] > r[2, 2]:
+            s = 2.0 * math.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2])
+            q = ((r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s)
+        else:
+            s = 2.0 * math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
+            q = ((r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s)
+        qa = np.asarray(q)
+        out[i] = qa / np.linalg.norm(qa) * (1.0 if qa[0] >= 0 else -1.0)
+    return out.reshape(rot.shape[:-2] + (4,))
+
+
+def rotation_from_quat_wxyz(quat: Array) -> Array:
+    """Rotation matrix (..., 3, 3) of quaternions (..., 4) in (w, x, y, z) order."""
+    q = np.asarray(quat, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    rot = np.empty(q.shape[:-1] + (3, 3))
+    rot[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    rot[..., 0, 1] = 2 * (x * y - z * w)
+    rot[..., 0, 2] = 2 * (x * z + y * w)
+    rot[..., 1, 0] = 2 * (x * y + z * w)
+    rot[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    rot[..., 1, 2] = 2 * (y * z - x * w)
+    rot[..., 2, 0] = 2 * (x * z - y * w)
+    rot[..., 2, 1] = 2 * (y * z + x * w)
+    rot[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return rot
+
+
+def euler_from_quat_wxyz(quat: Array) -> Array:
+    """Euler angles (..., 3) of quaternions (..., 4) in (w, x, y, z) order."""
+    return euler_from_rotation(rotation_from_quat_wxyz(quat))
+
+
+def quat_wxyz_from_euler(euler: Array) -> Array:
+    """Quaternions (..., 4) in (w, x, y, z) order of Euler angles (..., 3)."""
+    return quat_wxyz_from_rotation(rotation_from_euler(euler))
+
+
+def wxyz_to_xyzw(quat: Array) -> Array:
+    """Reorder (w, x, y, z) -> Pinocchio's (x, y, z, w)."""
+    quat = np.asarray(quat, dtype=float)
+    return np.concatenate([quat[..., 1:], quat[..., :1]], axis=-1)
+
+
+def xyzw_to_wxyz(quat: Array) -> Array:
+    """Reorder Pinocchio's (x, y, z, w) -> (w, x, y, z)."""
+    quat = np.asarray(quat, dtype=float)
+    return np.concatenate([quat[..., 3:], quat[..., :3]], axis=-1)
+
+
+def skew(vec: Array) -> Array:
+    """Cross-product matrix [v]x with [v]x @ w = v x w. (..., 3) -> (..., 3, 3)."""
+    v = np.asarray(vec, dtype=float)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1] = -v[..., 2]
+    out[..., 0, 2] = v[..., 1]
+    out[..., 1, 0] = v[..., 2]
+    out[..., 1, 2] = -v[..., 0]
+    out[..., 2, 0] = -v[..., 1]
+    out[..., 2, 1] = v[..., 0]
+    return out
+
+
+# State layout of the paper's 12-dimensional model.
+POS = slice(0, 3)
+VEL = slice(3, 6)
+EULER = slice(6, 9)
+RATE = slice(9, 12)
+STATE_DIM = 12
+STATE_NAMES = (
+    "pos_x", "pos_y", "pos_z", "vel_x", "vel_y", "vel_z",
+    "roll", "pitch", "yaw", "gyro_x", "gyro_y", "gyro_z",
+)

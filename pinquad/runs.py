@@ -1,0 +1,94 @@
+"""Run directories and all-or-nothing file writes (write to a temporary name, rename)."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` whole or not at all."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def atomic_write_json(path: str | Path, obj: Any) -> Path:
+    """Write a JSON document atomically (NaN written as null)."""
+    return atomic_write_bytes(path, json.dumps(_clean(obj), indent=2).encode())
+
+
+def _clean(obj: Any) -> Any:
+    import math
+
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _clean(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        f = float(obj)
+        return None if math.isnan(f) or math.isinf(f) else f
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def new_run_dir(kind: str, root: str | Path = "runs") -> Path:
+    """A fresh directory name ``runs/<kind>-YYYYmmdd-HHMMSS[-n]`` (not yet created)."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    base = Path(root) / f"{kind}-{stamp}"
+    candidate, i = base, 1
+    while candidate.exists():
+        candidate = Path(f"{base}-{i}")
+        i += 1
+    return candidate
+
+
+class RunWriter:
+    """Collect a run's files in a hidden staging directory, then publish them at once.
+
+    ``publish()`` renames the staging directory to the target, so a reader never sees a
+    partly written run; if the run fails, the staging directory is removed.
+    """
+
+    def __init__(self, target: str | Path):
+        self.target = Path(target)
+        if self.target.exists() and any(self.target.iterdir()):
+            raise FileExistsError(f"{self.target}: output directory exists and is not empty")
+        self.target.parent.mkdir(parents=True, exist_ok=True)
+        self.staging = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.", dir=self.target.parent))
+
+    def path(self, name: str) -> Path:
+        """Where to write file ``name`` while staging."""
+        p = self.staging / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
+    def publish(self) -> Path:
+        if self.target.exists():
+            self.target.rmdir()
+        os.replace(self.staging, self.target)
+        return self.target
+
+    def abort(self) -> None:
+        import shutil
+
+        shutil.rmtree(self.staging, ignore_errors=True)

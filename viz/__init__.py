@@ -1,0 +1,1 @@
+"""viser browser view of a finished pinquad run."""
