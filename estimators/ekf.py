@@ -15,12 +15,79 @@ row is reported in ``rejected``.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from estimators.protocol import Array, FilterResult, StateSpaceModel
 
 _LOG_2PI = math.log(2.0 * math.pi)
+
+
+@dataclass(frozen=True)
+class UpdateResult:
+    """One measurement update: posterior mean (n,), cov (n, n); quad = nu^T S^{-1} nu;
+    logdet = log det S; used (rows used) and rejected (rows gated) index arrays."""
+
+    mean: Array
+    cov: Array
+    quad: float
+    logdet: float
+    used: NDArray[np.int64]
+    rejected: NDArray[np.int64]
+
+    @property
+    def loglik(self) -> float:
+        """log N(nu; 0, S) of this update [nats] (0 when nothing was used)."""
+        if self.used.size == 0:
+            return 0.0
+        return -0.5 * (self.quad + self.logdet + self.used.size * _LOG_2PI)
+
+
+def update(model: StateSpaceModel, k: int, mean: Array, cov: Array, y: Array,
+           gate_sigma: float | None = None) -> UpdateResult:
+    """Condition (mean, cov) of x_k on the observed (non-NaN) rows of y_k."""
+    obs = ~np.isnan(y)
+    none = np.zeros(0, dtype=np.int64)
+    if not obs.any():
+        return UpdateResult(mean, cov, 0.0, 0.0, none, none)
+    y_pred, h_full = model.measure(mean, k)
+    r_full = model.meas_cov(k)
+    nu_full = model.residual(np.where(obs, y, y_pred), y_pred)
+    idx = np.flatnonzero(obs)
+    h = h_full[idx]
+    ph_t = cov @ h.T
+    s = h @ ph_t + r_full[np.ix_(idx, idx)]
+    nu = nu_full[idx]
+    rejected = none
+    if gate_sigma is not None:
+        keep = np.abs(nu) <= gate_sigma * np.sqrt(np.diag(s))
+        if not keep.all():
+            rejected = idx[~keep]
+            idx, h, nu = idx[keep], h[keep], nu[keep]
+            ph_t = ph_t[:, keep]
+            s = s[np.ix_(keep, keep)]
+    if idx.size == 0:
+        return UpdateResult(mean, cov, 0.0, 0.0, idx, rejected)
+    chol = np.linalg.cholesky(s)
+    white = np.linalg.solve(chol, nu)
+    gain_t = np.linalg.solve(chol.T, np.linalg.solve(chol, ph_t.T))
+    new_mean = mean + gain_t.T @ nu
+    a = np.eye(mean.shape[0]) - gain_t.T @ h
+    new_cov = a @ cov @ a.T + gain_t.T @ r_full[np.ix_(idx, idx)] @ gain_t
+    new_cov = 0.5 * (new_cov + new_cov.T)
+    return UpdateResult(new_mean, new_cov, float(white @ white),
+                        2.0 * float(np.log(np.diag(chol)).sum()), idx, rejected)
+
+
+def predict(model: StateSpaceModel, k: int, mean: Array, cov: Array
+            ) -> tuple[Array, Array, Array]:
+    """Propagate (mean, cov) of x_k to x_{k+1}; returns mean, cov and df_k/dx."""
+    q = model.process_cov(mean, k)
+    new_mean, jac = model.transition(mean, k)
+    new_cov = jac @ cov @ jac.T + q
+    return new_mean, 0.5 * (new_cov + new_cov.T), jac
 
 
 def run_filter(model: StateSpaceModel, ys: Array, gate_sigma: float | None = None
@@ -29,7 +96,6 @@ def run_filter(model: StateSpaceModel, ys: Array, gate_sigma: float | None = Non
     ys = np.asarray(ys, dtype=float)
     n_steps, meas_dim = ys.shape
     n = model.state_dim
-    eye = np.eye(n)
     f_mean = np.empty((n_steps, n))
     f_cov = np.empty((n_steps, n, n))
     p_mean = np.empty((n_steps, n))
@@ -38,52 +104,22 @@ def run_filter(model: StateSpaceModel, ys: Array, gate_sigma: float | None = Non
     nis = np.full(n_steps, np.nan)
     dof = np.zeros(n_steps, dtype=np.int64)
     rejected = np.zeros((n_steps, meas_dim), dtype=bool)
-    observed_all = ~np.isnan(ys)
     loglik = 0.0
-
     mean, cov = model.initial()
     mean = np.array(mean, dtype=float)
     cov = np.array(cov, dtype=float)
     for k in range(n_steps):
         p_mean[k] = mean
         p_cov[k] = cov
-        obs = observed_all[k]
-        if obs.any():
-            y_pred, h_full = model.measure(mean, k)
-            r_full = model.meas_cov(k)
-            nu_full = model.residual(np.where(obs, ys[k], y_pred), y_pred)
-            idx = np.flatnonzero(obs)
-            h = h_full[idx]
-            ph_t = cov @ h.T
-            s = h @ ph_t + r_full[np.ix_(idx, idx)]
-            nu = nu_full[idx]
-            if gate_sigma is not None:
-                z = np.abs(nu) / np.sqrt(np.diag(s))
-                keep = z <= gate_sigma
-                if not keep.all():
-                    rejected[k, idx[~keep]] = True
-                    idx, h, nu = idx[keep], h[keep], nu[keep]
-                    ph_t = ph_t[:, keep]
-                    s = s[np.ix_(keep, keep)]
-            if idx.size:
-                chol = np.linalg.cholesky(s)
-                white = np.linalg.solve(chol, nu)
-                gain_t = np.linalg.solve(chol.T, np.linalg.solve(chol, ph_t.T))
-                mean = mean + gain_t.T @ nu
-                a = eye - gain_t.T @ h
-                cov = a @ cov @ a.T + gain_t.T @ r_full[np.ix_(idx, idx)] @ gain_t
-                cov = 0.5 * (cov + cov.T)
-                quad = float(white @ white)
-                nis[k] = quad
-                dof[k] = idx.size
-                loglik -= 0.5 * (quad + 2.0 * float(np.log(np.diag(chol)).sum())
-                                 + idx.size * _LOG_2PI)
+        upd = update(model, k, mean, cov, ys[k], gate_sigma)
+        mean, cov = upd.mean, upd.cov
+        rejected[k, upd.rejected] = True
+        if upd.used.size:
+            nis[k] = upd.quad
+            dof[k] = upd.used.size
+            loglik += upd.loglik
         f_mean[k] = mean
         f_cov[k] = cov
         if k + 1 < n_steps:
-            q = model.process_cov(mean, k)
-            mean, jac = model.transition(mean, k)
-            jacs[k] = jac
-            cov = jac @ cov @ jac.T + q
-            cov = 0.5 * (cov + cov.T)
+            mean, cov, jacs[k] = predict(model, k, mean, cov)
     return FilterResult(f_mean, f_cov, p_mean, p_cov, jacs, loglik, nis, dof, rejected)
