@@ -1,0 +1,73 @@
+"""Observation sources: what the E-step sees of a FlightLog.
+
+A: the paper's sensor-A EKF estimate (position, velocity, Euler angles, rates) of the
+   log's position / accelerometer / gyro samples, used as a full-state observation;
+B: position, velocity, Euler angles, gyro as logged ("full state");
+C: position, velocity, gyro ("partial", no attitude).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.ekf import run_filter
+from pinquad.logs import FlightLog
+from pinquad.navigation import NavTuning, SensorANavModel
+from pinquad.ssm import Observations
+
+Array = NDArray[np.float64]
+
+SOURCE_CHANNELS = {
+    "A": ("pos", "vel", "euler", "gyro"),
+    "B": ("pos", "vel", "euler", "gyro"),
+    "C": ("pos", "vel", "gyro"),
+}
+
+
+def _first_valid(a: Array) -> Array:
+    ok = ~np.isnan(a).any(axis=1)
+    return a[np.argmax(ok)] if ok.any() else np.zeros(a.shape[1])
+
+
+def sensor_a_estimate(log: FlightLog, tuning: NavTuning | None = None) -> Array:
+    """The paper's sensor-A EKF run over the log: filtered states (N, 12)."""
+    dt = log.dt
+    x0 = np.zeros(12)
+    x0[0:3] = _first_valid(log.position)
+    model = SensorANavModel(log.accel, dt, tuning or NavTuning.tuned(dt), x0=x0,
+                            gravity=log.meta.gravity)
+    ys = np.column_stack([log.position, log.gyro])
+    return run_filter(model, ys).filtered_mean
+
+
+def observations(log: FlightLog, source: str) -> Observations:
+    """Build the E-step's observations of a log for source A, B or C.
+
+    Transitions out of a contact row (log.contact) are excluded from the M-step.
+    """
+    if log.thrust is None or log.torque is None:
+        raise ValueError("the log has no thrust/torque actuation; convert rotor speeds first")
+    if source == "A":
+        est = sensor_a_estimate(log)
+        ys = est.copy()
+        channels = SOURCE_CHANNELS["A"]
+    elif source in ("B", "C"):
+        channels = SOURCE_CHANNELS[source]
+        blocks = {"pos": log.position, "vel": log.velocity, "euler": log.euler, "gyro": log.gyro}
+        ys = np.column_stack([blocks[ch] for ch in channels])
+    else:
+        raise ValueError(f"unknown observation source {source!r}; expected A, B or C")
+    x0 = np.zeros(12)
+    p0 = np.full(12, 1.0)
+    for ch, sl in (("pos", slice(0, 3)), ("vel", slice(3, 6)), ("euler", slice(6, 9)),
+                   ("gyro", slice(9, 12))):
+        if ch in channels:
+            i = channels.index(ch)
+            x0[sl] = _first_valid(ys[:, 3 * i:3 * i + 3])
+    exclude = np.zeros(log.n, dtype=bool)
+    if log.contact is not None:
+        exclude |= log.contact
+    inputs = np.column_stack([log.thrust, log.torque])
+    return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
+                        p0=p0, exclude=exclude)
