@@ -180,3 +180,56 @@ class StreamingNavFilter:
     def advance(self, k: int) -> None:
         """Predict to step k+1 with the accelerometer sample of step k."""
         self.mean, self.cov, _ = predict(self.model, k, self.mean, self.cov)
+
+
+@dataclass
+class ModelBasedNavFilter:
+    """Onboard EKF for sensors B and C: the quadcopter model (``pinquad.ssm.QuadSSM``)
+    driven by the commanded thrust and torques with the controller's current mass and
+    inertia, corrected by the sensor's samples.
+
+    inputs (N, 4) is filled by the simulator before each prediction; the process noise
+    is the frozen wrench-noise level, the measurement noise the sensor's.
+    """
+
+    channels: tuple[str, ...]
+    inputs: Array
+    dt: float
+    wrench_intensity: Array
+    meas_var: Array
+    x0: Array
+    p0: Array
+    mass: float
+    inertia: Array
+    gravity: float = GRAVITY
+    mean: Array | None = None
+    cov: Array | None = None
+
+    def __post_init__(self) -> None:
+        self.mean = np.array(self.x0, float)
+        self.cov = np.diag(self.p0)
+        self._rebuild()
+
+    def _rebuild(self) -> None:
+        from pinquad.identify import kinematic_floor
+        from pinquad.ssm import NoiseModel, Observations, QuadSSM, Theta
+
+        n = self.inputs.shape[0]
+        obs = Observations(t=np.arange(n) * self.dt, dt=self.dt, inputs=self.inputs,
+                           channels=self.channels, ys=np.empty((0, 0)), x0=self.x0, p0=self.p0)
+        noise = NoiseModel(wrench=self.wrench_intensity, q_kin=kinematic_floor(self.dt),
+                           meas=self.meas_var)
+        self.model = QuadSSM(obs, Theta(self.mass, self.inertia, noise, self.gravity))
+
+    def set_params(self, mass: float, inertia: Array) -> None:
+        """Use new mass [kg] and inertia (3, 3) from step on."""
+        self.mass, self.inertia = float(mass), np.asarray(inertia, float)
+        self._rebuild()
+
+    def correct(self, k: int, y: Array) -> Array:
+        res = update(self.model, k, self.mean, self.cov, y)
+        self.mean, self.cov = res.mean, res.cov
+        return self.mean
+
+    def advance(self, k: int) -> None:
+        self.mean, self.cov, _ = predict(self.model, k, self.mean, self.cov)

@@ -24,7 +24,12 @@ from pinquad.control import ControllerGains, Reference, build_reference, control
 from pinquad.conventions import rotation_from_euler
 from pinquad.logs import FlightLog, LogMeta
 from pinquad.model import forward_dynamics, load_model
-from pinquad.navigation import NavTuning, SensorANavModel, StreamingNavFilter
+from pinquad.navigation import (
+    ModelBasedNavFilter,
+    NavTuning,
+    SensorANavModel,
+    StreamingNavFilter,
+)
 from pinquad.params import (
     FROZEN_SENSOR_NOISE,
     PAPER_SCENARIO,
@@ -35,7 +40,8 @@ from pinquad.params import (
     Vehicle,
     process_noise_for,
 )
-from pinquad.sensors import SENSOR_A, SENSORS, measure, measure_one
+from pinquad.sensors import SENSORS, measure_one
+from pinquad.sources import SOURCE_CHANNELS
 
 Array = NDArray[np.float64]
 
@@ -63,6 +69,9 @@ class Disturbance:
 class SimConfig:
     """Everything a simulated flight depends on besides the random generator.
 
+    sensor: the sensor set the vehicle flies with (A, B or C); its samples feed the
+    onboard filter and are what the log records, so the logged actuation is a function
+    of the logged measurements (closed-loop data the direct EM method can use).
     controller_mass [kg] / controller_inertia (3, 3): the controller's initial
     estimates (default: the truth). thrust_max_factor: maximum thrust as a multiple of
     the true weight. settle_time [s]: flight time after the last waypoint is reached.
@@ -70,6 +79,7 @@ class SimConfig:
 
     vehicle: Vehicle = PAPER_VEHICLE
     scenario: Scenario = PAPER_SCENARIO
+    sensor: str = "A"
     process_noise: ProcessNoise | None = None
     sensor_noise: SensorNoise = FROZEN_SENSOR_NOISE
     nav_tuning: str = "tuned"
@@ -113,8 +123,8 @@ class Flight:
     t (N,) [s]; states (N, 12) true; inputs (N, 4) commanded [F, M] (what the log
     records); applied (N, 4) actuation including noise and disturbances; specific_force
     (N, 3) true body specific force [m/s^2]; nav_state (N, 12) onboard sensor-A EKF
-    estimate; nav_cov (N, 12, 12); contact (N,) bool; reference; sensor_a the onboard
-    measurements; waypoint_miss (M,) closest approach to each waypoint [m]; crashed;
+    estimate; nav_cov (N, 12, 12); contact (N,) bool; reference; onboard: the
+    samples of the flight's sensor set; waypoint_miss (M,) closest approach to each waypoint [m]; crashed;
     lifted_off; controller_params (N, 4): mass and inertia diagonal the controller used.
     """
 
@@ -127,12 +137,35 @@ class Flight:
     nav_cov: Array
     contact: NDArray[np.bool_]
     reference: Reference
-    sensor_a: FlightSoFar
+    onboard: FlightSoFar
     waypoint_miss: Array
     crashed: bool
     lifted_off: bool
     controller_params: Array
     config: SimConfig
+
+
+def _onboard_filter(config: SimConfig, suite, buf: FlightSoFar, inputs: Array, x0: Array,
+                    mass: float, inertia: Array) -> StreamingNavFilter | ModelBasedNavFilter:
+    """The filter the vehicle flies with: the paper's sensor-A EKF for sensor A, the
+    model-based EKF for B and C."""
+    dt = config.scenario.dt
+    g = config.vehicle.gravity
+    if config.sensor == "A":
+        tuning = (NavTuning.paper() if config.nav_tuning == "paper"
+                  else NavTuning.tuned(dt, config.sensor_noise))
+        return StreamingNavFilter.start(SensorANavModel(buf.accel, dt, tuning, x0=x0.copy(),
+                                                        gravity=g))
+    channels = SOURCE_CHANNELS[config.sensor]
+    nz = config.sensor_noise
+    per = {"pos": nz.position**2, "vel": nz.velocity**2, "euler": nz.euler**2,
+           "gyro": nz.gyro**2}
+    wrench = config.noise().wrench_intensity()
+    wrench[0:2] = 1e-6 * wrench[2]
+    return ModelBasedNavFilter(
+        channels=channels, inputs=inputs, dt=dt, wrench_intensity=wrench,
+        meas_var=np.concatenate([np.full(3, per[c]) for c in channels]), x0=x0.copy(),
+        p0=np.full(12, 0.05**2), mass=mass, inertia=inertia, gravity=g)
 
 
 def _wrench_noise_std(noise: ProcessNoise, dt: float) -> Array:
@@ -157,14 +190,15 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
     ctrl_inertia = (np.array(veh.inertia, float) if config.controller_inertia is None
                     else np.array(config.controller_inertia, float))
     thrust_max = config.thrust_max_factor * veh.mass * g
-    suite_a = SENSORS["A"].__class__(**{**SENSOR_A.__dict__, "noise": config.sensor_noise})
+    suite = SENSORS[config.sensor]
+    suite = suite.__class__(**{**suite.__dict__, "noise": config.sensor_noise})
     gyro_bias = np.zeros(3)
     for dist in config.disturbances:
         if dist.gyro_bias is not None:
             gyro_bias = gyro_bias + dist.gyro_bias
 
     states = np.empty((n, 12))
-    inputs = np.empty((n, 4))
+    inputs = np.zeros((n, 4))
     applied = np.empty((n, 4))
     spec = np.empty((n, 3))
     nav_cov = np.empty((n, 12, 12))
@@ -177,11 +211,10 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
         accel=np.full((n, 3), np.nan), nav_state=np.full((n, 12), np.nan),
         contact=np.zeros(n, dtype=bool),
     )
-    tuning = NavTuning.paper() if config.nav_tuning == "paper" else NavTuning.tuned(dt, config.sensor_noise)
     x = np.zeros(12)
     x[0:3] = sc.start
     x[8] = sc.yaw
-    nav = StreamingNavFilter.start(SensorANavModel(buf.accel, dt, tuning, x0=x.copy(), gravity=g))
+    nav = _onboard_filter(config, suite, buf, inputs, x, ctrl_mass, ctrl_inertia)
     resting = x[2] <= 0.0
     lifted = not resting
     crashed = False
@@ -189,15 +222,17 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
     for k in range(n):
         states[k] = x
         contact[k] = resting
-        # Specific force of the step about to be taken: f_b = R^T (v' + g e3).
         u_noise = noise_std * rng.standard_normal(4)
-        meas_state = x.copy()
-        # Measure position/gyro now; the accelerometer sample belongs to step k -> k+1.
-        m_k = measure_one(suite_a, k, meas_state, np.zeros(3), rng)
-        gyro_meas = m_k.gyro + gyro_bias if not np.isnan(m_k.gyro).any() else m_k.gyro
-        x_est = nav.correct(k, m_k.position, gyro_meas)
-        buf.position[k] = m_k.position
+        m_k = measure_one(suite, k, x, np.zeros(3), rng)
+        gyro_meas = m_k.gyro + gyro_bias
+        buf.position[k], buf.velocity[k], buf.euler[k] = m_k.position, m_k.velocity, m_k.euler
         buf.gyro[k] = gyro_meas
+        if isinstance(nav, StreamingNavFilter):
+            x_est = nav.correct(k, m_k.position, gyro_meas)
+        else:
+            blocks = {"pos": m_k.position, "vel": m_k.velocity, "euler": m_k.euler,
+                      "gyro": gyro_meas}
+            x_est = nav.correct(k, np.concatenate([blocks[c] for c in nav.channels]))
         buf.nav_state[k] = x_est
         nav_cov[k] = nav.cov
         buf.contact[k] = resting
@@ -205,6 +240,8 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
             upd = on_step(k, buf)
             if upd is not None:
                 ctrl_mass, ctrl_inertia = float(upd[0]), np.array(upd[1], float)
+                if isinstance(nav, ModelBasedNavFilter):
+                    nav.set_params(ctrl_mass, ctrl_inertia)
         ctrl_params[k] = [ctrl_mass, *np.diag(ctrl_inertia)]
         out = control_step(x_est, k, ref, config.gains, ctrl_mass, ctrl_inertia, g,
                            (0.0, thrust_max))
@@ -228,9 +265,10 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
         rot = rotation_from_euler(x[6:9])
         if resting and xdot[5] <= 0.0:
             xdot = np.zeros(12)
+        # The accelerometer sample of step k is the specific force of the step k -> k+1.
         spec[k] = rot.T @ (xdot[3:6] + np.array([0.0, 0.0, g]))
-        m_acc = np.nan if suite_a.accel_every <= 0 or k % suite_a.accel_every else 0.0
-        buf.accel[k] = spec[k] + config.sensor_noise.accel * rng.standard_normal(3) + m_acc
+        if suite.accel_every > 0 and k % suite.accel_every == 0:
+            buf.accel[k] = spec[k] + config.sensor_noise.accel * rng.standard_normal(3)
         nav.advance(k)
         x_next = x + dt * xdot
         if x_next[2] < 0.0 or (x_next[2] <= 0.0 and x_next[5] <= 0.0):
@@ -249,39 +287,24 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
     return Flight(
         t=ref.t.copy(), states=states, inputs=inputs, applied=applied, specific_force=spec,
         nav_state=buf.nav_state.copy(), nav_cov=nav_cov, contact=contact, reference=ref,
-        sensor_a=buf, waypoint_miss=dists.min(axis=1), crashed=crashed, lifted_off=lifted,
+        onboard=buf, waypoint_miss=dists.min(axis=1), crashed=crashed, lifted_off=lifted,
         controller_params=ctrl_params, config=config,
     )
 
 
-def flight_log(flight: Flight, sensor: str, rng: np.random.Generator,
-               mass_guess: float | None = None, inertia_guess: Array | None = None) -> FlightLog:
-    """The log a sensor set records of a flight: measurements (N rows, NaN where not
-    sampled), commanded thrust and torques, contact flags and the truth.
-
-    Sensor A's log holds the very samples the onboard filter used; B and C are drawn
-    from the true states with fresh noise from ``rng``.
-    """
+def flight_log(flight: Flight, mass_guess: float | None = None,
+               inertia_guess: Array | None = None) -> FlightLog:
+    """The log of a flight: the samples of the sensor set it flew with (NaN where not
+    sampled), the commanded thrust and torques, contact flags and the truth."""
     cfg = flight.config
-    if sensor == "A":
-        buf = flight.sensor_a
-        position, velocity = buf.position.copy(), np.full_like(buf.position, np.nan)
-        euler, gyro, accel = np.full_like(buf.position, np.nan), buf.gyro.copy(), buf.accel.copy()
-    else:
-        suite = SENSORS[sensor].__class__(**{**SENSORS[sensor].__dict__, "noise": cfg.sensor_noise})
-        meas = measure(suite, flight.states, flight.specific_force, rng)
-        bias = np.zeros(3)
-        for dist in cfg.disturbances:
-            if dist.gyro_bias is not None:
-                bias = bias + dist.gyro_bias
-        position, velocity, euler = meas.position, meas.velocity, meas.euler
-        gyro, accel = meas.gyro + bias, meas.accel
+    buf = flight.onboard
     meta = LogMeta(vehicle=cfg.vehicle.name, mass_guess=mass_guess,
                    inertia_guess=None if inertia_guess is None else np.asarray(inertia_guess),
-                   gravity=cfg.vehicle.gravity, source=f"simulation (sensor {sensor})")
+                   gravity=cfg.vehicle.gravity, source=f"simulation (sensor {cfg.sensor})")
     return FlightLog(
-        t=flight.t.copy(), position=position, velocity=velocity, euler=euler, gyro=gyro,
-        accel=accel, thrust=flight.inputs[:, 0].copy(), torque=flight.inputs[:, 1:4].copy(),
+        t=flight.t.copy(), position=buf.position.copy(), velocity=buf.velocity.copy(),
+        euler=buf.euler.copy(), gyro=buf.gyro.copy(), accel=buf.accel.copy(),
+        thrust=flight.inputs[:, 0].copy(), torque=flight.inputs[:, 1:4].copy(),
         contact=flight.contact.copy(), truth=flight.states.copy(), meta=meta,
     )
 
