@@ -31,11 +31,11 @@ PAPER_R0 = 0.00707
 class EMResult:
     """Outcome of one EM run.
 
-    theta: final parameters; posterior: the last E-step's posterior (at the parameters
-    before the last M-step); mass (I+1,), inertia_diag (I+1, 3): the parameter after
-    each iteration (index 0 = initial); loglik (I,): E-step log-likelihood per
-    iteration [nats]; converged; decreases: iterations whose log-likelihood fell by
-    more than 1e-6 relative.
+    theta: final parameters; posterior: the E-step at theta; mass (I,), inertia_diag
+    (I, 3): the iterates (index 0 = initial guess, last = theta); loglik (I,): log
+    p(y | iterate) [nats]; converged; decreases: iterations whose log-likelihood fell by
+    more than 1e-6 relative; e_steps: smoother runs used (over-relaxation may reject
+    some).
     """
 
     theta: Theta
@@ -45,6 +45,7 @@ class EMResult:
     loglik: Array
     converged: bool
     decreases: tuple[int, ...]
+    e_steps: int = 0
 
     @property
     def iterations(self) -> int:
@@ -77,68 +78,68 @@ def _unpack(vec: Array, like: Theta) -> Theta:
 
 
 def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
-           max_iterations: int = 60, tol: float = 1e-6, tol_loglik: float = 1e-7,
+           max_iterations: int = 100, tol: float = 1e-6, tol_loglik: float = 1e-6,
            accelerate: bool = True,
            on_iteration: Callable[[int, Theta], None] | None = None) -> EMResult:
     """Run EM from theta0 (see module docstring).
 
-    With ``accelerate``, after the first plain step the structured-noise iterations are
-    extrapolated with SQUAREM (Varadhan and Roland 2008, scheme S3) in log-parameter
-    space: from theta0, theta1 = F(theta0), theta2 = F(theta1), r = theta1 - theta0,
-    v = theta2 - 2 theta1 + theta0, alpha = min(-|r|/|v|, -1),
-    theta' = theta0 - 2 alpha r + alpha^2 v, then one stabilising EM step from theta';
-    if the log-likelihood at theta' is below that at theta1 the plain theta2 is used.
-    Every E-step counts as one iteration and is recorded.
+    With ``accelerate`` (regressor M-step only) the steps are over-relaxed in
+    log-parameter space (adaptive over-relaxed EM, Salakhutdinov and Roweis 2003):
+    theta_p = theta_t * (M(theta_t) / theta_t)^eta; if log p(y | theta_p) >= log p(y |
+    theta_t) the step is taken and eta grows by 1.5x (at most 16), otherwise eta falls
+    back to 1 and the plain EM step M(theta_t) is taken. Every E-step counts towards
+    ``max_iterations``; the recorded history holds the accepted iterates only, so the
+    recorded log-likelihood is the EM sequence's.
     """
     masses = [theta0.mass]
     inertias = [np.diag(theta0.inertia).copy()]
     logliks: list[float] = []
-    state: dict[str, Posterior] = {}
+    n_esteps = 0
+    over_relax = accelerate and getattr(mstep, "__name__", "") == "regressor_mstep"
 
-    def em_map(theta: Theta) -> tuple[Theta, float]:
-        post = smoother(QuadSSM(obs, theta), obs.ys)
-        state["post"] = post
-        new = mstep(post, obs, theta).theta
+    def e_step(theta: Theta) -> Posterior:
+        nonlocal n_esteps
+        n_esteps += 1
+        return smoother(QuadSSM(obs, theta), obs.ys)
+
+    def record(theta: Theta, post: Posterior) -> None:
         logliks.append(post.loglik)
-        masses.append(new.mass)
-        inertias.append(np.diag(new.inertia).copy())
-        if on_iteration is not None:
-            on_iteration(len(logliks) - 1, new)
-        return new, post.loglik
+        masses.append(theta.mass)
+        inertias.append(np.diag(theta.inertia).copy())
 
-    def settled(a: Theta, b: Theta, ll_a: float, ll_b: float) -> bool:
-        ll_change = abs(ll_a - ll_b) / max(abs(ll_b), 1.0)
-        return relative_change(a, b) < tol and ll_change < tol_loglik
-
-    theta, _ = em_map(theta0)
+    theta = theta0
+    post = e_step(theta)
+    eta = 1.0
     converged = False
-    can_extrapolate = accelerate and mstep.__name__ == "regressor_mstep"
-    prev_ll = -np.inf
-    while len(logliks) < max_iterations and not converged:
-        if not can_extrapolate or len(logliks) + 3 > max_iterations:
-            new, ll = em_map(theta)
-            converged = settled(new, theta, ll, prev_ll)
-            theta, prev_ll = new, ll
-            continue
-        t1, ll0 = em_map(theta)
-        if settled(t1, theta, ll0, prev_ll):
-            theta, converged = t1, True
+    while n_esteps < max_iterations:
+        proposal = mstep(post, obs, theta).theta
+        step_theta = proposal
+        if over_relax and eta > 1.0 and theta.noise.fixed_q is None:
+            p_old, p_new = _pack(theta), _pack(proposal)
+            step_theta = _unpack(p_old + eta * (p_new - p_old), proposal)
+        new_post = e_step(step_theta)
+        if step_theta is not proposal and not (new_post.loglik >= post.loglik):
+            eta = 1.0
+            step_theta = proposal
+            if n_esteps >= max_iterations:
+                break
+            new_post = e_step(step_theta)
+        elif over_relax and theta.noise.fixed_q is None:
+            eta = min(eta * 1.5, 16.0)
+        ll_change = abs(new_post.loglik - post.loglik) / max(abs(post.loglik), 1.0)
+        change = relative_change(step_theta, theta)
+        # the posterior recorded with an iterate is the E-step at that iterate
+        record(theta, post)
+        if on_iteration is not None:
+            on_iteration(len(logliks) - 1, step_theta)
+        theta, post = step_theta, new_post
+        if change < tol and ll_change < tol_loglik:
+            converged = True
             break
-        t2, ll1 = em_map(t1)
-        p0, p1, p2 = _pack(theta), _pack(t1), _pack(t2)
-        r = p1 - p0
-        v = p2 - 2.0 * p1 + p0
-        alpha = min(-float(np.linalg.norm(r)) / max(float(np.linalg.norm(v)), 1e-300), -1.0)
-        jump = _unpack(p0 - 2.0 * alpha * r + alpha * alpha * v, t2)
-        t3, ll_jump = em_map(jump)
-        if np.isfinite(ll_jump) and ll_jump >= ll1:
-            converged = settled(t3, jump, ll_jump, ll1)
-            theta, prev_ll = t3, ll_jump
-        else:
-            theta, prev_ll = t2, ll1
+    record(theta, post)
     ll = np.asarray(logliks)
-    start = 1 if theta0.noise.fixed_q is not None and theta.noise.fixed_q is None else 0
+    start = 1 if theta0.noise.fixed_q is not None else 0
     decreases = tuple(int(i) for i in range(start + 1, ll.size)
                       if ll[i] < ll[i - 1] - 1e-6 * abs(ll[i - 1]))
-    return EMResult(theta, state["post"], np.asarray(masses), np.vstack(inertias), ll,
-                    converged, decreases)
+    return EMResult(theta, post, np.asarray(masses[1:]), np.vstack(inertias[1:]), ll,
+                    converged, decreases, n_esteps)

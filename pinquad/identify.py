@@ -145,8 +145,14 @@ def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> Regre
     sig[:, 12:24, 12:24] = post.cov[idx + 1]
     sig[:, 12:24, 0:12] = post.cross_cov[idx]
     sig[:, 0:12, 12:24] = np.transpose(post.cross_cov[idx], (0, 2, 1))
-    tmp = np.einsum("kpaz,kzw->kpaw", d, sig)
-    a = np.einsum("kaq,kap->apq", y, y) + np.einsum("kpaw,kqaw->apq", tmp, d)
+    # Only these columns of z = (x_k, x_{k+1}) enter the regressor (v, Theta, omega of
+    # x_k; v, omega of x_{k+1}); restricting to them makes the batched products small.
+    cols = np.array([3, 4, 5, 6, 7, 8, 9, 10, 11, 15, 16, 17, 21, 22, 23])
+    d_small = d[:, :, :, cols].reshape(idx.size, 24, cols.size)
+    sig_small = sig[:, cols[:, None], cols[None, :]]
+    outer = (d_small @ sig_small) @ np.transpose(d_small, (0, 2, 1))
+    outer = outer.sum(axis=0).reshape(4, 6, 4, 6)
+    a = np.einsum("kaq,kap->apq", y, y) + np.einsum("paqa->apq", outer)
     b = np.einsum("kap,ka->ap", y, tau)
     c = np.einsum("ka,ka->a", tau, tau)
     return RegressorStats(y, tau, a, b, c, int(idx.size))
