@@ -131,3 +131,47 @@ def dense_posterior(model: LinearGaussianModel, ys: Array) -> DensePosterior:
     _, logdet = np.linalg.slogdet(s)
     loglik = -0.5 * (innov @ np.linalg.solve(s, innov) + logdet + len(rows) * math.log(2 * math.pi))
     return DensePosterior(mean.reshape(n_steps, n), cov, float(loglik))
+
+
+@dataclass(frozen=True)
+class LinearMStep:
+    """Result of :func:`linear_em_mstep`: the updated model as ``theta``."""
+
+    theta: LinearGaussianModel
+
+
+def linear_em_mstep(post, data, model: LinearGaussianModel) -> LinearMStep:
+    """Shumway-Stoffer M-step for A, Q and a diagonal R (C, m0, P0 kept).
+
+    With smoothed means m_k, covariances P_k and C_k = Cov(x_k, x_{k-1} | y):
+    S11 = sum_{k>=1} P_k + m_k m_k^T, S10 = sum_{k>=1} C_k + m_k m_{k-1}^T,
+    S00 = sum_{k<N-1} P_k + m_k m_k^T;  A = S10 S00^{-1},  Q = (S11 - A S10^T) / (N-1);
+    r_i = mean over observed k of (y_ki - c_i m_k)^2 + c_i P_k c_i^T.
+    ``data`` is anything with a ``ys`` (N, m) attribute.
+    """
+    m, p, cross = post.mean, post.cov, post.cross_cov
+    ys = data.ys
+    s11 = np.einsum("ki,kj->ij", m[1:], m[1:]) + p[1:].sum(axis=0)
+    s10 = np.einsum("ki,kj->ij", m[1:], m[:-1]) + cross.sum(axis=0)
+    s00 = np.einsum("ki,kj->ij", m[:-1], m[:-1]) + p[:-1].sum(axis=0)
+    a = s10 @ np.linalg.inv(s00)
+    q = (s11 - a @ s10.T) / (m.shape[0] - 1)
+    q = 0.5 * (q + q.T)
+    r = np.array(np.diag(model.r), dtype=float)
+    for i in range(ys.shape[1]):
+        ok = ~np.isnan(ys[:, i])
+        c_i = model.c[i]
+        pred = m[ok] @ c_i
+        var = np.einsum("j,kjl,l->k", c_i, p[ok], c_i)
+        r[i] = float(np.mean((ys[ok, i] - pred) ** 2 + var))
+    new = LinearGaussianModel(a=a, c=model.c, q=q, r=np.diag(r), m0=model.m0, p0=model.p0,
+                              b=model.b, inputs=model.inputs)
+    return LinearMStep(new)
+
+
+def linear_change(a: LinearGaussianModel, b: LinearGaussianModel) -> float:
+    """Largest relative change of A, Q, R entries between two models."""
+    out = 0.0
+    for x, y in ((a.a, b.a), (a.q, b.q), (a.r, b.r)):
+        out = max(out, float(np.max(np.abs(x - y)) / max(float(np.max(np.abs(y))), 1e-300)))
+    return out

@@ -76,8 +76,8 @@ def build_reference(scenario: Scenario, final_hover: float | None = None) -> Ref
     # Rise clear of the floor first: the pause lets the vehicle settle at take-off.
     for i in range(1, points.shape[0]):
         d = points[i] - points[i - 1]
-        dur = max(1.875 * float(np.linalg.norm(d)) / scenario.cruise_speed, 1.0)
-        n_seg = int(round(dur / dt))
+        n_seg = int(round(max(1.875 * float(np.linalg.norm(d)) / scenario.cruise_speed, 1.0) / dt))
+        dur = n_seg * dt
         s = np.arange(n_seg) / n_seg
         sp, sv, sa = _min_jerk(s)
         pieces_t.append(t0 + s * dur)
@@ -92,7 +92,8 @@ def build_reference(scenario: Scenario, final_hover: float | None = None) -> Ref
         pieces_v.append(np.zeros((n_h, 3)))
         pieces_a.append(np.zeros((n_h, 3)))
         t0 += n_h * dt
-    t = np.concatenate(pieces_t)
+    # One grid for everything: the k-th sample is at k dt exactly.
+    t = np.arange(sum(p.shape[0] for p in pieces_p)) * dt
     return Reference(
         t=t, pos=np.vstack(pieces_p), vel=np.vstack(pieces_v), acc=np.vstack(pieces_a),
         yaw=np.full(t.shape, scenario.yaw), waypoint_times=np.asarray(wp_times),

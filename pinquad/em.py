@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,7 +81,9 @@ def _unpack(vec: Array, like: Theta) -> Theta:
 def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
            max_iterations: int = 100, tol: float = 1e-6, tol_loglik: float = 1e-6,
            accelerate: bool = True,
-           on_iteration: Callable[[int, Theta], None] | None = None) -> EMResult:
+           on_iteration: Callable[[int, Theta], None] | None = None,
+           model_factory: Callable[[Any, Any], StateSpaceModel] = QuadSSM,
+           distance: Callable[[Any, Any], float] = relative_change) -> EMResult:
     """Run EM from theta0 (see module docstring).
 
     With ``accelerate`` (regressor M-step only) the steps are over-relaxed in
@@ -90,22 +93,35 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     back to 1 and the plain EM step M(theta_t) is taken. Every E-step counts towards
     ``max_iterations``; the recorded history holds the accepted iterates only, so the
     recorded log-likelihood is the EM sequence's.
+
+    ``model_factory(obs, theta)`` builds the E-step's model and ``distance`` measures the
+    parameter change; the defaults are the quadcopter's, other models (the
+    linear-Gaussian test model) pass their own.
     """
-    masses = [theta0.mass]
-    inertias = [np.diag(theta0.inertia).copy()]
+    is_quad = isinstance(theta0, Theta)
+
+    def mass_of(theta: Any) -> float:
+        return theta.mass if is_quad else float("nan")
+
+    def inertia_of(theta: Any) -> Array:
+        return np.diag(theta.inertia).copy() if is_quad else np.full(3, np.nan)
+
+    masses = [mass_of(theta0)]
+    inertias = [inertia_of(theta0)]
     logliks: list[float] = []
     n_esteps = 0
-    over_relax = accelerate and getattr(mstep, "__name__", "") == "regressor_mstep"
+    over_relax = (accelerate and is_quad
+                  and getattr(mstep, "__name__", "") == "regressor_mstep")
 
     def e_step(theta: Theta) -> Posterior:
         nonlocal n_esteps
         n_esteps += 1
-        return smoother(QuadSSM(obs, theta), obs.ys)
+        return smoother(model_factory(obs, theta), obs.ys)
 
     def record(theta: Theta, post: Posterior) -> None:
         logliks.append(post.loglik)
-        masses.append(theta.mass)
-        inertias.append(np.diag(theta.inertia).copy())
+        masses.append(mass_of(theta))
+        inertias.append(inertia_of(theta))
 
     theta = theta0
     post = e_step(theta)
@@ -127,7 +143,7 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
         elif over_relax and theta.noise.fixed_q is None:
             eta = min(eta * 1.5, 16.0)
         ll_change = abs(new_post.loglik - post.loglik) / max(abs(post.loglik), 1.0)
-        change = relative_change(step_theta, theta)
+        change = distance(step_theta, theta)
         # the posterior recorded with an iterate is the E-step at that iterate
         record(theta, post)
         if on_iteration is not None:
@@ -138,7 +154,7 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
             break
     record(theta, post)
     ll = np.asarray(logliks)
-    start = 1 if theta0.noise.fixed_q is not None else 0
+    start = 1 if is_quad and theta0.noise.fixed_q is not None else 0
     decreases = tuple(int(i) for i in range(start + 1, ll.size)
                       if ll[i] < ll[i - 1] - 1e-6 * abs(ll[i - 1]))
     return EMResult(theta, post, np.asarray(masses[1:]), np.vstack(inertias[1:]), ll,

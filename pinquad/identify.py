@@ -208,12 +208,38 @@ def regressor_mstep(post: Posterior, obs: Observations, theta: Theta) -> MStepRe
         grad_i = 0.5 * np.sum(dq[:, 1:4] / q[:, None], axis=0) - 1.0 / inertia
         return float(0.5 * np.sum(np.log(q)) - np.sum(np.log(inertia))), (t_mat.T @ grad_i) * d
 
-    start = np.log(_d_from_inertia(np.diag(theta.inertia)))
-    bounds = [(s - 12.0, s + 12.0) for s in start]
-    res = minimize(objective, start, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 1000})
-    best = res.x if res.fun <= objective(start)[0] else start
-    inertia = t_mat @ np.exp(best)
+    # Start from the unweighted least-squares solution of the three torque rows (exact
+    # for noise-free data, where the profiled objective is unbounded below) and from the
+    # previous inertia; keep the better.
+    a_sum = a_t[:, 1:4, 1:4].sum(axis=0)
+    rhs = (b_t[:, 1:4] - a_t[:, 1:4, 0] * mass).sum(axis=0)
+    starts = [np.log(_d_from_inertia(np.diag(theta.inertia)))]
+    try:
+        i_ls = np.linalg.solve(a_sum, rhs)
+        if np.all(i_ls > 0):
+            pi_ls = np.concatenate([[mass], i_ls])
+            q_ls = np.einsum("p,apq,q->a", pi_ls, a_t, pi_ls) - 2.0 * b_t @ pi_ls + c_t
+            if np.all(q_ls <= 1e-12 * c_t):
+                starts = [np.log(_d_from_inertia(i_ls))]
+                exact = i_ls
+            else:
+                starts.append(np.log(_d_from_inertia(i_ls)))
+                exact = None
+        else:
+            exact = None
+    except np.linalg.LinAlgError:
+        exact = None
+    best, best_val = starts[0], objective(starts[0])[0]
+    if exact is None:
+        for start in starts:
+            bounds = [(s0 - 30.0, s0 + 30.0) for s0 in start]
+            res = minimize(objective, start, jac=True, method="L-BFGS-B", bounds=bounds,
+                           options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 1000})
+            for cand in (start, res.x):
+                val = objective(cand)[0]
+                if val < best_val:
+                    best, best_val = cand, val
+    inertia = exact if exact is not None else t_mat @ np.exp(best)
     pi = np.concatenate([[mass], inertia])
     row_var = np.maximum(_row_sums(stats, pi) / n, 0.0)
     noise = update_noise(post, obs, theta, row_var)

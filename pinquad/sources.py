@@ -44,7 +44,7 @@ def sensor_a_estimate(log: FlightLog, tuning: NavTuning | None = None) -> Array:
 def observations(log: FlightLog, source: str) -> Observations:
     """Build the E-step's observations of a log for source A, B or C.
 
-    Transitions out of a contact row (log.contact) are excluded from the M-step.
+    Transitions into or out of a contact row (log.contact) are excluded from the M-step.
     """
     if log.thrust is None or log.torque is None:
         raise ValueError("the log has no thrust/torque actuation; convert rotor speeds first")
@@ -67,7 +67,9 @@ def observations(log: FlightLog, source: str) -> Observations:
             x0[sl] = _first_valid(ys[:, 3 * i:3 * i + 3])
     exclude = np.zeros(log.n, dtype=bool)
     if log.contact is not None:
+        # a transition touching the floor at either end is not free flight
         exclude |= log.contact
+        exclude[:-1] |= log.contact[1:]
     inputs = np.column_stack([log.thrust, log.torque])
     return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
                         p0=p0, exclude=exclude)
