@@ -1,0 +1,554 @@
+"""Compiled E-step for :class:`~pinquad.ssm.QuadSSM`: EKF + RTS smoother in two numba calls.
+
+The same equations in the same algebraic form as the generic
+``estimators.rts.smooth(QuadSSM(obs, theta), obs.ys)``, so the same result up to
+rounding (the tests hold it to 1e-9 relative), some twenty times faster (about 5 us
+instead of 100 us per step on a 3,744-step flight), because EM runs hundreds of E-steps
+on logs of thousands of steps.
+
+Forward pass (``estimators.ekf``), steps k = 0 .. N-1, prior (m^-_0, P^-_0) =
+``QuadSSM.initial()`` = (x0, diag(p0)):
+
+    update over the observed (non-NaN) rows o of y_k, H[o] selecting state rows s(o):
+        nu = wrap(y_k[o] - m^-_k[s(o)])           (wrap only on Euler rows, to (-pi, pi])
+        S  = P^-_k[s(o), s(o)] + diag(r[o]),  S = L L^T
+        K  = P^- H[o]^T S^{-1},  m_k = m^- + K nu
+        P_k = A P^- A^T + K diag(r[o]) K^T,  A = I - K H[o]    (Joseph form, symmetrised)
+        log p(y) += -1/2 (|L^{-1} nu|^2 + 2 sum log L_ii + |o| log 2 pi)
+    predict (``QuadSSM.transition`` / ``QuadSSM.process_cov`` at the filtered mean):
+        m^-_{k+1} = m_k + dt f(m_k, u_k),  F_k = I + dt df/dx (m_k, u_k)
+        P^-_{k+1} = F_k P_k F_k^T + Q_k(m_k)                    (symmetrised)
+        Q_k = diag(fixed_q)  or  blockdiag(q_pos I3, dt (R/m) diag(S_f) (R/m)^T,
+                                           q_euler I3, dt I^{-1} diag(S_tau) I^{-1})
+
+Backward pass (``estimators.rts``), k = N-2 .. 0:
+
+    G_k = P_k F_k^T (P^-_{k+1})^{-1}            (Cholesky solve of P^-_{k+1} G^T = F_k P_k)
+    m^s_k = m_k + G_k (m^s_{k+1} - m^-_{k+1})
+    P^s_k = P_k + G_k (P^s_{k+1} - P^-_{k+1}) G_k^T           (symmetrised)
+    Cov(x_{k+1}, x_k | y) = P^s_{k+1} G_k^T
+
+No outlier gate (EM runs the generic path with ``gate_sigma=None`` too). Anything the
+kernels do not cover (another model class, a gate, a QuadSSM whose behaviour has moved
+away from these kernels) goes to the generic smoother instead.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from estimators.protocol import Posterior, StateSpaceModel
+from estimators.rts import smooth as generic_smooth
+from pinquad.ssm import QuadSSM
+
+Array = NDArray[np.float64]
+
+_N = 12
+_LOG_2PI = math.log(2.0 * math.pi)
+_TWO_PI = 2.0 * math.pi
+
+
+# Element loops instead of slice assignment: numba compiles a shape-mismatch error path
+# for every `a[k] = b`, which cost seconds of the first-call compile time.
+@njit(cache=True)
+def _fill(a, v):
+    for r in range(a.shape[0]):
+        for c in range(a.shape[1]):
+            a[r, c] = v
+
+
+@njit(cache=True)
+def _copy_vec(src, dst):
+    for r in range(src.shape[0]):
+        dst[r] = src[r]
+
+
+@njit(cache=True)
+def _copy_mat(src, dst):
+    for r in range(src.shape[0]):
+        for c in range(src.shape[1]):
+            dst[r, c] = src[r, c]
+
+
+@njit(cache=True)
+def _wrap(a):
+    # Same arithmetic as conventions.wrap_angle (Python and NumPy float modulo agree).
+    w = (a + math.pi) % _TWO_PI - math.pi
+    if w == -math.pi:
+        return math.pi
+    return w
+
+
+@njit(cache=True)
+def _transition(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac):
+    """x_next = x + dt f(x, u), jac = I + dt df/dx, f as in
+    pinquad.model.state_derivative_and_jacobian (written into x_next (12,), jac (12, 12))."""
+    phi, theta, psi = x[6], x[7], x[8]
+    wx, wy, wz = x[9], x[10], x[11]
+    sf, cf = math.sin(phi), math.cos(phi)
+    st, ct = math.sin(theta), math.cos(theta)
+    sp, cp = math.sin(psi), math.cos(psi)
+    tt = st / ct
+    f_over_m = u[0] / mass
+    _fill(jac, 0.0)
+    f = x_next  # holds f until the last loop turns it into x + dt f
+    f[0] = x[3]
+    f[1] = x[4]
+    f[2] = x[5]
+    jac[0, 3] = 1.0
+    jac[1, 4] = 1.0
+    jac[2, 5] = 1.0
+
+    f[3] = f_over_m * (cf * st * cp + sf * sp)
+    f[4] = f_over_m * (cf * st * sp - sf * cp)
+    f[5] = f_over_m * (cf * ct) - gravity
+    jac[3, 6] = f_over_m * (-sf * st * cp + cf * sp)
+    jac[3, 7] = f_over_m * (cf * ct * cp)
+    jac[3, 8] = f_over_m * (-cf * st * sp + sf * cp)
+    jac[4, 6] = f_over_m * (-sf * st * sp - cf * cp)
+    jac[4, 7] = f_over_m * (cf * ct * sp)
+    jac[4, 8] = f_over_m * (cf * st * cp + sf * sp)
+    jac[5, 6] = f_over_m * (-sf * ct)
+    jac[5, 7] = f_over_m * (-cf * st)
+
+    a = sf * wy + cf * wz
+    f[6] = wx + tt * a
+    f[7] = cf * wy - sf * wz
+    f[8] = a / ct
+    jac[6, 6] = tt * (cf * wy - sf * wz)
+    jac[6, 7] = a / (ct * ct)
+    jac[6, 9] = 1.0
+    jac[6, 10] = sf * tt
+    jac[6, 11] = cf * tt
+    jac[7, 6] = -sf * wy - cf * wz
+    jac[7, 10] = cf
+    jac[7, 11] = -sf
+    jac[8, 6] = (cf * wy - sf * wz) / ct
+    jac[8, 7] = a * st / (ct * ct)
+    jac[8, 10] = sf / ct
+    jac[8, 11] = cf / ct
+
+    iw0 = inertia[0, 0] * wx + inertia[0, 1] * wy + inertia[0, 2] * wz
+    iw1 = inertia[1, 0] * wx + inertia[1, 1] * wy + inertia[1, 2] * wz
+    iw2 = inertia[2, 0] * wx + inertia[2, 1] * wy + inertia[2, 2] * wz
+    r0 = u[1] - (wy * iw2 - wz * iw1)
+    r1 = u[2] - (wz * iw0 - wx * iw2)
+    r2 = u[3] - (wx * iw1 - wy * iw0)
+    for r in range(3):
+        f[9 + r] = inertia_inv[r, 0] * r0 + inertia_inv[r, 1] * r1 + inertia_inv[r, 2] * r2
+    # d(omega x I omega)/d omega = [omega]x I - [I omega]x, row by row
+    for c in range(3):
+        d0 = -wz * inertia[1, c] + wy * inertia[2, c]
+        d1 = wz * inertia[0, c] - wx * inertia[2, c]
+        d2 = -wy * inertia[0, c] + wx * inertia[1, c]
+        if c == 0:
+            d1 -= iw2
+            d2 += iw1
+        elif c == 1:
+            d0 += iw2
+            d2 -= iw0
+        else:
+            d0 -= iw1
+            d1 += iw0
+        for r in range(3):
+            jac[9 + r, 9 + c] = -(inertia_inv[r, 0] * d0 + inertia_inv[r, 1] * d1
+                                  + inertia_inv[r, 2] * d2)
+    for r in range(_N):
+        x_next[r] = x[r] + dt * f[r]
+        for c in range(_N):
+            jac[r, c] = dt * jac[r, c]
+        jac[r, r] += 1.0
+
+
+@njit(cache=True)
+def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
+    """Q (12, 12) of QuadSSM.process_cov at x, written into q."""
+    _fill(q, 0.0)
+    if use_fixed:
+        for i in range(_N):
+            q[i, i] = fixed_q[i]
+        return
+    for i in range(3):
+        q[i, i] = q_kin[i]
+        q[6 + i, 6 + i] = q_kin[3 + i]
+    sf, cf = math.sin(x[6]), math.cos(x[6])
+    st, ct = math.sin(x[7]), math.cos(x[7])
+    sp, cp = math.sin(x[8]), math.cos(x[8])
+    g = np.empty((3, 3))
+    g[0, 0] = ct * cp
+    g[0, 1] = sf * st * cp - cf * sp
+    g[0, 2] = cf * st * cp + sf * sp
+    g[1, 0] = ct * sp
+    g[1, 1] = sf * st * sp + cf * cp
+    g[1, 2] = cf * st * sp - sf * cp
+    g[2, 0] = -st
+    g[2, 1] = sf * ct
+    g[2, 2] = cf * ct
+    for r in range(3):
+        for c in range(3):
+            g[r, c] = g[r, c] / mass
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for j in range(3):
+                acc += (g[r, j] * s_f[j]) * g[c, j]
+            q[3 + r, 3 + c] = dt * acc
+            q[9 + r, 9 + c] = q_tau[r, c]
+
+
+@njit(cache=True)
+def _cholesky(a, p, low):
+    """Lower Cholesky factor of a[:p, :p] into low; False if not positive definite."""
+    for j in range(p):
+        d = a[j, j]
+        for m in range(j):
+            d -= low[j, m] * low[j, m]
+        if not d > 0.0:
+            return False
+        d = math.sqrt(d)
+        low[j, j] = d
+        for i in range(j + 1, p):
+            s = a[i, j]
+            for m in range(j):
+                s -= low[i, m] * low[j, m]
+            low[i, j] = s / d
+    return True
+
+
+@njit(cache=True)
+def _chol_solve(low, p, b):
+    """b[:p, :] <- (L L^T)^{-1} b[:p, :] in place (L = low[:p, :p]).
+
+    Row-oriented substitution: every update is a whole row of b (12 contiguous numbers),
+    which the compiler vectorises; per entry the arithmetic is that of column-wise
+    forward/back substitution.
+    """
+    ncol = b.shape[1]
+    for i in range(p):
+        for m in range(i):
+            lim = low[i, m]
+            for c in range(ncol):
+                b[i, c] -= lim * b[m, c]
+        d = low[i, i]
+        for c in range(ncol):
+            b[i, c] /= d
+    for i in range(p - 1, -1, -1):
+        for m in range(i + 1, p):
+            lmi = low[m, i]
+            for c in range(ncol):
+                b[i, c] -= lmi * b[m, c]
+        d = low[i, i]
+        for c in range(ncol):
+            b[i, c] /= d
+
+
+@njit(cache=True)
+def _mul(a, b, out):
+    """out = a @ b (12 x 12), skipping a's exact zeros (F and I - K H are mostly zeros;
+    adding 0 * b is exact, so skipping changes nothing)."""
+    for r in range(_N):
+        for c in range(_N):
+            out[r, c] = 0.0
+        for m in range(_N):
+            arm = a[r, m]
+            if arm != 0.0:
+                for c in range(_N):
+                    out[r, c] += arm * b[m, c]
+
+
+@njit(cache=True)
+def _sandwich(a, p, tmp, tmp_t, out):
+    """out = a p a^T for symmetric p, as a @ (a @ p)^T (two row-oriented products)."""
+    _mul(a, p, tmp)
+    for r in range(_N):
+        for c in range(_N):
+            tmp_t[r, c] = tmp[c, r]
+    _mul(a, tmp_t, out)
+
+
+@njit(cache=True)
+def _symmetrise(c, out):
+    """out = (c + c^T) / 2, as the generic path does after every covariance update."""
+    for r in range(_N):
+        for s in range(_N):
+            out[r, s] = 0.5 * (c[r, s] + c[s, r])
+
+
+@njit(cache=True)
+def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
+             state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau):
+    """EKF forward pass (see module docstring). Returns filtered and predicted means and
+    covariances, the transition Jacobians, the log-likelihood and the first step whose
+    innovation covariance was not positive definite (-1 if none)."""
+    n_steps, m = ys.shape
+    f_mean = np.empty((n_steps, _N))
+    f_cov = np.empty((n_steps, _N, _N))
+    p_mean = np.empty((n_steps, _N))
+    p_cov = np.empty((n_steps, _N, _N))
+    jacs = np.empty((max(n_steps - 1, 0), _N, _N))
+    mean = x0.copy()
+    cov = p0.copy()
+    idx = np.empty(m, dtype=np.int64)
+    sidx = np.empty(m, dtype=np.int64)
+    nu = np.empty(m)
+    white = np.empty(m)
+    s_mat = np.empty((m, m))
+    low = np.empty((m, m))
+    gain_t = np.empty((m, _N))
+    a_mat = np.empty((_N, _N))
+    tmp = np.empty((_N, _N))
+    tmp_t = np.empty((_N, _N))
+    new_cov = np.empty((_N, _N))
+    jac = np.empty((_N, _N))
+    q = np.empty((_N, _N))
+    x_next = np.empty(_N)
+    loglik = 0.0
+    for k in range(n_steps):
+        _copy_vec(mean, p_mean[k])
+        _copy_mat(cov, p_cov[k])
+        y = ys[k]
+        p = 0
+        for i in range(m):
+            if not math.isnan(y[i]):
+                idx[p] = i
+                sidx[p] = state_of_row[i]
+                p += 1
+        if p > 0:
+            # H selects state rows, so H P H^T and H P are plain gathers (exactly what the
+            # generic products with 0/1 entries give).
+            for a in range(p):
+                i = idx[a]
+                res = y[i] - mean[sidx[a]]
+                nu[a] = _wrap(res) if is_angle[i] else res
+                for b in range(p):
+                    s_mat[a, b] = cov[sidx[a], sidx[b]]
+                s_mat[a, a] += meas_var[i]
+            if not _cholesky(s_mat, p, low):
+                return f_mean, f_cov, p_mean, p_cov, jacs, loglik, k
+            quad = 0.0
+            logdet = 0.0
+            for a in range(p):
+                w = nu[a]
+                for b in range(a):
+                    w -= low[a, b] * white[b]
+                w = w / low[a, a]
+                white[a] = w
+                quad += w * w
+                logdet += math.log(low[a, a])
+            # K^T = S^{-1} (H P)
+            for a in range(p):
+                for c in range(_N):
+                    gain_t[a, c] = cov[sidx[a], c]
+            _chol_solve(low, p, gain_t[:p])
+            for a in range(p):
+                na = nu[a]
+                for c in range(_N):
+                    mean[c] += gain_t[a, c] * na
+            for r in range(_N):
+                for c in range(_N):
+                    a_mat[r, c] = 0.0
+                a_mat[r, r] = 1.0
+            for a in range(p):
+                for r in range(_N):
+                    a_mat[r, sidx[a]] -= gain_t[a, r]
+            _sandwich(a_mat, cov, tmp, tmp_t, new_cov)
+            # + K R K^T
+            for a in range(p):
+                ra = meas_var[idx[a]]
+                for r in range(_N):
+                    kr = gain_t[a, r] * ra
+                    for c in range(_N):
+                        new_cov[r, c] += kr * gain_t[a, c]
+            _symmetrise(new_cov, cov)
+            loglik += -0.5 * (quad + 2.0 * logdet + p * _LOG_2PI)
+        _copy_vec(mean, f_mean[k])
+        _copy_mat(cov, f_cov[k])
+        if k + 1 < n_steps:
+            _process_cov(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
+            _transition(mean, inputs[k], dt, mass, inertia, inertia_inv, gravity, x_next, jac)
+            _copy_mat(jac, jacs[k])
+            _sandwich(jac, cov, tmp, tmp_t, new_cov)
+            for r in range(_N):
+                for c in range(_N):
+                    new_cov[r, c] += q[r, c]
+            _symmetrise(new_cov, cov)
+            _copy_vec(x_next, mean)
+    return f_mean, f_cov, p_mean, p_cov, jacs, loglik, -1
+
+
+@njit(cache=True)
+def _backward(f_mean, f_cov, p_mean, p_cov, jacs):
+    """RTS backward pass with lag-one cross-covariances (see module docstring). Returns
+    smoothed means, covariances, cross-covariances and the first step whose predicted
+    covariance was not positive definite (-1 if none)."""
+    n_steps = f_mean.shape[0]
+    mean = np.empty((n_steps, _N))
+    cov = np.empty((n_steps, _N, _N))
+    cross = np.empty((max(n_steps - 1, 0), _N, _N))
+    _copy_vec(f_mean[n_steps - 1], mean[n_steps - 1])
+    _copy_mat(f_cov[n_steps - 1], cov[n_steps - 1])
+    low = np.empty((_N, _N))
+    gain_t = np.empty((_N, _N))
+    diff = np.empty((_N, _N))
+    gd = np.empty((_N, _N))
+    new_cov = np.empty((_N, _N))
+    out = np.empty((_N, _N))
+    acc = np.empty(_N)
+    for k in range(n_steps - 2, -1, -1):
+        pf = f_cov[k]
+        pp = p_cov[k + 1]
+        ps = cov[k + 1]
+        if not _cholesky(pp, _N, low):
+            return mean, cov, cross, k + 1
+        # G^T = Pp^{-1} (F P), Pp symmetric positive definite
+        _mul(jacs[k], pf, gain_t)
+        _chol_solve(low, _N, gain_t)
+        # m^s_k = m_k + G (m^s_{k+1} - m^-_{k+1}); G[r, j] = gain_t[j, r]
+        for c in range(_N):
+            acc[c] = 0.0
+        for j in range(_N):
+            dj = mean[k + 1, j] - p_mean[k + 1, j]
+            for c in range(_N):
+                acc[c] += gain_t[j, c] * dj
+        for c in range(_N):
+            mean[k, c] = f_mean[k, c] + acc[c]
+        # P^s_k = P + (G (Ps - Pp)) G^T
+        for r in range(_N):
+            for c in range(_N):
+                diff[r, c] = ps[r, c] - pp[r, c]
+        for r in range(_N):
+            for c in range(_N):
+                gd[r, c] = 0.0
+            for j in range(_N):
+                g = gain_t[j, r]
+                for c in range(_N):
+                    gd[r, c] += g * diff[j, c]
+        for r in range(_N):
+            for c in range(_N):
+                out[r, c] = 0.0
+            for j in range(_N):
+                g = gd[r, j]
+                for c in range(_N):
+                    out[r, c] += g * gain_t[j, c]
+            for c in range(_N):
+                new_cov[r, c] = pf[r, c] + out[r, c]
+        _symmetrise(new_cov, out)
+        _copy_mat(out, cov[k])
+        # Cov(x_{k+1}, x_k) = Ps G^T
+        for r in range(_N):
+            for c in range(_N):
+                out[r, c] = 0.0
+            for j in range(_N):
+                s = ps[r, j]
+                for c in range(_N):
+                    out[r, c] += s * gain_t[j, c]
+        _copy_mat(out, cross[k])
+    return mean, cov, cross, -1
+
+
+_PROBE = np.array([0.3, -0.2, 0.5, 0.4, -0.5, 0.6, 0.2, -0.3, 0.4, 0.5, -0.6, 0.7])
+
+
+def _kernel_inputs(model: QuadSSM, meas_dim: int) -> tuple | None:
+    """The model's constants as the kernels take them, computed as QuadSSM computes them;
+    None if its measurement matrix is not a row selector (the kernels rely on it)."""
+    obs, theta, body = model.obs, model.theta, model.body
+    h = obs.measurement_matrix()
+    if (h.shape != (meas_dim, _N) or np.count_nonzero(h) != meas_dim
+            or np.any(h.sum(axis=1) != 1.0)):
+        return None
+    state_of_row = np.argmax(h, axis=1).astype(np.int64)
+    is_angle = np.zeros(meas_dim, dtype=np.bool_)
+    is_angle[obs.angle_rows()] = True
+    nz = theta.noise
+    use_fixed = nz.fixed_q is not None
+    fixed_q = np.asarray(nz.fixed_q if use_fixed else np.zeros(_N), dtype=float)
+    # The same expression as QuadSSM.__init__, so that Q's torque block is bit-identical.
+    q_tau = obs.dt * body.inertia_inv @ np.diag(nz.wrench[3:6]) @ body.inertia_inv
+    return (float(obs.dt), float(body.mass), np.ascontiguousarray(body.inertia, dtype=float),
+            np.ascontiguousarray(body.inertia_inv, dtype=float), float(body.gravity),
+            np.ascontiguousarray(nz.meas, dtype=float), state_of_row, is_angle, use_fixed,
+            fixed_q, np.ascontiguousarray(nz.q_kin, dtype=float),
+            np.ascontiguousarray(nz.wrench[0:3], dtype=float), np.ascontiguousarray(q_tau))
+
+
+def _close(ours: Array, ref: Array) -> bool:
+    """Equal to rounding, on the scale of the whole array (Q's off-diagonal entries are
+    cancellation noise of order 1e-16 of its diagonal, in either evaluation order)."""
+    return bool(np.all(np.abs(ours - ref) <= 1e-12 * max(float(np.max(np.abs(ref))), 1e-300)))
+
+
+def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
+    """Whether the kernels still compute what ``model`` computes (pinquad/ssm.py may grow
+    new terms): transition, Jacobian, Q, H, R and the wrapped residual at a probe state,
+    at the first and the last transition."""
+    (dt, mass, inertia, inertia_inv, gravity, meas_var, state_of_row, is_angle, use_fixed,
+     fixed_q, q_kin, s_f, q_tau) = consts
+    n_steps = model.obs.n
+    x = np.asarray(model.obs.x0, dtype=float) + _PROBE
+    x_next, jac, q = np.empty(_N), np.empty((_N, _N)), np.empty((_N, _N))
+    for k in {0, max(n_steps - 2, 0)}:
+        ref_x, ref_jac = model.transition(x, k)
+        u = np.ascontiguousarray(model.obs.inputs[k], dtype=float)
+        _transition(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
+        _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
+        ref_q = model.process_cov(x, k)
+        y_pred, h = model.measure(x, k)
+        if not (_close(x_next, ref_x) and _close(jac, ref_jac) and _close(q, ref_q)
+                and np.array_equal(y_pred, x[state_of_row])
+                and np.array_equal(h[np.arange(h.shape[0]), state_of_row],
+                                   np.ones(h.shape[0]))
+                and np.count_nonzero(h) == h.shape[0]
+                and np.array_equal(model.meas_cov(k), np.diag(meas_var))):
+            return False
+    y = y_pred + np.linspace(-7.0, 7.0, y_pred.shape[0])
+    res = y - y_pred
+    ours = np.array([_wrap(r) if a else r for r, a in zip(res, is_angle, strict=True)])
+    return bool(np.array_equal(model.residual(y, y_pred), ours))
+
+
+def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = None
+                ) -> Posterior:
+    """EKF + RTS smoother of a :class:`~pinquad.ssm.QuadSSM`, compiled (module docstring).
+
+    A drop-in for ``estimators.rts.smooth`` (e.g. as ``run_em``'s smoother): ys (N, m)
+    with NaN where not observed; returns the Posterior with method "rts", the filter's
+    log-likelihood and no rejected rows. Anything the kernels do not reproduce (a model
+    that is not exactly a QuadSSM, a subclass included, since it may override the
+    dynamics; an outlier gate; a QuadSSM whose behaviour no longer matches the kernels)
+    is smoothed by the generic ``estimators.rts.smooth``, so the answer is always the
+    generic path's; the last case also warns, as the fast path needs updating. A
+    covariance that stops being positive definite also hands over to the generic path,
+    which then raises or copes as it always does.
+    """
+    if type(model) is not QuadSSM or gate_sigma is not None:
+        return generic_smooth(model, ys, gate_sigma=gate_sigma)
+    ys = np.ascontiguousarray(ys, dtype=float)
+    obs = model.obs
+    if ys.ndim != 2 or ys.shape[1] != model.meas_dim or not 0 < ys.shape[0] <= obs.n:
+        raise ValueError(f"ys has shape {ys.shape}; expected (N, {model.meas_dim}) with "
+                         f"0 < N <= {obs.n} for channels {obs.channels}")
+    consts = _kernel_inputs(model, ys.shape[1])
+    if consts is None or not _agrees_with_model(model, consts):
+        warnings.warn("QuadSSM no longer matches pinquad.fast_smoother's kernels; using the "
+                      "generic smoother (update the fast path)", RuntimeWarning, stacklevel=2)
+        return generic_smooth(model, ys)
+    x0, p0 = model.initial()
+    inputs = np.ascontiguousarray(obs.inputs, dtype=float)
+    f_mean, f_cov, p_mean, p_cov, jacs, loglik, bad = _forward(
+        np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(p0, dtype=float), inputs, ys,
+        *consts)
+    if bad < 0:
+        mean, cov, cross, bad = _backward(f_mean, f_cov, p_mean, p_cov, jacs)
+    if bad >= 0:
+        # A covariance lost positive definiteness: the generic path then raises its own
+        # error (innovation S) or carries on with an LU solve (predicted P^-); either way
+        # its behaviour, not a new one, is the contract.
+        return generic_smooth(model, ys)
+    return Posterior(mean, cov, cross, float(loglik), "rts",
+                     np.zeros(ys.shape, dtype=bool))
