@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior, StateSpaceModel
 from pinquad.identify import MStepResult, relative_change
-from pinquad.ssm import NoiseModel, Observations, QuadSSM, Theta
+from pinquad.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
 
 Array = NDArray[np.float64]
 
@@ -94,11 +94,14 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     ``max_iterations``; the recorded history holds the accepted iterates only, so the
     recorded log-likelihood is the EM sequence's.
 
-    ``model_factory(obs, theta)`` builds the E-step's model and ``distance`` measures the
+    When theta0 carries the paper's fixed Q0 (``initial_theta``), the first E-step uses
+    the force-free ``KinematicSSM`` (a data-driven warm-up); every later one the full
+    model. ``model_factory(obs, theta)`` builds the E-step's model and ``distance`` measures the
     parameter change; the defaults are the quadcopter's, other models (the
     linear-Gaussian test model) pass their own.
     """
     is_quad = isinstance(theta0, Theta)
+    warm_up = is_quad and model_factory is QuadSSM and theta0.noise.fixed_q is not None
 
     def mass_of(theta: Any) -> float:
         return theta.mass if is_quad else float("nan")
@@ -116,6 +119,8 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     def e_step(theta: Theta) -> Posterior:
         nonlocal n_esteps
         n_esteps += 1
+        if warm_up and n_esteps == 1:
+            return smoother(KinematicSSM(obs, theta), obs.ys)
         return smoother(model_factory(obs, theta), obs.ys)
 
     def record(theta: Theta, post: Posterior) -> None:

@@ -63,6 +63,8 @@ class FlightLog:
     present); rpm (N, 4) [rev/min]: measured rotor speeds, the alternative actuation.
     vbat (N,) [V]; contact (N,) bool: the vehicle touches the floor (simulator flag).
     truth (N, 12) or None: simulator state [p, v, Theta, omega], for scoring only.
+    onboard (N, 12) or None: the vehicle's own state estimate (columns ``est_*``), the
+    one its controller used.
     """
 
     t: Array
@@ -77,6 +79,7 @@ class FlightLog:
     vbat: Array | None = None
     contact: NDArray[np.bool_] | None = None
     truth: Array | None = None
+    onboard: Array | None = None
     meta: LogMeta = field(default_factory=LogMeta)
 
     @property
@@ -98,6 +101,7 @@ class FlightLog:
             gyro=self.gyro[start:stop], accel=self.accel[start:stop],
             thrust=cut(self.thrust), torque=cut(self.torque), rpm=cut(self.rpm),
             vbat=cut(self.vbat), contact=cut(self.contact), truth=cut(self.truth),
+            onboard=cut(self.onboard),
         )
 
 
@@ -147,6 +151,9 @@ def log_columns(log: FlightLog) -> dict[str, Array]:
     if log.truth is not None:
         for i, name in enumerate(STATE_NAMES):
             cols[f"true_{name}"] = log.truth[:, i]
+    if log.onboard is not None:
+        for i, name in enumerate(STATE_NAMES):
+            cols[f"est_{name}"] = log.onboard[:, i]
     return cols
 
 
@@ -333,10 +340,14 @@ def read_log(path: str | Path) -> FlightLog:
     true_names = [f"true_{nm}" for nm in STATE_NAMES]
     if all(nm in cols for nm in true_names):
         truth = np.column_stack([cols[nm] for nm in true_names])
+    onboard = None
+    est_names = [f"est_{nm}" for nm in STATE_NAMES]
+    if all(nm in cols for nm in est_names):
+        onboard = np.column_stack([cols[nm] for nm in est_names])
     contact = cols["contact"] > 0.5 if "contact" in cols else None
     return FlightLog(
         t=t, position=_cols3(cols, "pos", n), velocity=_cols3(cols, "vel", n), euler=euler,
         gyro=_cols3(cols, "gyro", n), accel=_cols3(cols, "acc", n), thrust=thrust,
         torque=torque, rpm=rpm, vbat=cols.get("vbat"), contact=contact, truth=truth,
-        meta=_read_sidecar(path),
+        onboard=onboard, meta=_read_sidecar(path),
     )

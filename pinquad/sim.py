@@ -72,6 +72,9 @@ class SimConfig:
     sensor: the sensor set the vehicle flies with (A, B or C); its samples feed the
     onboard filter and are what the log records, so the logged actuation is a function
     of the logged measurements (closed-loop data the direct EM method can use).
+    nav_initial_error: start the onboard filter from the true state plus a draw from its
+    prior (for consistency checks); by default it starts from the known resting pose,
+    so the commands stay a function of the logged data alone.
     controller_mass [kg] / controller_inertia (3, 3): the controller's initial
     estimates (default: the truth). thrust_max_factor: maximum thrust as a multiple of
     the true weight. settle_time [s]: flight time after the last waypoint is reached.
@@ -85,6 +88,7 @@ class SimConfig:
     nav_tuning: str = "tuned"
     controller_mass: float | None = None
     controller_inertia: Array | None = None
+    nav_initial_error: bool = False
     thrust_max_factor: float = 2.5
     settle_time: float = 1.0
     disturbances: tuple[Disturbance, ...] = ()
@@ -146,15 +150,19 @@ class Flight:
 
 
 def _onboard_filter(config: SimConfig, suite, buf: FlightSoFar, inputs: Array, x0: Array,
-                    mass: float, inertia: Array) -> StreamingNavFilter | ModelBasedNavFilter:
+                    mass: float, inertia: Array, rng: np.random.Generator
+                    ) -> StreamingNavFilter | ModelBasedNavFilter:
     """The filter the vehicle flies with: the paper's sensor-A EKF for sensor A, the
-    model-based EKF for B and C."""
+    model-based EKF for B and C. Its initial mean is the true start perturbed by a draw
+    from its own prior N(0, P0), so its covariance is honest from the first step."""
     dt = config.scenario.dt
     g = config.vehicle.gravity
     if config.sensor == "A":
         tuning = (NavTuning.paper() if config.nav_tuning == "paper"
                   else NavTuning.tuned(dt, config.sensor_noise))
-        return StreamingNavFilter.start(SensorANavModel(buf.accel, dt, tuning, x0=x0.copy(),
+        start = x0 + (np.sqrt(tuning.p0) * rng.standard_normal(12)
+                      if config.nav_initial_error else 0.0)
+        return StreamingNavFilter.start(SensorANavModel(buf.accel, dt, tuning, x0=start,
                                                         gravity=g))
     channels = SOURCE_CHANNELS[config.sensor]
     nz = config.sensor_noise
@@ -162,10 +170,13 @@ def _onboard_filter(config: SimConfig, suite, buf: FlightSoFar, inputs: Array, x
            "gyro": nz.gyro**2}
     wrench = config.noise().wrench_intensity()
     wrench[0:2] = 1e-6 * wrench[2]
+    p0 = np.full(12, 0.05**2)
     return ModelBasedNavFilter(
         channels=channels, inputs=inputs, dt=dt, wrench_intensity=wrench,
-        meas_var=np.concatenate([np.full(3, per[c]) for c in channels]), x0=x0.copy(),
-        p0=np.full(12, 0.05**2), mass=mass, inertia=inertia, gravity=g)
+        meas_var=np.concatenate([np.full(3, per[c]) for c in channels]),
+        x0=x0 + (np.sqrt(p0) * rng.standard_normal(12) if config.nav_initial_error else 0.0),
+        p0=p0, mass=mass, inertia=inertia,
+        gravity=g)
 
 
 def _wrench_noise_std(noise: ProcessNoise, dt: float) -> Array:
@@ -214,7 +225,7 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
     x = np.zeros(12)
     x[0:3] = sc.start
     x[8] = sc.yaw
-    nav = _onboard_filter(config, suite, buf, inputs, x, ctrl_mass, ctrl_inertia)
+    nav = _onboard_filter(config, suite, buf, inputs, x, ctrl_mass, ctrl_inertia, rng)
     resting = x[2] <= 0.0
     lifted = not resting
     crashed = False
@@ -295,7 +306,8 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
 def flight_log(flight: Flight, mass_guess: float | None = None,
                inertia_guess: Array | None = None) -> FlightLog:
     """The log of a flight: the samples of the sensor set it flew with (NaN where not
-    sampled), the commanded thrust and torques, contact flags and the truth."""
+    sampled), the onboard filter's estimate, the commanded thrust and torques, contact
+    flags and the truth."""
     cfg = flight.config
     buf = flight.onboard
     meta = LogMeta(vehicle=cfg.vehicle.name, mass_guess=mass_guess,
@@ -305,7 +317,8 @@ def flight_log(flight: Flight, mass_guess: float | None = None,
         t=flight.t.copy(), position=buf.position.copy(), velocity=buf.velocity.copy(),
         euler=buf.euler.copy(), gyro=buf.gyro.copy(), accel=buf.accel.copy(),
         thrust=flight.inputs[:, 0].copy(), torque=flight.inputs[:, 1:4].copy(),
-        contact=flight.contact.copy(), truth=flight.states.copy(), meta=meta,
+        contact=flight.contact.copy(), truth=flight.states.copy(),
+        onboard=flight.nav_state.copy(), meta=meta,
     )
 
 

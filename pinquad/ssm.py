@@ -164,3 +164,45 @@ class QuadSSM:
         if self._angle_rows.size:
             res[self._angle_rows] = wrap_angle(res[self._angle_rows])
         return res
+
+
+class KinematicSSM(QuadSSM):
+    """The data-driven warm-up model of EM's first E-step: the same measurements, but a
+    transition without forces (p' = v, v' = 0, Theta' = E^{-1} omega, omega' = 0) and the
+    paper's process covariance, so the first posterior follows the data rather than a
+    dynamic model evaluated at a guess that may be two orders of magnitude off (with
+    m0 = 0.001 kg the force term alone is ~1800 m/s^2 and the EKF diverges)."""
+
+    def transition(self, x: Array, k: int) -> tuple[Array, Array]:
+        dt = self.obs.dt
+        phi, theta = float(x[6]), float(x[7])
+        wx, wy, wz = float(x[9]), float(x[10]), float(x[11])
+        sf, cf = math.sin(phi), math.cos(phi)
+        st, ct = math.sin(theta), math.cos(theta)
+        tt = st / ct
+        a = sf * wy + cf * wz
+        nxt = x.copy()
+        nxt[0:3] += dt * x[3:6]
+        nxt[6] += dt * (wx + tt * a)
+        nxt[7] += dt * (cf * wy - sf * wz)
+        nxt[8] += dt * a / ct
+        jac = np.eye(12)
+        jac[0, 3] = jac[1, 4] = jac[2, 5] = dt
+        jac[6, 6] += dt * tt * (cf * wy - sf * wz)
+        jac[6, 7] = dt * a / (ct * ct)
+        jac[6, 9] = dt
+        jac[6, 10] = dt * sf * tt
+        jac[6, 11] = dt * cf * tt
+        jac[7, 6] = dt * (-sf * wy - cf * wz)
+        jac[7, 10] = dt * cf
+        jac[7, 11] = -dt * sf
+        jac[8, 6] = dt * (cf * wy - sf * wz) / ct
+        jac[8, 7] = dt * a * st / (ct * ct)
+        jac[8, 10] = dt * sf / ct
+        jac[8, 11] = dt * cf / ct
+        return nxt, jac
+
+    def process_cov(self, x: Array, k: int) -> Array:
+        if self._fixed_q is None:
+            raise ValueError("the kinematic warm-up model needs a fixed process covariance")
+        return self._fixed_q
