@@ -90,8 +90,11 @@ def _assert_same_posterior(fast: Posterior, ref: Posterior) -> None:
     assert max(worst.values()) <= TOL, worst
 
 
+# The dynamic model at the paper's 1 g start diverges on every source now (the EKF winds
+# roll and pitch up, and one-ulp input changes move the result), so EM's first E-step
+# uses the force-free warm-up model there; the compiled path is compared where the
+# problem is well posed.
 @pytest.mark.parametrize(("source", "kind"), [
-    ("A", "paper_start"),
     ("A", "paper_noise"), ("B", "paper_noise"), ("C", "paper_noise"),
     ("A", "structured"), ("B", "structured"), ("C", "structured"),
 ])
