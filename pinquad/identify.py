@@ -31,7 +31,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize
 
 from estimators.protocol import Posterior
 from pinquad.conventions import rotation_from_euler, wrap_angle
@@ -176,6 +175,76 @@ class MStepResult:
     wrench_var: Array
 
 
+def _physical(i_diag: Array) -> bool:
+    """Positive and satisfying the triangle inequalities (I_xx <= I_yy + I_zz, ...)."""
+    i = np.asarray(i_diag)
+    return bool(np.all(i > 0) and np.all(2.0 * i < i.sum()))
+
+
+def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array
+                    ) -> Array:
+    """Minimise J(I) = 1/2 sum_j log q_j(I) - sum_i log I_i over diagonal inertias.
+
+    q_j(I) = pi^T A_j pi - 2 b_j^T pi + c_j with pi = [m, I]; gradient
+    g = 1/2 sum_j q_j'/q_j - 1/I and Hessian H = 1/2 sum_j (2 A_j/q_j - q_j' q_j'^T/q_j^2)
+    + diag(1/I^2). Damped Newton from the better of the previous inertia and the
+    unweighted least-squares solution, with backtracking that keeps the inertia
+    physically consistent (positive, triangle inequalities). For noise-free data the
+    least-squares solution makes every q_j vanish and is returned as is.
+    """
+    def parts(i_diag: Array) -> tuple[float, Array, Array]:
+        pi = np.concatenate([[mass], i_diag])
+        q = np.einsum("p,apq,q->a", pi, a_t, pi) - 2.0 * b_t @ pi + c_t
+        if np.any(q <= 0):
+            return np.inf, np.zeros(3), np.eye(3)
+        dq = (2.0 * np.einsum("apq,q->ap", a_t, pi) - 2.0 * b_t)[:, 1:4]
+        val = 0.5 * float(np.sum(np.log(q))) - float(np.sum(np.log(i_diag)))
+        grad = 0.5 * np.sum(dq / q[:, None], axis=0) - 1.0 / i_diag
+        hess = (0.5 * np.einsum("apq,a->pq", 2.0 * a_t[:, 1:4, 1:4], 1.0 / q)
+                - 0.5 * np.einsum("ap,aq,a->pq", dq, dq, 1.0 / q**2) + np.diag(1.0 / i_diag**2))
+        return val, grad, hess
+
+    a_sum = a_t[:, 1:4, 1:4].sum(axis=0)
+    rhs = (b_t[:, 1:4] - a_t[:, 1:4, 0] * mass).sum(axis=0)
+    candidates = [np.asarray(previous, dtype=float)]
+    try:
+        i_ls = np.linalg.solve(a_sum, rhs)
+        if _physical(i_ls):
+            pi_ls = np.concatenate([[mass], i_ls])
+            q_ls = np.einsum("p,apq,q->a", pi_ls, a_t, pi_ls) - 2.0 * b_t @ pi_ls + c_t
+            if np.all(q_ls <= 1e-12 * c_t):
+                return i_ls
+            candidates.append(i_ls)
+    except np.linalg.LinAlgError:
+        pass
+    candidates = [c for c in candidates if _physical(c)] or [np.full(3, np.mean(previous))]
+    current = min(candidates, key=lambda c: parts(c)[0])
+    val, grad, hess = parts(current)
+    for _ in range(100):
+        try:
+            step = -np.linalg.solve(hess, grad)
+            if grad @ step >= 0:  # not a descent direction: fall back to gradient
+                step = -grad * float(np.min(current)) ** 2
+        except np.linalg.LinAlgError:
+            step = -grad * float(np.min(current)) ** 2
+        t = 1.0
+        while t > 1e-12:
+            trial = current + t * step
+            if _physical(trial):
+                v_new = parts(trial)[0]
+                if v_new <= val + 1e-4 * t * (grad @ step):
+                    break
+            t *= 0.5
+        else:
+            break
+        rel = float(np.max(np.abs(trial - current) / current))
+        current = trial
+        val, grad, hess = parts(current)
+        if rel < 1e-12:
+            break
+    return current
+
+
 def _inertia_from_d(d: Array) -> Array:
     return np.array([d[1] + d[2], d[0] + d[2], d[0] + d[1]])
 
@@ -194,57 +263,15 @@ def regressor_mstep(post: Posterior, obs: Observations, theta: Theta) -> MStepRe
     # gives m = c_z / b_z (sum F^2 / sum E[a_z] F).
     mass = float(stats.c[2] / stats.b[2, 0]) if stats.b[2, 0] > 0 else theta.mass
 
-    t_mat = np.array([[0.0, 1.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 0.0]])
     a_t, b_t, c_t = stats.a[3:6], stats.b[3:6], stats.c[3:6]
-
-    def objective(log_d: Array) -> tuple[float, Array]:
-        d = np.exp(log_d)
-        inertia = t_mat @ d
-        pi = np.concatenate([[mass], inertia])
-        q = np.einsum("p,apq,q->a", pi, a_t, pi) - 2.0 * b_t @ pi + c_t
-        if np.any(q <= 0):
-            return 1e30, np.zeros(3)
-        dq = 2.0 * np.einsum("apq,q->ap", a_t, pi) - 2.0 * b_t
-        grad_i = 0.5 * np.sum(dq[:, 1:4] / q[:, None], axis=0) - 1.0 / inertia
-        return float(0.5 * np.sum(np.log(q)) - np.sum(np.log(inertia))), (t_mat.T @ grad_i) * d
-
-    # Start from the unweighted least-squares solution of the three torque rows (exact
-    # for noise-free data, where the profiled objective is unbounded below) and from the
-    # previous inertia; keep the better.
-    a_sum = a_t[:, 1:4, 1:4].sum(axis=0)
-    rhs = (b_t[:, 1:4] - a_t[:, 1:4, 0] * mass).sum(axis=0)
-    starts = [np.log(_d_from_inertia(np.diag(theta.inertia)))]
-    try:
-        i_ls = np.linalg.solve(a_sum, rhs)
-        if np.all(i_ls > 0):
-            pi_ls = np.concatenate([[mass], i_ls])
-            q_ls = np.einsum("p,apq,q->a", pi_ls, a_t, pi_ls) - 2.0 * b_t @ pi_ls + c_t
-            if np.all(q_ls <= 1e-12 * c_t):
-                starts = [np.log(_d_from_inertia(i_ls))]
-                exact = i_ls
-            else:
-                starts.append(np.log(_d_from_inertia(i_ls)))
-                exact = None
-        else:
-            exact = None
-    except np.linalg.LinAlgError:
-        exact = None
-    best, best_val = starts[0], objective(starts[0])[0]
-    if exact is None:
-        for start in starts:
-            bounds = [(s0 - 30.0, s0 + 30.0) for s0 in start]
-            res = minimize(objective, start, jac=True, method="L-BFGS-B", bounds=bounds,
-                           options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 1000})
-            for cand in (start, res.x):
-                val = objective(cand)[0]
-                if val < best_val:
-                    best, best_val = cand, val
-    inertia = exact if exact is not None else t_mat @ np.exp(best)
+    inertia = _inertia_newton(mass, a_t, b_t, c_t, np.diag(theta.inertia))
     pi = np.concatenate([[mass], inertia])
     row_var = np.maximum(_row_sums(stats, pi) / n, 0.0)
     noise = update_noise(post, obs, theta, row_var)
     new = Theta(mass=mass, inertia=np.diag(inertia), noise=noise, gravity=theta.gravity)
-    return MStepResult(new, float(objective(best)[0]), row_var)
+    q = np.maximum(_row_sums(stats, pi), 1e-300)
+    objective = float(0.5 * np.sum(np.log(q[2:6])) - np.log(mass) - np.sum(np.log(inertia)))
+    return MStepResult(new, objective, row_var)
 
 
 def update_noise(post: Posterior, obs: Observations, theta: Theta, wrench_row_var: Array

@@ -45,9 +45,25 @@ from pinquad.sources import SOURCE_CHANNELS
 
 Array = NDArray[np.float64]
 
-ParamUpdate = Callable[[int, "FlightSoFar"], "tuple[float, Array] | None"]
-"""Online hook: called after step k's measurements; may return (mass, inertia) for the
-controller from step k on."""
+@dataclass(frozen=True)
+class ControllerUpdate:
+    """What an online estimator hands the controller after step k's measurements.
+
+    mass [kg], inertia (3, 3) [kg m^2]: the controller's new estimates;
+    thrust_override [N] or None: fly this collective thrust instead of the position
+    loop's (a take-off ramp while on the floor); reference_start: the step at which the
+    reference trajectory starts (the controller tracks reference index k - start).
+    """
+
+    mass: float
+    inertia: Array
+    thrust_override: float | None = None
+    reference_start: int = 0
+
+
+ParamUpdate = Callable[[int, "FlightSoFar"], "ControllerUpdate | None"]
+"""Online hook: called after step k's measurements; may return a ControllerUpdate that
+holds from step k on."""
 
 
 @dataclass(frozen=True)
@@ -230,6 +246,8 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
     lifted = not resting
     crashed = False
     u_prev = np.array([veh.mass * g, 0.0, 0.0, 0.0])
+    override: float | None = None
+    ref_start = 0
     for k in range(n):
         states[k] = x
         contact[k] = resting
@@ -250,13 +268,18 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
         if on_step is not None:
             upd = on_step(k, buf)
             if upd is not None:
-                ctrl_mass, ctrl_inertia = float(upd[0]), np.array(upd[1], float)
-                if isinstance(nav, ModelBasedNavFilter):
-                    nav.set_params(ctrl_mass, ctrl_inertia)
+                if upd.mass != ctrl_mass or not np.array_equal(upd.inertia, ctrl_inertia):
+                    ctrl_mass, ctrl_inertia = float(upd.mass), np.array(upd.inertia, float)
+                    if isinstance(nav, ModelBasedNavFilter):
+                        nav.set_params(ctrl_mass, ctrl_inertia)
+                override, ref_start = upd.thrust_override, upd.reference_start
         ctrl_params[k] = [ctrl_mass, *np.diag(ctrl_inertia)]
-        out = control_step(x_est, k, ref, config.gains, ctrl_mass, ctrl_inertia, g,
-                           (0.0, thrust_max))
+        out = control_step(x_est, max(k - ref_start, 0), ref, config.gains, ctrl_mass,
+                           ctrl_inertia, g, (0.0, thrust_max))
         u = out.u
+        if override is not None:
+            u = u.copy()
+            u[0] = min(max(override, 0.0), thrust_max)
         inputs[k] = u
         buf.thrust[k] = u[0]
         buf.torque[k] = u[1:4]
@@ -295,6 +318,8 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
             lifted = lifted or x_next[2] > 0.02
         x = x_next
     dists = np.linalg.norm(states[None, :, 0:3] - sc.waypoints[:, None, :], axis=2)
+    # an online run that waited on the floor ends before its reference does
+
     return Flight(
         t=ref.t.copy(), states=states, inputs=inputs, applied=applied, specific_force=spec,
         nav_state=buf.nav_state.copy(), nav_cov=nav_cov, contact=contact, reference=ref,
