@@ -1,0 +1,397 @@
+"""The browser view of a run (``python -m viz``), checked in a real headless Chromium.
+
+One small simulated run is made with ``python -m pinquad.offline``; the viewer serves it
+in this process on a free port; Chromium, driven through the DevTools protocol, loads
+the page and takes screenshots. The 3D canvas must show the scene (vehicle included,
+located by projecting its position through the browser's own camera), and moving the
+time slider must move the vehicle both in the scene state and on screen.
+
+Chromium is required, not optional: without it the test fails and says how to install
+it (Debian: ``apt-get install -y chromium``).
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pinquad.conventions import rotation_from_quat_wxyz
+
+WIDTH, HEIGHT = 1280, 800
+PANEL_LEFT = 860
+"""Pixels right of this may be covered by viser's floating control panel."""
+CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+# Headless Chromium has no GPU here; SwiftShader renders WebGL in software.
+CHROMIUM_FLAGS = (
+    "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader", "--disable-quic", "--no-first-run",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--disable-dev-shm-usage", "--hide-scrollbars", "--mute-audio",
+    f"--window-size={WIDTH},{HEIGHT}",
+)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+def _wait(predicate: Callable[[], Any], timeout: float, what: str, interval: float = 0.25) -> Any:
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value is not None and value is not False and not (isinstance(value, list)
+                                                             and not value):
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
+        time.sleep(interval)
+
+
+class Chromium:
+    """A headless Chromium page driven over the DevTools protocol (websockets, which
+    viser already depends on)."""
+
+    def __init__(self, executable: str) -> None:
+        from websockets.sync.client import connect
+
+        self._profile = tempfile.mkdtemp(prefix="viz-chromium-")
+        self.proc = subprocess.Popen(
+            [executable, *CHROMIUM_FLAGS, f"--user-data-dir={self._profile}",
+             "--remote-debugging-port=0", "about:blank"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        port_file = Path(self._profile) / "DevToolsActivePort"
+
+        def devtools_port() -> int | None:
+            if self.proc.poll() is not None:
+                err = self.proc.stderr.read().decode(errors="replace") if self.proc.stderr else ""
+                raise AssertionError(f"chromium exited with {self.proc.returncode}: {err[-2000:]}")
+            text = port_file.read_text() if port_file.exists() else ""
+            return int(text.split()[0]) if text.strip() else None
+
+        port = _wait(devtools_port, 20.0, "chromium's DevTools port")
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as r:
+            targets = json.load(r)
+        page = next(t for t in targets if t["type"] == "page")
+        self._ws = connect(page["webSocketDebuggerUrl"], max_size=None, open_timeout=10)
+        self._id = 0
+        self.call("Page.enable")
+        self.call("Emulation.setDeviceMetricsOverride", width=WIDTH, height=HEIGHT,
+                  deviceScaleFactor=1, mobile=False)
+
+    def call(self, method: str, **params: Any) -> dict[str, Any]:
+        """Send one DevTools command and return its result (events are skipped)."""
+        self._id += 1
+        self._ws.send(json.dumps({"id": self._id, "method": method, "params": params}))
+        while True:
+            msg = json.loads(self._ws.recv(timeout=30))
+            if msg.get("id") == self._id:
+                if "error" in msg:
+                    raise AssertionError(f"DevTools {method}: {msg['error']}")
+                return msg["result"]
+
+    def screenshot(self) -> np.ndarray:
+        """The page as an (H, W, 3) uint8 RGB array."""
+        from PIL import Image
+
+        data = base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
+        return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
+
+    def evaluate(self, expression: str) -> Any:
+        return self.call("Runtime.evaluate", expression=expression,
+                         returnByValue=True)["result"].get("value")
+
+    def close(self) -> None:
+        try:
+            self._ws.close()
+        finally:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+            shutil.rmtree(self._profile, ignore_errors=True)
+
+
+def _chromium_executable() -> str:
+    for name in CHROMIUM_NAMES:
+        path = shutil.which(name)
+        if path:
+            return path
+    pytest.fail("headless Chromium is required for the viewer test but none was found "
+                f"(looked for {', '.join(CHROMIUM_NAMES)}); on Debian/Ubuntu: "
+                "apt-get update && apt-get install -y chromium")
+
+
+def _project(camera: Any, point: np.ndarray) -> tuple[float, float, float]:
+    """Pixel (u, v) and depth of a world point in the browser's canvas, from the camera
+    the client reports (OpenCV convention: x right, y down, z forward; vertical fov)."""
+    rot = rotation_from_quat_wxyz(np.asarray(camera.wxyz))
+    p_cam = rot.T @ (np.asarray(point, float) - np.asarray(camera.position))
+    h, w = camera.image_height, camera.image_width
+    f = 0.5 * h / math.tan(0.5 * camera.fov)
+    return (0.5 * w + f * p_cam[0] / p_cam[2], 0.5 * h + f * p_cam[1] / p_cam[2],
+            float(p_cam[2]))
+
+
+def _box(img: np.ndarray, u: float, v: float, half: int) -> np.ndarray:
+    u0, v0 = max(int(u) - half, 0), max(int(v) - half, 0)
+    return img[v0:int(v) + half, u0:int(u) + half].astype(int)
+
+
+def _rotor_blue(img: np.ndarray) -> np.ndarray:
+    """Pixels of the paper vehicle's light-blue rotors (URDF rgba 0.2 0.5 0.85, shaded):
+    nothing else in the scene has this colour, so they locate the URDF geometry."""
+    r, g, b = img[..., 0].astype(int), img[..., 1].astype(int), img[..., 2].astype(int)
+    return (b > 190) & (g > 120) & (b - r > 50) & (b - g > 15)
+
+
+def _non_background(img: np.ndarray) -> np.ndarray:
+    """Pixels that are neither the white background nor the light grey floor grid."""
+    return img.min(axis=2) < 170
+
+
+# ----------------------------------------------------------------------------- fixtures
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One short simulated flight with sensor B, EM cut at 8 iterations (~10 s)."""
+    out = tmp_path_factory.mktemp("viz") / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "pinquad.offline", "--cycles", "1", "--sensor", "B",
+         "--mstep", "regressor", "--no-information", "--jobs", "1", "--max-iterations", "8",
+         "--out", str(out)],
+        capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out
+
+
+@pytest.fixture(scope="module")
+def viewer(run_dir: Path) -> Iterator[Any]:
+    from viz.app import serve
+
+    v = serve(run_dir, host="127.0.0.1", port=0)
+    try:
+        yield v
+    finally:
+        v.stop()
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Chromium]:
+    page = Chromium(_chromium_executable())
+    try:
+        yield page
+    finally:
+        page.close()
+
+
+# ----------------------------------------------------------------------------- tests
+
+def test_viewer_renders_and_time_slider_moves_vehicle(viewer: Any, browser: Chromium) -> None:
+    browser.call("Page.navigate", url=viewer.url)
+    server = viewer.server
+    clients = _wait(lambda: list(server.get_clients().values()), 30.0, "the page to connect")
+    camera = clients[0].camera
+    initial = np.asarray(server.initial_camera.position)
+    # The client first reports its default camera, then the run's initial one.
+    _wait(lambda: camera.image_width > 0 and np.allclose(camera.position, initial, atol=1e-3),
+          30.0, "the browser's camera to take the viewer's initial pose")
+    assert (camera.image_width, camera.image_height) == (WIDTH, HEIGHT)
+
+    def vehicle_pixel() -> tuple[float, float]:
+        u, v, depth = _project(camera, viewer.vehicle.position)
+        assert depth > 0 and 0 <= u < PANEL_LEFT and 0 <= v < HEIGHT, (
+            f"vehicle at {viewer.vehicle.position} projects to ({u:.0f}, {v:.0f}), "
+            "outside the visible canvas")
+        return u, v
+
+    u0, v0 = vehicle_pixel()
+    scene_area = (slice(0, HEIGHT), slice(0, PANEL_LEFT))
+
+    def rendered() -> np.ndarray | None:
+        img = browser.screenshot()
+        ok = (_non_background(img[scene_area]).mean() > 0.01
+              and _rotor_blue(_box(img, u0, v0, 60)).sum() > 150)
+        return img if ok else None
+
+    first = _wait(rendered, 40.0, "the 3D scene (vehicle rotors included) to render",
+                  interval=1.0)
+    scene = first[scene_area].reshape(-1, 3)
+    colours = np.unique(scene // 8, axis=0).shape[0]
+    assert colours > 100, f"the canvas has only {colours} distinct colours: nothing rendered?"
+    # The red front rotor of the URDF is drawn where the vehicle projects (shaded to
+    # salmon; the orange path differs by its low blue).
+    near = _box(first, u0, v0, 60)
+    r, g, b = near[..., 0], near[..., 1], near[..., 2]
+    red = (r > 190) & (r - g > 70) & (np.abs(g - b) < 40)
+    assert red.sum() > 20, "no red rotor pixels near the projected vehicle position"
+    assert _rotor_blue(first[scene_area]).sum() < 1.5 * _rotor_blue(near).sum(), (
+        "rotor-coloured pixels far from where the vehicle projects")
+
+    # Move the time slider from the server side, as a GUI drag does.
+    f = viewer.flight
+    assert f is not None and f.t.shape[0] > 100
+    before_pos = np.array(viewer.vehicle.position)
+    before_wxyz = np.array(viewer.vehicle.wxyz)
+    for frac in (0.5, 0.35, 0.65, 0.25, 0.8):
+        t = float(f.t[0] + frac * f.duration)
+        pos, _ = viewer.pose_at(t, "truth")
+        u, v, depth = _project(camera, pos)
+        if depth > 0 and 60 <= u < PANEL_LEFT - 60 and 60 <= v < HEIGHT - 60:
+            break
+    else:
+        pytest.fail("no sample time where the vehicle is in view")
+    viewer.time_slider.value = t
+    after_pos = np.array(viewer.vehicle.position)
+    assert np.linalg.norm(after_pos - before_pos) > 0.5
+    assert not np.allclose(np.array(viewer.vehicle.wxyz), before_wxyz)
+    expected_pos, expected_wxyz = viewer.pose_at(t, "truth")
+    np.testing.assert_allclose(after_pos, expected_pos)
+    np.testing.assert_allclose(np.array(viewer.vehicle.wxyz), expected_wxyz)
+    u1, v1 = vehicle_pixel()
+
+    def moved() -> np.ndarray | None:
+        img = browser.screenshot()
+        ok = (_rotor_blue(_box(img, u1, v1, 60)).sum() > 50
+              and _rotor_blue(_box(img, u0, v0, 60)).sum()
+              < 0.2 * _rotor_blue(_box(first, u0, v0, 60)).sum())
+        return img if ok else None
+
+    second = _wait(moved, 20.0, "the vehicle to move on screen", interval=0.5)
+    changed = np.abs(second[scene_area].astype(int) - first[scene_area]).max(axis=2) > 40
+    assert changed.sum() > 500, "the screenshots barely differ after moving the slider"
+
+
+def test_viewer_controls(viewer: Any) -> None:
+    """Sensor, cycle, pose-source and playback controls exist and act on the scene."""
+    run = viewer.run
+    assert viewer.sensor_dropdown.options == ("B",)
+    assert viewer.cycle_dropdown.options and viewer.mstep_dropdown.value == "regressor"
+    assert set(viewer.pose_dropdown.options) == {"truth", "estimate"}
+    rec = run.cycles[0]
+    assert rec.true_mass == pytest.approx(0.18)
+    assert viewer.mass_plot is not None and len(viewer.mass_plot.data[0]) == rec.x.shape[0]
+    assert viewer.inertia_plot is not None and len(viewer.inertia_plot.data) == 7
+
+    t = float(viewer.flight.t[len(viewer.flight.t) // 2])
+    viewer.time_slider.value = t
+    viewer.pose_dropdown.value = "estimate"
+    est_pos, _ = viewer.pose_at(t, "estimate")
+    np.testing.assert_allclose(viewer.vehicle.position, est_pos)
+    viewer.ghost_checkbox.value = True
+    assert viewer.ghost.visible
+    np.testing.assert_allclose(viewer.ghost.position, viewer.pose_at(t, "truth")[0])
+    viewer.pose_dropdown.value = "truth"
+    viewer.ghost_checkbox.value = False
+    assert not viewer.ghost.visible
+
+    viewer.select("B")
+    assert float(viewer.time_slider.value) == pytest.approx(t)
+    with pytest.raises(ValueError):
+        viewer.select("Z")
+
+    viewer.set_playing(True)
+    start = float(viewer.time_slider.value)
+    _wait(lambda: float(viewer.time_slider.value) != start, 5.0, "playback to advance")
+    viewer.set_playing(False)
+
+
+def test_not_a_run_is_a_clear_error(tmp_path: Path) -> None:
+    for bad in (tmp_path / "not_a_run", tmp_path):
+        proc = subprocess.run([sys.executable, "-m", "viz", str(bad), "--port", "0"],
+                              capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 2, proc.stderr
+        assert str(bad) in proc.stderr and "Traceback" not in proc.stderr
+        assert len(proc.stderr.strip().splitlines()) == 1
+    (tmp_path / "report.json").write_text("{not json")
+    proc = subprocess.run([sys.executable, "-m", "viz", str(tmp_path)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and "report.json" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_help() -> None:
+    proc = subprocess.run([sys.executable, "-m", "viz", "--help"], capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 0
+    assert "RUN_DIR" in proc.stdout and "--port" in proc.stdout and "--host" in proc.stdout
+
+
+def test_urdf_geometry() -> None:
+    from pinquad.model import urdf_path
+    from viz.geometry import default_scale, vehicle_parts
+
+    parts = vehicle_parts(urdf_path("paper"))
+    rotors = [p for p in parts if p.kind == "cylinder"]
+    assert len(parts) == 9 and len(rotors) == 4
+    np.testing.assert_allclose(sorted(np.abs(r.position[:2]).max() for r in rotors), [0.086] * 4)
+    assert all(r.position[2] == pytest.approx(0.01) for r in rotors)
+    assert default_scale("paper", parts) == 5.0
+    cf = vehicle_parts(urdf_path("crazyflie21"))
+    assert default_scale("crazyflie21", cf) == 15.0
+
+
+def test_recorded_log_run_without_truth(tmp_path: Path) -> None:
+    """A run of a long recorded log (no truth, no scenario, no cycles) still serves,
+    with the drawn path decimated, its final estimate and its discovery outcome."""
+    from PIL import Image
+
+    from pinquad.logs import FlightLog, write_log
+    from viz.app import MAX_LINE_POINTS, serve
+
+    n = 30000  # 60 s at 500 Hz
+    t = np.arange(n) / 500.0
+    pos = np.column_stack([np.cos(0.2 * t), np.sin(0.2 * t), 1.0 + 0.1 * t / 60])
+    euler = np.column_stack([0.05 * np.sin(t), 0.05 * np.cos(t), 0.2 * t])
+    log = FlightLog(t=t, position=pos, velocity=np.zeros((n, 3)), euler=euler,
+                    gyro=np.zeros((n, 3)), accel=np.zeros((n, 3)), thrust=np.full(n, 0.3),
+                    torque=np.zeros((n, 3)))
+    (tmp_path / "logs").mkdir()
+    write_log(log, tmp_path / "logs" / "flight.parquet")
+    report = {"schema": "pinquad.report/1",
+              "source": {"kind": "log", "path": "flight.parquet", "vehicle": "crazyflie21"},
+              "estimates": {"mass": 0.035, "inertia": np.diag([1.7e-5, 1.7e-5, 2.9e-5]).tolist()},
+              "em": {"iterations": 1, "loglik": [0.0], "converged": True},
+              "run_logs": {"log": {"log": "logs/flight.parquet"}},
+              "discovery": {"selected": [{"effect": "drag", "coefficients": {"k_xy": 0.012}}],
+                            "residual_rms_before": {"acc_x": 0.31},
+                            "residual_rms_after": {"acc_x": 0.12},
+                            "validation": "held-out second half",
+                            "figures": ["figures/residuals.png"]}}
+    (tmp_path / "figures").mkdir()
+    figure = np.full((60, 90, 4), 255, np.uint8)
+    figure[20:40, 10:80, :3] = (200, 30, 30)
+    Image.fromarray(figure).save(tmp_path / "figures" / "residuals.png")
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    started = time.perf_counter()
+    v = serve(tmp_path, port=0)
+    elapsed = time.perf_counter() - started
+    try:
+        assert 1.0 <= v.scale < 15.0  # x15 would hide a 1 m circle; capped to the scene
+        assert v.pose_dropdown.options == ("estimate",)
+        f = v.flight
+        assert f is not None and f.true_pos is None and f.est_source == "measured"
+        _, est_line = v._lines["log"]
+        assert est_line is not None and est_line.points.shape[0] < MAX_LINE_POINTS
+        v.time_slider.value = 30.0
+        np.testing.assert_allclose(v.vehicle.position, pos[15000], atol=1e-9)
+        assert v.mass_plot is not None and v.param_table.content
+        assert v.discovery_text is not None and "drag" in v.discovery_text.content
+        assert "0.31" in v.discovery_text.content and "0.12" in v.discovery_text.content
+        assert len(v.discovery_images) == 1
+        assert v.discovery_images[0].image.shape == (60, 90, 3)
+    finally:
+        v.stop()
+    print(f"served a 60 s, 500 Hz log in {elapsed:.2f} s")
