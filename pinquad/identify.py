@@ -89,8 +89,15 @@ def body_regressor(x_now: Array, x_next: Array, dt: float, gravity: float) -> Ar
     return y
 
 
-def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float) -> Array:
-    """D (K, 4, 6, 24): derivative of each regressor column w.r.t. z = (x_k, x_{k+1})."""
+def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float
+                        ) -> tuple[Array, Array]:
+    """Non-zero blocks of the regressor's derivative w.r.t. the states.
+
+    Returns d_force (K, 3, 9): derivative of the mass column's force rows w.r.t.
+    (Theta_k, v_k, v_{k+1}); d_torque (K, 3, 3, 6): derivative of the inertia columns
+    (p = Ixx, Iyy, Izz) torque rows w.r.t. (omega_k, omega_{k+1}). All other entries of
+    dY/d(x_k, x_{k+1}) are zero.
+    """
     k = x_now.shape[0]
     rot = rotation_from_euler(x_now[:, 6:9])
     d_rot = _rotation_derivatives(x_now[:, 6:9])
@@ -98,26 +105,27 @@ def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float) 
     acc[:, 2] += gravity
     w = x_now[:, 9:12]
     wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
-    d = np.zeros((k, 4, 6, 24))
     rot_t = np.transpose(rot, (0, 2, 1))
-    d[:, 0, 0:3, 3:6] = -rot_t / dt
-    d[:, 0, 0:3, 15:18] = rot_t / dt
+    d_force = np.empty((k, 3, 9))
     # d(R^T a)/dTheta_j = (dR/dTheta_j)^T a
-    d[:, 0, 0:3, 6:9] = np.einsum("kbaj,kb->kaj", d_rot, acc)
+    d_force[:, :, 0:3] = np.einsum("kbaj,kb->kaj", d_rot, acc)
+    d_force[:, :, 3:6] = -rot_t / dt
+    d_force[:, :, 6:9] = rot_t / dt
     inv = 1.0 / dt
+    d = np.zeros((k, 3, 3, 6))
     # Ixx column [wd_x, wx wz, -wx wy]
-    d[:, 1, 3, 9], d[:, 1, 3, 21] = -inv, inv
-    d[:, 1, 4, 9], d[:, 1, 4, 11] = wz, wx
-    d[:, 1, 5, 9], d[:, 1, 5, 10] = -wy, -wx
+    d[:, 0, 0, 0], d[:, 0, 0, 3] = -inv, inv
+    d[:, 0, 1, 0], d[:, 0, 1, 2] = wz, wx
+    d[:, 0, 2, 0], d[:, 0, 2, 1] = -wy, -wx
     # Iyy column [-wy wz, wd_y, wx wy]
-    d[:, 2, 3, 10], d[:, 2, 3, 11] = -wz, -wy
-    d[:, 2, 4, 10], d[:, 2, 4, 22] = -inv, inv
-    d[:, 2, 5, 9], d[:, 2, 5, 10] = wy, wx
+    d[:, 1, 0, 1], d[:, 1, 0, 2] = -wz, -wy
+    d[:, 1, 1, 1], d[:, 1, 1, 4] = -inv, inv
+    d[:, 1, 2, 0], d[:, 1, 2, 1] = wy, wx
     # Izz column [wy wz, -wx wz, wd_z]
-    d[:, 3, 3, 10], d[:, 3, 3, 11] = wz, wy
-    d[:, 3, 4, 9], d[:, 3, 4, 11] = -wz, -wx
-    d[:, 3, 5, 11], d[:, 3, 5, 23] = -inv, inv
-    return d
+    d[:, 2, 0, 1], d[:, 2, 0, 2] = wz, wy
+    d[:, 2, 1, 0], d[:, 2, 1, 2] = -wz, -wx
+    d[:, 2, 2, 2], d[:, 2, 2, 5] = -inv, inv
+    return d_force, d
 
 
 def transition_mask(obs: Observations) -> NDArray[np.bool_]:
@@ -138,20 +146,28 @@ def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> Regre
     tau = np.zeros((idx.size, 6))
     tau[:, 2] = obs.inputs[idx, 0]
     tau[:, 3:6] = obs.inputs[idx, 1:4]
-    d = _regressor_jacobian(x_now, x_next, dt, gravity)
-    sig = np.empty((idx.size, 24, 24))
-    sig[:, 0:12, 0:12] = post.cov[idx]
-    sig[:, 12:24, 12:24] = post.cov[idx + 1]
-    sig[:, 12:24, 0:12] = post.cross_cov[idx]
-    sig[:, 0:12, 12:24] = np.transpose(post.cross_cov[idx], (0, 2, 1))
-    # Only these columns of z = (x_k, x_{k+1}) enter the regressor (v, Theta, omega of
-    # x_k; v, omega of x_{k+1}); restricting to them makes the batched products small.
-    cols = np.array([3, 4, 5, 6, 7, 8, 9, 10, 11, 15, 16, 17, 21, 22, 23])
-    d_small = d[:, :, :, cols].reshape(idx.size, 24, cols.size)
-    sig_small = sig[:, cols[:, None], cols[None, :]]
-    outer = (d_small @ sig_small) @ np.transpose(d_small, (0, 2, 1))
-    outer = outer.sum(axis=0).reshape(4, 6, 4, 6)
-    a = np.einsum("kaq,kap->apq", y, y) + np.einsum("paqa->apq", outer)
+    d_force, d_torque = _regressor_jacobian(x_now, x_next, dt, gravity)
+    p_now, p_next, cross = post.cov[idx], post.cov[idx + 1], post.cross_cov[idx]
+    # Covariance of (Theta_k, v_k, v_{k+1}) and of (omega_k, omega_{k+1});
+    # cross = Cov(x_{k+1}, x_k).
+    sig_f = np.empty((idx.size, 9, 9))
+    sig_f[:, 0:3, 0:3] = p_now[:, 6:9, 6:9]
+    sig_f[:, 0:3, 3:6] = p_now[:, 6:9, 3:6]
+    sig_f[:, 3:6, 0:3] = p_now[:, 3:6, 6:9]
+    sig_f[:, 3:6, 3:6] = p_now[:, 3:6, 3:6]
+    sig_f[:, 6:9, 0:3] = cross[:, 3:6, 6:9]
+    sig_f[:, 6:9, 3:6] = cross[:, 3:6, 3:6]
+    sig_f[:, 0:6, 6:9] = np.transpose(sig_f[:, 6:9, 0:6], (0, 2, 1))
+    sig_f[:, 6:9, 6:9] = p_next[:, 3:6, 3:6]
+    sig_w = np.empty((idx.size, 6, 6))
+    sig_w[:, 0:3, 0:3] = p_now[:, 9:12, 9:12]
+    sig_w[:, 3:6, 0:3] = cross[:, 9:12, 9:12]
+    sig_w[:, 0:3, 3:6] = np.transpose(cross[:, 9:12, 9:12], (0, 2, 1))
+    sig_w[:, 3:6, 3:6] = p_next[:, 9:12, 9:12]
+    a = np.einsum("kaq,kap->apq", y, y)
+    a[0:3, 0, 0] += np.einsum("kai,kij,kaj->a", d_force, sig_f, d_force, optimize=True)
+    a[3:6, 1:4, 1:4] += np.einsum("kpai,kij,kqaj->apq", d_torque, sig_w, d_torque,
+                                  optimize=True)
     b = np.einsum("kap,ka->ap", y, tau)
     c = np.einsum("ka,ka->a", tau, tau)
     return RegressorStats(y, tau, a, b, c, int(idx.size))

@@ -212,14 +212,27 @@ class ModelBasedNavFilter:
 
     def _rebuild(self) -> None:
         from pinquad.identify import kinematic_floor
-        from pinquad.ssm import NoiseModel, Observations, QuadSSM, Theta
+        from pinquad.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
 
         n = self.inputs.shape[0]
         obs = Observations(t=np.arange(n) * self.dt, dt=self.dt, inputs=self.inputs,
                            channels=self.channels, ys=np.empty((0, 0)), x0=self.x0, p0=self.p0)
         noise = NoiseModel(wrench=self.wrench_intensity, q_kin=kinematic_floor(self.dt),
                            meas=self.meas_var)
-        self.model = QuadSSM(obs, Theta(self.mass, self.inertia, noise, self.gravity))
+        theta = Theta(self.mass, self.inertia, noise, self.gravity)
+        self.model = QuadSSM(obs, theta)
+        fixed = NoiseModel(wrench=noise.wrench, q_kin=noise.q_kin, meas=noise.meas,
+                           fixed_q=np.concatenate([np.full(3, 1e-8), np.full(3, 1e-4),
+                                                   np.full(3, 1e-6), np.full(3, 1e-2)]))
+        self.ground_model = KinematicSSM(obs, Theta(self.mass, self.inertia, fixed,
+                                                    self.gravity))
+
+    grounded: bool = False
+
+    def set_grounded(self, grounded: bool) -> None:
+        """On the floor (take-off ramp) the model's forces are not those acting (the
+        floor carries the rest): predict with the force-free kinematic model instead."""
+        self.grounded = grounded
 
     def set_params(self, mass: float, inertia: Array) -> None:
         """Use new mass [kg] and inertia (3, 3) from step on."""
@@ -232,4 +245,5 @@ class ModelBasedNavFilter:
         return self.mean
 
     def advance(self, k: int) -> None:
-        self.mean, self.cov, _ = predict(self.model, k, self.mean, self.cov)
+        model = self.ground_model if self.grounded else self.model
+        self.mean, self.cov, _ = predict(model, k, self.mean, self.cov)

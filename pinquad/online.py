@@ -15,8 +15,9 @@ are excluded, never modelled), the reference trajectory starts, and EM takes ove
 ``min_samples`` airborne samples exist.
 
 Each update warm-starts from the previous one (parameters and noise covariances, and
-the window's prior from the previous posterior) and runs ``iterations`` EM iterations,
-so convergence is spread over updates rather than repeated at each.
+the window's prior from the previous posterior) and runs ``iterations`` EM iterations
+(one E-step and one M-step each; the first update starts with the force-free warm-up
+E-step), so convergence is spread over updates rather than repeated at each.
 """
 
 from __future__ import annotations
@@ -33,13 +34,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.em import initial_theta, run_em
+from pinquad.em import initial_theta
 from pinquad.experiment import SENSOR_INDEX, get_smoother
 from pinquad.identify import regressor_mstep
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.sim import ControllerUpdate, FlightSoFar, SimConfig, flight_log, simulate
 from pinquad.sources import SOURCE_CHANNELS
-from pinquad.ssm import Observations, Theta
+from pinquad.ssm import KinematicSSM, Observations, QuadSSM, Theta
 
 Array = NDArray[np.float64]
 
@@ -53,7 +54,7 @@ class OnlineConfig:
 
     window: int = 800
     every: int = 4
-    iterations: int = 2
+    iterations: int = 1
     min_samples: int = 50
     ramp_rate: float = 0.2
     liftoff_height: float = 0.03
@@ -123,18 +124,19 @@ class OnlineEstimator:
             t0 = time.perf_counter()
             start = max(self.liftoff, k + 1 - cfg.window)
             obs = self._observations(buf, start, k + 1)
-            if self.theta is None:
-                theta0 = initial_theta(obs, self.mass, self.inertia, cfg.gravity)
-                res = run_em(obs, theta0, get_smoother("rts"), regressor_mstep,
-                             max_iterations=cfg.iterations + 1, tol=0.0, tol_loglik=0.0,
-                             accelerate=False)
-            else:
-                res = run_em(obs, self.theta, get_smoother("rts"), regressor_mstep,
-                             max_iterations=cfg.iterations, tol=0.0, tol_loglik=0.0,
-                             accelerate=False)
-            self.theta = _match_meas(res.theta, obs)
-            self.previous = (start, res.posterior)
-            self.mass, self.inertia = res.theta.mass, np.asarray(res.theta.inertia)
+            theta = self.theta
+            warm_up = theta is None
+            if warm_up:
+                theta = initial_theta(obs, self.mass, self.inertia, cfg.gravity)
+            smoother = get_smoother("rts")
+            post = None
+            for it in range(cfg.iterations + (1 if warm_up else 0)):
+                model = (KinematicSSM if warm_up and it == 0 else QuadSSM)(obs, theta)
+                post = smoother(model, obs.ys)
+                theta = regressor_mstep(post, obs, theta).theta
+            self.theta = _match_meas(theta, obs)
+            self.previous = (start, post)
+            self.mass, self.inertia = theta.mass, np.asarray(theta.inertia)
             elapsed = time.perf_counter() - t0
             self.latencies.append(elapsed)
             self.history.append([k, buf.t[k], self.mass, *np.diag(self.inertia), elapsed])

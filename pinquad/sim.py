@@ -273,6 +273,8 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
                     if isinstance(nav, ModelBasedNavFilter):
                         nav.set_params(ctrl_mass, ctrl_inertia)
                 override, ref_start = upd.thrust_override, upd.reference_start
+                if isinstance(nav, ModelBasedNavFilter):
+                    nav.set_grounded(override is not None)
         ctrl_params[k] = [ctrl_mass, *np.diag(ctrl_inertia)]
         out = control_step(x_est, max(k - ref_start, 0), ref, config.gains, ctrl_mass,
                            ctrl_inertia, g, (0.0, thrust_max))
