@@ -94,7 +94,7 @@ def dense_posterior(model: LinearGaussianModel, ys: Array) -> DensePosterior:
     cov = Sigma_x - Sigma_x C^T S^{-1} C Sigma_x over the observed rows only.
     """
     n_steps = ys.shape[0]
-    n, m = model.state_dim, model.meas_dim
+    n = model.state_dim
     mu = np.empty((n_steps, n))
     sig = np.zeros((n_steps * n, n_steps * n))
     mu[0] = model.m0
