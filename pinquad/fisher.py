@@ -41,9 +41,12 @@ def _with_params(theta: Theta, phi: Array) -> Theta:
     return replace(theta, mass=float(v[0]), inertia=np.diag(v[1:4]))
 
 
-def observed_information(obs: Observations, theta: Theta, loglik: LogLik = ekf_loglik,
-                         step: float = 2e-3) -> Array:
-    """(4, 4) observed information of [m, I_xx, I_yy, I_zz] at theta [SI units^-2]."""
+def loglik_derivatives(obs: Observations, theta: Theta, loglik: LogLik = ekf_loglik,
+                       step: float = 2e-3) -> tuple[float, Array, Array]:
+    """log p(y | theta), its gradient (4,) and the observed information (4, 4) with
+    respect to [m, I_xx, I_yy, I_zz] [SI units^-1, ^-2], by central differences in
+    log-parameters (see module docstring); the gradient is
+    g_i = [L(phi + h e_i) - L(phi - h e_i)] / 2h / theta_i."""
     phi0 = np.log(np.concatenate([[theta.mass], np.diag(theta.inertia)]))
     cache: dict[tuple[int, ...], float] = {}
 
@@ -55,12 +58,14 @@ def observed_information(obs: Observations, theta: Theta, loglik: LogLik = ekf_l
 
     n = 4
     hess = np.empty((n, n))
+    grad = np.empty(n)
     zero = (0,) * n
     for i in range(n):
         e = [0] * n
         e[i] = 1
         plus, minus = tuple(e), tuple(-x for x in e)
         hess[i, i] = (value(plus) - 2 * value(zero) + value(minus)) / step**2
+        grad[i] = (value(plus) - value(minus)) / (2 * step)
         for j in range(i):
             def off(a: int, b: int, i: int = i, j: int = j) -> tuple[int, ...]:
                 o = [0] * n
@@ -69,7 +74,15 @@ def observed_information(obs: Observations, theta: Theta, loglik: LogLik = ekf_l
             hess[i, j] = hess[j, i] = (value(off(1, 1)) - value(off(1, -1)) - value(off(-1, 1))
                                        + value(off(-1, -1))) / (4 * step**2)
     d_inv = 1.0 / np.exp(phi0)
-    return -(d_inv[:, None] * hess * d_inv[None, :])
+    # d/dtheta = (1/theta) d/dphi; the second derivative's first-order term
+    # -(1/theta^2) dL/dphi vanishes at the maximum and is kept out of the information.
+    return value(zero), grad * d_inv, -(d_inv[:, None] * hess * d_inv[None, :])
+
+
+def observed_information(obs: Observations, theta: Theta, loglik: LogLik = ekf_loglik,
+                         step: float = 2e-3) -> Array:
+    """(4, 4) observed information of [m, I_xx, I_yy, I_zz] at theta [SI units^-2]."""
+    return loglik_derivatives(obs, theta, loglik, step)[2]
 
 
 def standard_errors(info: Array) -> Array:

@@ -13,7 +13,6 @@ Crazyflie micro-SD binary log).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
