@@ -113,6 +113,7 @@ def run_simulation(args: argparse.Namespace) -> int:
         fl = [c.flight for c in results]
         print(f"flights: worst closest approach to a waypoint {max(f['max_miss_m'] for f in fl):.3f} m, "
               f"crashes {sum(f['crashed'] for f in fl)}")
+        flown = PAPER_SCENARIO if args.vehicle == "paper" else PAPER_SCENARIO.scaled(0.3)
         figs = writer.path("figures")
         figs.mkdir(exist_ok=True)
         for m in msteps:
@@ -127,12 +128,11 @@ def run_simulation(args: argparse.Namespace) -> int:
             write_log(c.log, logs_dir / f"{name}.parquet")
             if c.smoothed is not None:
                 np.save(logs_dir / f"{name}-smoothed.npy", c.smoothed)
-            plot_trajectory(c.log, PAPER_SCENARIO.waypoints, figs / f"trajectory_{c.sensor}.png",
+            plot_trajectory(c.log, flown.waypoints, figs / f"trajectory_{c.sensor}.png",
                             c.smoothed)
             run_logs[c.sensor] = {"log": f"logs/{name}.parquet",
                                   "smoothed": f"logs/{name}-smoothed.npy"}
-        reg = [c for c in results]
-        first = reg[0]
+        first = results[0]
         best = next((r for r in first.runs if r.mstep == msteps[0]), first.runs[0])
         report = {
             "schema": "pinquad.report/1",
@@ -150,8 +150,7 @@ def run_simulation(args: argparse.Namespace) -> int:
                           "validation": "not run on simulated paper experiment"},
             "cycles": cycle_entries(results),
             "statistics": stats_json(summary),
-            "scenario": {"start": PAPER_SCENARIO.start.tolist(),
-                         "waypoints": PAPER_SCENARIO.waypoints.tolist()},
+            "scenario": {"start": flown.start.tolist(), "waypoints": flown.waypoints.tolist()},
             "run_logs": run_logs,
             "seconds": elapsed,
         }
