@@ -167,6 +167,7 @@ class OnlineCycle:
     wall_s: float
     flight_s: float
     max_z: float
+    log: object | None = None
 
 
 def run_online_cycle(job: tuple[str, int, int]) -> OnlineCycle:
@@ -179,11 +180,11 @@ def run_online_cycle(job: tuple[str, int, int]) -> OnlineCycle:
     t0 = time.perf_counter()
     flight = simulate(sim, np.random.default_rng(flight_seed), on_step=est)
     wall = time.perf_counter() - t0
-    _ = flight_log  # the log of an online run is written by the CLI for the first cycle
     return OnlineCycle(sensor, flight_seed, np.asarray(est.history), flight.waypoint_miss,
                        flight.crashed, flight.lifted_off, est.liftoff or -1,
                        np.asarray(est.latencies), wall, float(flight.t[-1]),
-                       float(flight.states[:, 2].max()))
+                       float(flight.states[:, 2].max()),
+                       log=flight_log(flight) if cycle == 0 else None)
 
 
 def measure_update_latency(n_updates: int = 200, window: int = 800) -> Array:
@@ -251,6 +252,8 @@ def main(argv: list[str] | None = None) -> int:
         atomic_write_json(writer.path("report.json"), report)
         writer.path("report.md").write_text("# pinquad online experiment\n\n" + text + "\n")
         _online_figures(results, truth, writer.path("figures"))
+        report["run_logs"] = _write_logs(results, writer)
+        atomic_write_json(writer.path("report.json"), report)
         final = writer.publish()
     except BaseException:
         writer.abort()
@@ -370,6 +373,24 @@ def online_report(results: list[OnlineCycle], truth: Array, stats: dict,
                      "waypoints": PAPER_SCENARIO.waypoints.tolist()},
         "seconds": elapsed,
     }
+
+
+def _write_logs(results: list[OnlineCycle], writer) -> dict:
+    """The first cycle's log per sensor, and the onboard estimate as its 'smoothed'
+    track (an online run has no whole-flight smoother)."""
+    from pinquad.logs import write_log
+
+    out = {}
+    for r in results:
+        if r.log is None:
+            continue
+        name = f"sensor{r.sensor}-cycle00"
+        logs_dir = writer.path("logs")
+        logs_dir.mkdir(exist_ok=True)
+        write_log(r.log, logs_dir / f"{name}.parquet")
+        np.save(logs_dir / f"{name}-smoothed.npy", r.log.onboard)
+        out[r.sensor] = {"log": f"logs/{name}.parquet", "smoothed": f"logs/{name}-smoothed.npy"}
+    return out
 
 
 def _online_figures(results: list[OnlineCycle], truth: Array, figs: Path) -> None:
