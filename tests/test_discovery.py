@@ -1,0 +1,119 @@
+"""Effect discovery on short seeded Crazyflie-like flights (sensor B).
+
+Kept under the test budget: two short flights (clean, drag) with one base EM each,
+discovery without the EM refit for the selection checks, plus cheap unit checks of the
+effect library. The full targets (20 seeds per effect, refit) are measured by
+``python -m pinquad.discovery``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pinquad import effects
+from pinquad.discovery import DiscoveryConfig, EffectSSM, corrected_observations, discover
+from pinquad.em import initial_theta, run_em
+from pinquad.experiment import get_smoother
+from pinquad.identify import regressor_mstep
+from pinquad.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO
+from pinquad.sim import SimConfig, flight_log, simulate
+from pinquad.sources import observations
+from pinquad.ssm import QuadSSM
+
+DRAG = (0.03, 0.03, 0.03)
+FAST = DiscoveryConfig(refit_em=False)
+
+
+def _short_scenario():
+    sc = PAPER_SCENARIO.scaled(0.3)
+    return replace(sc, waypoints=sc.waypoints[:3])
+
+
+def _fit(disturbances, seed):
+    v = CRAZYFLIE21
+    cfg = SimConfig(vehicle=v, scenario=_short_scenario(), sensor="B", disturbances=disturbances)
+    obs = observations(flight_log(simulate(cfg, np.random.default_rng(seed))), "B")
+    th0 = initial_theta(obs, v.mass * PAPER_INITIAL_MASS / 0.18, v.inertia * 0.5, v.gravity)
+    res = run_em(obs, th0, get_smoother("rts"), regressor_mstep, max_iterations=40)
+    return obs, res
+
+
+@pytest.fixture(scope="module")
+def clean():
+    return _fit((), 11)
+
+
+@pytest.fixture(scope="module")
+def dragged():
+    return _fit((effects.drag(DRAG),), 12)
+
+
+def test_clean_flight_selects_nothing(clean):
+    obs, res = clean
+    out = discover(obs, res.theta, res.posterior, cfg=FAST)
+    assert out.selected == ()
+    assert out.rms_after == out.rms_before
+    rep = out.to_report()
+    assert rep["selected"] == []
+
+
+def test_drag_is_named_and_its_coefficient_found(dragged, tmp_path):
+    obs, res = dragged
+    out = discover(obs, res.theta, res.posterior, cfg=FAST, figures_dir=tmp_path)
+    assert out.selected[0] == "drag"
+    d = out.coefficients["drag"]
+    # without the refit the smoother's shrinkage biases the lateral coefficients low
+    # (about -10 %); the refit in ``discover`` brings them within 6 % (module report)
+    np.testing.assert_allclose(d, DRAG, rtol=0.2)
+    assert np.all(out.stderr["drag"] > 0)
+    # held-out residual falls on every force axis (the >= 50 % target needs the EM refit)
+    for axis in ("force_x", "force_y", "force_z"):
+        assert out.rms_after[axis] < out.rms_before[axis]
+    rep = out.to_report()
+    assert set(rep) >= {"selected", "residual_rms_before", "residual_rms_after", "validation"}
+    sel = rep["selected"][0]
+    assert sel["effect"] == "drag" and set(sel["coefficients"]) == {"D_x", "D_y", "D_z"}
+    assert sel["evidence"]["heldout_gain"] > 0.1
+    assert "held out" in rep["validation"]
+    assert (tmp_path / "discovery_drag.png").exists()
+
+
+def test_effect_library_forms():
+    x = np.zeros(12)
+    x[3:6] = [1.0, -2.0, 0.5]
+    u = np.array([0.34, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(effects.drag((0.1, 0.2, 0.3)).wrench(x, u, 0.0)[:3], [-0.1, 0.4, -0.15])
+    np.testing.assert_allclose(effects.com_offset((0.01, 0.02)).wrench(x, u, 0.0)[3:],
+                               [0.02 * 0.34, -0.01 * 0.34, 0.0])
+    np.testing.assert_allclose(effects.wind((0.1, 0.2)).wrench(x, u, 0.0)[:3], [0.1, 0.2, 0.0])
+    lag = effects.motor_lag(0.03).actuation(np.ones(4), np.zeros(4), 0.01)
+    np.testing.assert_allclose(lag, np.full(4, 0.25))
+    assert effects.injected_coefficients("com_offset") == {"c_x": 0.003, "c_y": -0.002}
+    assert set(effects.EFFECT_NAMES) == set(effects.SPECS)
+
+
+def test_effect_ssm_and_corrections(clean):
+    obs, res = clean
+    th = res.theta
+    base, ext = QuadSSM(obs, th), EffectSSM(obs, th, drag=np.array([0.1, 0.1, 0.1]))
+    x = res.posterior.mean[100]
+    f0, _ = base.transition(x, 100)
+    f1, j1 = ext.transition(x, 100)
+    # lateral drag only (the body-z part travels in the thrust input)
+    rot = effects.rotation_from_euler(x[6:9])
+    fb = -0.1 * (rot.T @ x[3:6])
+    fb[2] = 0.0
+    np.testing.assert_allclose(f1[3:6] - f0[3:6], obs.dt * rot @ fb / th.mass, atol=1e-12)
+    h = 1e-6
+    e = np.zeros(12)
+    e[3] = h
+    fd = (ext.transition(x + e, 100)[0] - ext.transition(x - e, 100)[0]) / (2 * h)
+    np.testing.assert_allclose(j1[:, 3], fd, atol=1e-6)
+    corr = corrected_observations(obs, res.posterior.mean, {"gyro_bias": np.array([0.1, 0.0, 0.0]),
+                                                            "com_offset": np.array([0.0, 0.01])})
+    gi = 3 * obs.channels.index("gyro")
+    np.testing.assert_allclose(corr.ys[:, gi] - obs.ys[:, gi], -0.1)
+    np.testing.assert_allclose(corr.inputs[:, 1] - obs.inputs[:, 1], 0.01 * obs.inputs[:, 0])
