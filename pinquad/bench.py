@@ -17,10 +17,11 @@ process on the same inputs:
   stopped, and a peer whose time at the previous N, scaled linearly, would exceed it is
   skipped, both with a note.
 * Memory: a fresh worker per (method, N) runs the method once after loading the case and
-  importing (and compiling) the library; it reports the growth of the process's peak
-  resident set (``getrusage`` ru_maxrss, which sees every allocator: NumPy, numba, XLA,
-  GTSAM) and the peak of Python-tracked allocations (``tracemalloc``: NumPy buffers,
-  not numba's or XLA's).
+  importing (and compiling) the library; it reports the peak resident set during the
+  call above the resident set before it (the kernel's VmHWM, reset just before the call,
+  so it sees every allocator: NumPy, numba, XLA, GTSAM) and the peak of the call's
+  Python-traced allocations (``tracemalloc``: NumPy's and numba's arrays, not XLA's or
+  GTSAM's C++ heap); see :func:`call_peak_memory`.
 * One offline EM (regressor M-step, paper's initial guess, at most 100 E-steps) on a
   60 s simulated flight, and ``python -m pinquad.offline`` with its defaults end to end
   as a subprocess (skipped with ``--quick``).
@@ -100,6 +101,48 @@ def timed_call(fn: Callable[[], Any], limit: float | None = None) -> tuple[float
 def maxrss_mb() -> float:
     """Peak resident set of this process so far [MB] (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _status_mb(field: str) -> float | None:
+    """A memory line of /proc/self/status [MB], None where there is none."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return None
+
+
+def reset_peak_rss() -> bool:
+    """Reset this process's peak RSS (VmHWM) to its current RSS (Linux >= 4.0)."""
+    try:
+        with open("/proc/self/clear_refs", "w", encoding="ascii") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def call_peak_memory(fn: Callable[[], Any]) -> dict:
+    """Memory of one call of ``fn``: ``rss_growth_mb``, the peak resident set during the
+    call above the resident set just before it (the kernel's peak counter VmHWM, reset
+    before the call; every allocator counts: NumPy, numba, XLA, GTSAM), and
+    ``python_peak_mb``, the tracemalloc peak of the call (allocations reported to
+    Python's tracer: NumPy's and numba's arrays and Python objects, not XLA's or
+    GTSAM's C++ heap). Without /proc, the growth of ru_maxrss (a lower bound)."""
+    gc.collect()
+    exact = reset_peak_rss()
+    before = _status_mb("VmRSS") if exact else maxrss_mb()
+    tracemalloc.start()
+    fn()
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    after = _status_mb("VmHWM") if exact else maxrss_mb()
+    growth = None if before is None or after is None else after - before
+    return {"rss_growth_mb": growth, "python_peak_mb": peak / 2**20,
+            "rss_before_mb": before, "rss_method": "VmHWM reset" if exact else "ru_maxrss"}
 
 
 def median(xs: list[float]) -> float | None:
@@ -226,14 +269,9 @@ def _worker_memory(spec: dict) -> dict:
 
         smooth_quad(case.model, case.ys[:50])
     run, _ = contestant(spec["method"]).prepare(case)
-    gc.collect()
-    before = maxrss_mb()
-    tracemalloc.start()
-    run()
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
-    return {"method": spec["method"], "N": case.n_steps, "rss_growth_mb": maxrss_mb() - before,
-            "python_peak_mb": peak / 2**20, "rss_before_mb": before}
+    out = call_peak_memory(run)
+    out.update(method=spec["method"], N=case.n_steps)
+    return out
 
 
 def em_observations(seconds: float = EM_SECONDS, seed: int = 7):
@@ -266,16 +304,15 @@ def _worker_em(spec: dict) -> dict:
     def run():
         return run_em(obs, theta0, smooth_quad, regressor_mstep, max_iterations=100)
 
-    before = maxrss_mb()
     first, res = timed_call(run)
-    growth = maxrss_mb() - before
     times = [first] + [timed_call(run)[0] for _ in range(int(spec["repeats"]) - 1)]
+    mem = call_peak_memory(run)
     return {"s": times, "first_s": first, "steps": obs.n, "seconds": float(obs.n * obs.dt),
             "iterations": res.iterations, "e_steps": res.e_steps, "converged": res.converged,
             "mass": res.theta.mass, "mass_true": PAPER_VEHICLE.mass,
             "inertia_diag": np.diag(res.theta.inertia).tolist(),
             "inertia_diag_true": np.diag(PAPER_VEHICLE.inertia).tolist(),
-            "rss_growth_mb": growth}
+            "rss_growth_mb": mem["rss_growth_mb"], "python_peak_mb": mem["python_peak_mb"]}
 
 
 def _worker_online(spec: dict) -> dict:
@@ -284,7 +321,8 @@ def _worker_online(spec: dict) -> dict:
         from pinquad.online import measure_update_latency
     except Exception as exc:  # the online module is optional for the benchmark
         return {"available": False, "reason": f"{type(exc).__name__}: {exc}"}
-    before = maxrss_mb()
+    reset_peak_rss()
+    before = _status_mb("VmRSS")
     t0 = time.perf_counter()
     lat = np.asarray(measure_update_latency(n_updates=int(spec["n_updates"]),
                                             window=int(spec["window"])), dtype=float)
@@ -295,7 +333,7 @@ def _worker_online(spec: dict) -> dict:
             "p50_ms": float(np.percentile(lat, 50) * 1e3),
             "p99_ms": float(np.percentile(lat, 99) * 1e3),
             "max_ms": float(lat.max() * 1e3), "mean_ms": float(lat.mean() * 1e3),
-            "wall_s": wall, "rss_growth_mb": maxrss_mb() - before}
+            "wall_s": wall, "peak_rss_mb": _status_mb("VmHWM"), "rss_before_mb": before}
 
 
 WORKERS: dict[str, Callable[[dict], dict]] = {
@@ -375,6 +413,8 @@ def run_estep(args: argparse.Namespace, ns: list[int], cases: dict[int, Path]) -
             elif i and status[i - 1] in ("timeout", "skipped"):
                 out = {"status": "skipped", "note": f"slower than {args.timeout:.0f} s at a "
                        f"smaller N"}
+            elif i and status[i - 1] in ("mismatch", "error"):
+                out = {"status": "skipped", "note": f"{status[i - 1]} at N={ns[i - 1]:,}"}
             elif prev is not None and prev * n / ns[i - 1] > args.timeout:
                 out = {"status": "skipped", "note": f"projected {prev * n / ns[i - 1]:.0f} s "
                        f"(linear from N={ns[i - 1]:,}) > {args.timeout:.0f} s time-out"}
@@ -408,6 +448,8 @@ def run_estep(args: argparse.Namespace, ns: list[int], cases: dict[int, Path]) -
         if name == "dynamax":
             res["dynamax_compile_s"] = compile_s
     res["exponent"] = {name: loglog_slope(ns, res[f"{name}_s"]) for name in methods}
+    for name in PEERS:  # the JSON keeps every peer's key, null where not run
+        res.setdefault(f"{name}_s", [None] * len(ns))
     return res
 
 
@@ -434,8 +476,7 @@ def run_memory(args: argparse.Namespace, ns: list[int], cases: dict[int, Path],
 def profile_estep(case_path: Path, runs: int = 5) -> dict:
     """Where ``smooth_quad``'s time goes on one case: cProfile of the whole call, and
     stage timings (medians of ``runs``) of the wrapper's model checks and the two
-    compiled passes. numba's dispatchers are C callables that cProfile does not list, so
-    the compiled loops' time shows as ``smooth_quad``'s own (tottime)."""
+    compiled passes (called directly), all in this process."""
     from pinquad import fast_smoother as fs
     from pinquad.bench_estep import load_case
 
@@ -443,12 +484,9 @@ def profile_estep(case_path: Path, runs: int = 5) -> dict:
     model, ys = case.model, np.ascontiguousarray(case.ys)
     fs.smooth_quad(model, ys)
     prof = cProfile.Profile()
-    total = []
     for _ in range(runs):
         prof.enable()
-        t0 = time.perf_counter()
         fs.smooth_quad(model, ys)
-        total.append(time.perf_counter() - t0)
         prof.disable()
     buf = io.StringIO()
     stats = pstats.Stats(prof, stream=buf)
@@ -458,8 +496,10 @@ def profile_estep(case_path: Path, runs: int = 5) -> dict:
             stats.stats.items(), key=lambda kv: -kv[1][2])[:12]:
         top.append({"function": f"{Path(file).name}:{line}({func})", "calls": ncalls,
                     "tottime_s": tottime / runs, "cumtime_s": cumtime / runs})
-    out: dict[str, Any] = {"N": case.n_steps, "runs": runs, "total_s": median(total),
-                           "cprofile_top": top, "cprofile_text": buf.getvalue()}
+    out: dict[str, Any] = {"N": case.n_steps, "runs": runs, "cprofile_top": top,
+                           "cprofile_text": buf.getvalue()}
+    total = [timed_call(lambda: fs.smooth_quad(model, ys))[0] for _ in range(runs)]
+    out["total_s"] = median(total)
     try:
         stages: dict[str, list[float]] = {"checks": [], "forward": [], "backward": []}
         x0, p0 = model.initial()
@@ -467,6 +507,7 @@ def profile_estep(case_path: Path, runs: int = 5) -> dict:
         p0 = np.ascontiguousarray(p0, dtype=float)
         inputs = np.ascontiguousarray(model.obs.inputs, dtype=float)
         for _ in range(runs):
+            gc.collect()
             t0 = time.perf_counter()
             consts = fs._kernel_inputs(model, ys.shape[1])
             fs._agrees_with_model(model, consts)
@@ -481,7 +522,7 @@ def profile_estep(case_path: Path, runs: int = 5) -> dict:
             del fwd
         out["stages_s"] = {k: median(v) for k, v in stages.items()}
         other = out["total_s"] - sum(out["stages_s"].values())
-        out["stages_s"]["other (argument handling, Posterior)"] = other
+        out["stages_s"]["rest (median total - stages)"] = other
     except (AttributeError, TypeError, ValueError) as exc:
         out["stages_error"] = f"stage timings unavailable ({type(exc).__name__}: {exc})"
     return out
@@ -533,7 +574,8 @@ def format_report(res: dict) -> str:
     m = res["machine"]
     lines.append(f"pinquad benchmark  ({m['cpu_count']} CPUs, {m.get('cpu_model', '')}, "
                  f"Python {m['python']}, numpy {m['versions'].get('numpy')}; load average "
-                 f"at start {m['loadavg_at_start'][0]:.2f})")
+                 f"at start {m['loadavg_at_start'][0]:.2f}, at end "
+                 f"{m.get('loadavg_at_end', [math.nan])[0]:.2f})")
     lines.append(f"medians of {s['repeats']} runs ({s['repeats_large']} at N >= "
                  f"{LARGE_N:,}); peer time-out {s['timeout_s']:.0f} s")
     es = res.get("estep")
@@ -701,9 +743,11 @@ def main(argv: list[str] | None = None) -> int:
                                "(3,744 steps of 10 ms for seed 1) repeated end to end and cut "
                                "to N; peers get the model linearised along the EKF's filtered "
                                "means (pinquad/bench_estep.py)",
-                     "memory": "per (method, N) a fresh worker: growth of ru_maxrss over one "
-                               "call after loading, importing and compiling; and the "
-                               "tracemalloc peak of that call (NumPy buffers only)"},
+                     "memory": "per (method, N) a fresh worker loads the case, imports "
+                               "(and compiles) the method, then runs it once: rss_growth_mb = "
+                               "peak RSS during the call (VmHWM, reset before it) minus RSS "
+                               "before it; python_peak_mb = tracemalloc peak of the call "
+                               "(NumPy and numba arrays; not XLA or GTSAM C++ memory)"},
         "estep": None, "online_update_ms": {"p50": None, "p99": None},
         "offline_em_60s_s": None, "offline_default_s": None,
     }
@@ -744,6 +788,7 @@ def main(argv: list[str] | None = None) -> int:
             res["offline_default"] = off
             res["offline_default_s"] = off["s"]
     res["total_s"] = time.perf_counter() - t_start
+    res["machine"]["loadavg_at_end"] = list(os.getloadavg())
     text = format_report(res)
     print(text)
     if res.get("profile") and args.profile:
