@@ -336,12 +336,6 @@ def _worker_online(spec: dict) -> dict:
             "wall_s": wall, "peak_rss_mb": _status_mb("VmHWM"), "rss_before_mb": before}
 
 
-WORKERS: dict[str, Callable[[dict], dict]] = {
-    "estep": _worker_estep, "memory": _worker_memory, "em": _worker_em,
-    "online": _worker_online,
-}
-
-
 def run_worker(kind: str, spec: dict, timeout: float | None) -> dict:
     """Run one worker in a fresh process; its result, or a status saying why none."""
     cmd = [sys.executable, "-m", "pinquad.bench", "--worker", kind, "--spec", json.dumps(spec)]
@@ -361,7 +355,7 @@ def worker_main(kind: str, spec_json: str) -> int:
     import warnings
 
     warnings.simplefilter("ignore")
-    result = WORKERS[kind](json.loads(spec_json))
+    result = _workers()[kind](json.loads(spec_json))
     print(RESULT_TAG + json.dumps(_clean(result)), flush=True)
     return 0
 
@@ -498,8 +492,23 @@ def profile_estep(case_path: Path, runs: int = 5) -> dict:
                     "tottime_s": tottime / runs, "cumtime_s": cumtime / runs})
     out: dict[str, Any] = {"N": case.n_steps, "runs": runs, "cprofile_top": top,
                            "cprofile_text": buf.getvalue()}
-    total = [timed_call(lambda: fs.smooth_quad(model, ys))[0] for _ in range(runs)]
+    total, faults, kernel, user = [], [], [], []
+    for _ in range(runs):
+        gc.collect()
+        r0 = resource.getrusage(resource.RUSAGE_SELF)
+        t0 = time.perf_counter()
+        fs.smooth_quad(model, ys)
+        total.append(time.perf_counter() - t0)
+        r1 = resource.getrusage(resource.RUSAGE_SELF)
+        faults.append(r1.ru_minflt - r0.ru_minflt)
+        kernel.append(r1.ru_stime - r0.ru_stime)
+        user.append(r1.ru_utime - r0.ru_utime)
     out["total_s"] = median(total)
+    # fresh output arrays (means, covariances, cross-covariances, filter intermediates)
+    # are paid for in page faults: kernel time, not arithmetic
+    out["page_faults_per_call"] = median(faults)
+    out["kernel_s"] = median(kernel)
+    out["user_s"] = median(user)
     try:
         stages: dict[str, list[float]] = {"checks": [], "forward": [], "backward": []}
         x0, p0 = model.initial()
@@ -528,24 +537,36 @@ def profile_estep(case_path: Path, runs: int = 5) -> dict:
     return out
 
 
-def run_offline_default(workdir: Path, timeout: float) -> dict:
+def _worker_offline(spec: dict) -> dict:
     """``python -m pinquad.offline`` (defaults; output into a scratch directory) as a
-    subprocess: wall time and the peak RSS of the largest process in it."""
-    cmd = [sys.executable, "-m", "pinquad.offline", "--out", str(workdir / "offline-run")]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    subprocess of this fresh worker: wall time, and the peak RSS of the largest process
+    in the run (ru_maxrss over this worker's waited-for children)."""
+    cmd = [sys.executable, "-m", "pinquad.offline", "--out", spec["out"]]
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=spec["timeout"])
     except subprocess.TimeoutExpired:
-        return {"s": None, "status": "timeout", "note": f"stopped after {timeout:.0f} s"}
+        return {"s": None, "status": "timeout", "note": f"stopped after {spec['timeout']:.0f} s"}
     wall = time.perf_counter() - t0
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
     out = {"s": wall, "status": "ok" if proc.returncode == 0 else "error",
            "returncode": proc.returncode, "command": "python -m pinquad.offline",
-           "max_rss_mb": peak / 1024.0 if peak > before else None}
+           "max_rss_mb": peak}
     if proc.returncode != 0:
         out["note"] = (proc.stderr.strip().splitlines() or ["no output"])[-1]
     return out
+
+
+def run_offline_default(workdir: Path, timeout: float) -> dict:
+    """The end-to-end offline command, once (:func:`_worker_offline`)."""
+    spec = {"out": str(workdir / "offline-run"), "timeout": timeout}
+    return run_worker("offline", spec, timeout=timeout + 60)
+
+
+def _workers() -> dict[str, Callable[[dict], dict]]:
+    """The worker functions by kind (``--worker KIND``)."""
+    return {"estep": _worker_estep, "memory": _worker_memory, "em": _worker_em,
+            "online": _worker_online, "offline": _worker_offline}
 
 
 # --------------------------------------------------------------------------- output
@@ -628,6 +649,9 @@ def format_report(res: dict) -> str:
     if prof:
         lines.append("")
         lines.append(f"profile of ours at N={prof['N']:,}: total {_fmt_s(prof['total_s'])}")
+        lines.append(f"  CPU time split: user {_fmt_s(prof['user_s'])}, kernel "
+                     f"{_fmt_s(prof['kernel_s'])} ({prof['page_faults_per_call']:.0f} minor "
+                     f"page faults: first touch of fresh output memory)")
         for k, v in prof.get("stages_s", {}).items():
             lines.append(f"  {k:<40}{_fmt_s(v):>12}  ({100 * v / prof['total_s']:.1f} %)")
         if "stages_error" in prof:
