@@ -70,11 +70,12 @@ def replay(args: argparse.Namespace) -> int:
         from pinquad.sdlog import is_sdlog
 
         if path.exists() and path.is_file() and is_sdlog(path):
-            from pinquad.realdata import load_real  # measured Crazyflie flights
+            from pinquad.realdata import build_observations, default_guess, raw_from_sdflight
+            from pinquad.sdlog import read_sdflight
 
-            real = load_real(path)
-            obs, gravity = real.observations, 9.81
-            mass0, inertia0 = real.mass_guess, real.inertia_guess
+            real = build_observations(raw_from_sdflight(read_sdflight(path)))
+            obs, gravity = real.obs, 9.81
+            mass0, inertia0, _ = default_guess("crazyflie21")
         else:
             log = read_log(path)
             sensor = (args.sensor or ["B" if not np.isnan(log.euler).all() else "C"])[0]
