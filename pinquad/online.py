@@ -23,6 +23,7 @@ E-step), so convergence is spread over updates rather than repeated at each.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -220,6 +221,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, help="output run directory (default runs/online-<time>)")
     p.add_argument("--log", type=Path, help="replay a recorded log through the online "
                    "estimator as a stream (no controller feedback)")
+    p.add_argument("--offline-report", type=Path,
+                   help="an offline report.json whose ranges the online ranges are compared with "
+                   "(default: the newest runs/offline-*/report.json, if any)")
     p.add_argument("--view", action="store_true", help="open the browser view of the run")
     args = p.parse_args(argv)
     if args.log is not None:
@@ -233,6 +237,14 @@ def main(argv: list[str] | None = None) -> int:
 
     from pinquad.runs import RunWriter, atomic_write_json, new_run_dir
 
+    offline_path = args.offline_report or newest_offline_report()
+    offline = None
+    if offline_path is not None:
+        try:
+            offline = offline_ranges(offline_path)
+        except ValueError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
     sensors = args.sensor or ["A", "B", "C"]
     jobs = [(s, i, args.seed) for s in sensors for i in range(args.cycles)]
     out_dir = args.out or new_run_dir("online")
@@ -244,7 +256,10 @@ def main(argv: list[str] | None = None) -> int:
                                 desc="online cycles", file=sys.stderr))
         elapsed = time.perf_counter() - t0
         truth = np.array([PAPER_VEHICLE.mass, *PAPER_VEHICLE.inertia_diag])
-        text, stats = online_tables(results, truth, paper)
+        text, stats = online_tables(results, truth, paper, offline)
+        text += ("\n\nOffline ranges from " + str(offline_path) if offline is not None else
+                 "\n\nNo offline report to compare with (run python -m pinquad.offline first, "
+                 "or pass --offline-report)")
         print(text)
         print(f"\n{len(results)} closed-loop flights, seeds "
               f"{min(r.seed for r in results)}..{max(r.seed for r in results)}; {elapsed:.1f} s")
@@ -284,7 +299,38 @@ def time_to_converge(history: Array, truth: Array, mass_band: float = 0.005,
     return float(history[first, 1]) if first < history.shape[0] else float("nan")
 
 
-def online_tables(results: list[OnlineCycle], truth: Array, paper) -> tuple[str, dict]:
+def offline_ranges(report_path: Path, mstep: str = "regressor") -> dict[str, Array]:
+    """Per sensor, the (2, 4) [min; max] of [m, Ixx, Iyy, Izz] over the cycles of an offline
+    ``report.json`` (DESIGN.md 4.3 ``cycles``) identified with ``mstep`` [kg, kg m^2].
+
+    Raises ValueError naming the file if it is not an offline report with such cycles."""
+    try:
+        cycles = json.loads(Path(report_path).read_text())["cycles"]
+        rows: dict[str, list[Array]] = {}
+        for c in cycles:
+            if c.get("mstep", "regressor") != mstep:
+                continue
+            inertia = np.asarray(c["estimates"]["inertia"], dtype=float)
+            diag = np.diag(inertia) if inertia.ndim == 2 else inertia
+            rows.setdefault(c["sensor"], []).append(np.array([c["estimates"]["mass"], *diag]))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"{report_path}: not an offline report.json with 'cycles' "
+                         f"(sensor, mstep, estimates.mass, estimates.inertia): {exc}") from None
+    if not rows:
+        raise ValueError(f"{report_path}: no cycles identified with the {mstep!r} M-step")
+    return {s: np.array([np.min(v, axis=0), np.max(v, axis=0)]) for s, v in rows.items()}
+
+
+def newest_offline_report(root: Path = Path("runs")) -> Path | None:
+    """The report.json of the newest ``runs/offline-*`` directory, if any."""
+    found = sorted(root.glob("offline-*/report.json"), key=lambda q: q.stat().st_mtime)
+    return found[-1] if found else None
+
+
+def online_tables(results: list[OnlineCycle], truth: Array, paper,
+                  offline: dict[str, Array] | None = None) -> tuple[str, dict]:
+    """The paper's online tables (converged ranges) beside the paper's and, when given,
+    our offline ranges (per sensor (2, 4) [min; max]) with the width ratio online/offline."""
     sensors = sorted({r.sensor for r in results})
     lines = ["Online estimated mass [kg] and inertia [kg m^2]: converged range over cycles "
              "(median of the last 10 % of updates)", "",
@@ -300,6 +346,14 @@ def online_tables(results: list[OnlineCycle], truth: Array, paper) -> tuple[str,
                      + " | ".join(f"({a:.3g}, {b:.3g})" for a, b in pi) + " |")
         lines.append("| | ours | " + " | ".join(f"({lo[i]:.5g}, {hi[i]:.5g})" for i in range(4))
                      + " |")
+        width_ratio = None
+        if offline is not None and s in offline:
+            off = offline[s]
+            lines.append("| | ours offline | " + " | ".join(
+                f"({off[0, i]:.5g}, {off[1, i]:.5g})" for i in range(4)) + " |")
+            width_ratio = (hi - lo) / np.maximum(off[1] - off[0], 1e-300)
+            lines.append("| | width online / offline | " + " | ".join(
+                f"{w:.2f}" for w in width_ratio) + " |")
         rel = np.abs(conv / truth - 1.0)
         ttc = np.array([time_to_converge(r.history, truth) for r in rs])
         lat = np.concatenate([r.latencies for r in rs]) if rs else np.zeros(0)
@@ -309,6 +363,7 @@ def online_tables(results: list[OnlineCycle], truth: Array, paper) -> tuple[str,
             "mass_within_0.5pct": int(np.sum(rel[:, 0] <= 0.005)),
             "inertia_within_5pct": int(np.sum(np.all(rel[:, 1:] <= 0.05, axis=1))),
             "cycles": len(rs),
+            "range_width_over_offline": None if width_ratio is None else width_ratio.tolist(),
             "time_to_converge_s": {"median": float(np.nanmedian(ttc)) if np.isfinite(ttc).any()
                                    else None, "max": float(np.nanmax(ttc))
                                    if np.isfinite(ttc).any() else None,
@@ -331,9 +386,13 @@ def online_tables(results: list[OnlineCycle], truth: Array, paper) -> tuple[str,
             f"| {s} | {st['mass_within_0.5pct']}/{st['cycles']} | "
             f"{st['inertia_within_5pct']}/{st['cycles']} | {st['worst_waypoint_miss_m']:.3f} | "
             f"{st['crashes']} | {st['lifted_off']}/{st['cycles']} | "
-            f"{ttc['median']} ({ttc['max']}, {ttc['never']}) | {upd['p50']:.1f} / "
+            f"{_seconds(ttc['median'])} ({_seconds(ttc['max'])}, {ttc['never']}) | {upd['p50']:.1f} / "
             f"{upd['p99']:.1f} | {st['realtime_factor']:.2f} |")
     return "\n".join(lines), stats
+
+
+def _seconds(value: float | None) -> str:
+    return "-" if value is None else f"{value:.1f}"
 
 
 def online_report(results: list[OnlineCycle], truth: Array, stats: dict,
