@@ -21,7 +21,7 @@ from pinquad.logs import FlightLog
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, VEHICLES
 from pinquad.sim import SimConfig, flight_log, simulate, waypoint_report
 from pinquad.sources import observations
-from pinquad.ssm import Observations, QuadSSM, Theta
+from pinquad.ssm import Observations, Theta
 
 Array = NDArray[np.float64]
 
@@ -49,13 +49,16 @@ def get_smoother(estep: str) -> Smoother:
 
 
 def loglik_function(estep: str):
-    """log p(y | theta) for information computations (always the EKF's)."""
-    smoother = get_smoother("rts")
+    """log p(y | theta) for information computations (always the EKF's): the compiled
+    forward pass (``fast_smoother.loglik_quad``) when available, else the generic EKF."""
+    try:
+        from pinquad.fast_smoother import loglik_quad
 
-    def loglik(model: QuadSSM, ys: Array) -> float:
-        return smoother(model, ys).loglik
+        return loglik_quad
+    except ImportError:  # the compiled path is optional
+        from pinquad.fisher import ekf_loglik
 
-    return loglik
+        return ekf_loglik
 
 
 def flight_seed(seed: int, sensor: str, cycle: int) -> int:

@@ -28,6 +28,11 @@ Backward pass (``estimators.rts``), k = N-2 .. 0:
     P^s_k = P_k + G_k (P^s_{k+1} - P^-_{k+1}) G_k^T           (symmetrised)
     Cov(x_{k+1}, x_k | y) = P^s_{k+1} G_k^T
 
+EM's force-free warm-up model (``KinematicSSM``: f = [v, 0, E^{-1} omega, 0] with the
+paper's fixed Q0) runs through the same passes with its own transition kernel, and
+``loglik_quad`` runs the forward pass alone (no stored arrays) for the observed
+information's 33 likelihood evaluations.
+
 No outlier gate (EM runs the generic path with ``gate_sigma=None`` too). Anything the
 kernels do not cover (another model class, a gate, a QuadSSM whose behaviour has moved
 away from these kernels) goes to the generic smoother instead.
@@ -42,9 +47,11 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from estimators.ekf import run_filter
 from estimators.protocol import Posterior, StateSpaceModel
 from estimators.rts import smooth as generic_smooth
-from pinquad.ssm import QuadSSM
+from pinquad import ssm as _ssm
+from pinquad.ssm import KinematicSSM, QuadSSM
 
 Array = NDArray[np.float64]
 
@@ -166,6 +173,44 @@ def _transition(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac):
 
 
 @njit(cache=True)
+def _transition_kinematic(x, dt, x_next, jac):
+    """KinematicSSM.transition (the force-free warm-up model: p' = v, v' = 0,
+    Theta' = E^{-1} omega, omega' = 0), written with the same expressions in the same
+    order as pinquad.ssm so the two agree to the last bit."""
+    phi, theta = x[6], x[7]
+    wx, wy, wz = x[9], x[10], x[11]
+    sf, cf = math.sin(phi), math.cos(phi)
+    st, ct = math.sin(theta), math.cos(theta)
+    tt = st / ct
+    a = sf * wy + cf * wz
+    for r in range(_N):
+        x_next[r] = x[r]
+    for r in range(3):
+        x_next[r] += dt * x[3 + r]
+    x_next[6] += dt * (wx + tt * a)
+    x_next[7] += dt * (cf * wy - sf * wz)
+    x_next[8] += dt * a / ct
+    _fill(jac, 0.0)
+    for r in range(_N):
+        jac[r, r] = 1.0
+    jac[0, 3] = dt
+    jac[1, 4] = dt
+    jac[2, 5] = dt
+    jac[6, 6] += dt * tt * (cf * wy - sf * wz)
+    jac[6, 7] = dt * a / (ct * ct)
+    jac[6, 9] = dt
+    jac[6, 10] = dt * sf * tt
+    jac[6, 11] = dt * cf * tt
+    jac[7, 6] = dt * (-sf * wy - cf * wz)
+    jac[7, 10] = dt * cf
+    jac[7, 11] = -dt * sf
+    jac[8, 6] = dt * (cf * wy - sf * wz) / ct
+    jac[8, 7] = dt * a * st / (ct * ct)
+    jac[8, 10] = dt * sf / ct
+    jac[8, 11] = dt * cf / ct
+
+
+@njit(cache=True)
 def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
     """Q (12, 12) of QuadSSM.process_cov at x, written into q."""
     _fill(q, 0.0)
@@ -281,16 +326,21 @@ def _symmetrise(c, out):
 
 @njit(cache=True)
 def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
-             state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau):
+             state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic, store):
     """EKF forward pass (see module docstring). Returns filtered and predicted means and
     covariances, the transition Jacobians, the log-likelihood and the first step whose
-    innovation covariance was not positive definite (-1 if none)."""
+    innovation covariance was not positive definite (-1 if none).
+
+    kinematic: the force-free warm-up transition (KinematicSSM) instead of the dynamic
+    one; store: keep the per-step arrays (False when only the log-likelihood is wanted:
+    the arrays then have length 1 and hold nothing of use, saving the memory traffic)."""
     n_steps, m = ys.shape
-    f_mean = np.empty((n_steps, _N))
-    f_cov = np.empty((n_steps, _N, _N))
-    p_mean = np.empty((n_steps, _N))
-    p_cov = np.empty((n_steps, _N, _N))
-    jacs = np.empty((max(n_steps - 1, 0), _N, _N))
+    n_store = n_steps if store else 1
+    f_mean = np.empty((n_store, _N))
+    f_cov = np.empty((n_store, _N, _N))
+    p_mean = np.empty((n_store, _N))
+    p_cov = np.empty((n_store, _N, _N))
+    jacs = np.empty((max(n_store - 1, 0) if store else 1, _N, _N))
     mean = x0.copy()
     cov = p0.copy()
     idx = np.empty(m, dtype=np.int64)
@@ -309,8 +359,9 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
     x_next = np.empty(_N)
     loglik = 0.0
     for k in range(n_steps):
-        _copy_vec(mean, p_mean[k])
-        _copy_mat(cov, p_cov[k])
+        if store:
+            _copy_vec(mean, p_mean[k])
+            _copy_mat(cov, p_cov[k])
         y = ys[k]
         p = 0
         for i in range(m):
@@ -366,12 +417,18 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
                         new_cov[r, c] += kr * gain_t[a, c]
             _symmetrise(new_cov, cov)
             loglik += -0.5 * (quad + 2.0 * logdet + p * _LOG_2PI)
-        _copy_vec(mean, f_mean[k])
-        _copy_mat(cov, f_cov[k])
+        if store:
+            _copy_vec(mean, f_mean[k])
+            _copy_mat(cov, f_cov[k])
         if k + 1 < n_steps:
             _process_cov(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
-            _transition(mean, inputs[k], dt, mass, inertia, inertia_inv, gravity, x_next, jac)
-            _copy_mat(jac, jacs[k])
+            if kinematic:
+                _transition_kinematic(mean, dt, x_next, jac)
+            else:
+                _transition(mean, inputs[k], dt, mass, inertia, inertia_inv, gravity, x_next,
+                            jac)
+            if store:
+                _copy_mat(jac, jacs[k])
             _sandwich(jac, cov, tmp, tmp_t, new_cov)
             for r in range(_N):
                 for c in range(_N):
@@ -455,8 +512,9 @@ _PROBE = np.array([0.3, -0.2, 0.5, 0.4, -0.5, 0.6, 0.2, -0.3, 0.4, 0.5, -0.6, 0.
 
 
 def _kernel_inputs(model: QuadSSM, meas_dim: int) -> tuple | None:
-    """The model's constants as the kernels take them, computed as QuadSSM computes them;
-    None if its measurement matrix is not a row selector (the kernels rely on it)."""
+    """The model's constants as the kernels take them, computed as QuadSSM computes them
+    (the last one: whether it is the force-free KinematicSSM); None if its measurement
+    matrix is not a row selector (the kernels rely on it)."""
     obs, theta, body = model.obs, model.theta, model.body
     h = obs.measurement_matrix()
     if (h.shape != (meas_dim, _N) or np.count_nonzero(h) != meas_dim
@@ -474,7 +532,8 @@ def _kernel_inputs(model: QuadSSM, meas_dim: int) -> tuple | None:
             np.ascontiguousarray(body.inertia_inv, dtype=float), float(body.gravity),
             np.ascontiguousarray(nz.meas, dtype=float), state_of_row, is_angle, use_fixed,
             fixed_q, np.ascontiguousarray(nz.q_kin, dtype=float),
-            np.ascontiguousarray(nz.wrench[0:3], dtype=float), np.ascontiguousarray(q_tau))
+            np.ascontiguousarray(nz.wrench[0:3], dtype=float), np.ascontiguousarray(q_tau),
+            type(model) is KinematicSSM)
 
 
 def _close(ours: Array, ref: Array) -> bool:
@@ -488,14 +547,17 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
     new terms): transition, Jacobian, Q, H, R and the wrapped residual at a probe state,
     at the first and the last transition."""
     (dt, mass, inertia, inertia_inv, gravity, meas_var, state_of_row, is_angle, use_fixed,
-     fixed_q, q_kin, s_f, q_tau) = consts
+     fixed_q, q_kin, s_f, q_tau, kinematic) = consts
     n_steps = model.obs.n
     x = np.asarray(model.obs.x0, dtype=float) + _PROBE
     x_next, jac, q = np.empty(_N), np.empty((_N, _N)), np.empty((_N, _N))
     for k in {0, max(n_steps - 2, 0)}:
         ref_x, ref_jac = model.transition(x, k)
         u = np.ascontiguousarray(model.obs.inputs[k], dtype=float)
-        _transition(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
+        if kinematic:
+            _transition_kinematic(x, dt, x_next, jac)
+        else:
+            _transition(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
         _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
         ref_q = model.process_cov(x, k)
         y_pred, h = model.measure(x, k)
@@ -512,6 +574,77 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
     return bool(np.array_equal(model.residual(y, y_pred), ours))
 
 
+# The methods (and the module functions they call) that define what a QuadSSM computes;
+# the agreement check is a guard against this code drifting from the kernels, so its
+# verdict holds for as long as none of these objects is replaced.
+_MODEL_METHODS = ("initial", "transition", "process_cov", "measure", "meas_cov", "residual")
+_checked: dict[tuple, bool] = {}
+
+
+def _code_key(model: QuadSSM, consts: tuple) -> tuple | None:
+    """Identity of the code behind ``model`` and of the kernel variant it needs (channels,
+    fixed or structured Q, kinematic or dynamic); None when an instance overrides a
+    method (then every call is checked)."""
+    if any(name in vars(model) for name in _MODEL_METHODS):
+        return None
+    cls = type(model)
+    return (cls, cls.__init__, *(getattr(cls, name) for name in _MODEL_METHODS),
+            _ssm.state_derivative_and_jacobian, _ssm.wrap_angle, model.obs.channels,
+            consts[8], consts[13])
+
+
+def _agrees_cached(model: QuadSSM, consts: tuple) -> bool:
+    """``_agrees_with_model``, run once per code identity (``_code_key``) and process:
+    it costs ~2 ms of Python per call, a fifth of an online update."""
+    key = _code_key(model, consts)
+    if key is None:
+        return _agrees_with_model(model, consts)
+    if key not in _checked:
+        _checked[key] = _agrees_with_model(model, consts)
+    return _checked[key]
+
+
+def _prepared(model: StateSpaceModel, ys: Array) -> tuple[Array, tuple] | None:
+    """(ys, kernel constants) if the kernels reproduce ``model``, else None (after a
+    warning if the model is a QuadSSM the kernels no longer match)."""
+    if type(model) not in (QuadSSM, KinematicSSM):
+        return None
+    ys = np.ascontiguousarray(ys, dtype=float)
+    obs = model.obs
+    if ys.ndim != 2 or ys.shape[1] != model.meas_dim or not 0 < ys.shape[0] <= obs.n:
+        raise ValueError(f"ys has shape {ys.shape}; expected (N, {model.meas_dim}) with "
+                         f"0 < N <= {obs.n} for channels {obs.channels}")
+    consts = _kernel_inputs(model, ys.shape[1])
+    if consts is not None and consts[13] and not consts[8]:
+        return None  # KinematicSSM without a fixed Q: the generic path raises its error
+    if consts is None or not _agrees_cached(model, consts):
+        warnings.warn("QuadSSM no longer matches pinquad.fast_smoother's kernels; using the "
+                      "generic smoother (update the fast path)", RuntimeWarning, stacklevel=3)
+        return None
+    return ys, consts
+
+
+def _run_forward(model: QuadSSM, ys: Array, consts: tuple, store: bool) -> tuple:
+    x0, p0 = model.initial()
+    return _forward(np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(p0, dtype=float),
+                    np.ascontiguousarray(model.obs.inputs, dtype=float), ys, *consts, store)
+
+
+def loglik_quad(model: StateSpaceModel, ys: Array) -> float:
+    """log p(y | theta) [nats] of the EKF on a QuadSSM (or KinematicSSM): the compiled
+    forward pass alone, equal to ``estimators.ekf.run_filter(model, ys).loglik`` up to
+    rounding (the same kernel as ``smooth_quad``'s forward pass), for the observed
+    information's finite differences. Models the kernels do not cover, and filters whose
+    innovation covariance stops being positive definite, go to the generic filter."""
+    prep = _prepared(model, ys)
+    if prep is not None:
+        ys, consts = prep
+        *_, loglik, bad = _run_forward(model, ys, consts, store=False)
+        if bad < 0:
+            return float(loglik)
+    return float(run_filter(model, ys).loglik)
+
+
 def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = None
                 ) -> Posterior:
     """EKF + RTS smoother of a :class:`~pinquad.ssm.QuadSSM`, compiled (module docstring).
@@ -519,30 +652,21 @@ def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = No
     A drop-in for ``estimators.rts.smooth`` (e.g. as ``run_em``'s smoother): ys (N, m)
     with NaN where not observed; returns the Posterior with method "rts", the filter's
     log-likelihood and no rejected rows. Anything the kernels do not reproduce (a model
-    that is not exactly a QuadSSM, a subclass included, since it may override the
-    dynamics; an outlier gate; a QuadSSM whose behaviour no longer matches the kernels)
-    is smoothed by the generic ``estimators.rts.smooth``, so the answer is always the
-    generic path's; the last case also warns, as the fast path needs updating. A
+    that is not exactly a QuadSSM or its force-free warm-up KinematicSSM, another
+    subclass included, since it may override the dynamics; an outlier gate; a QuadSSM
+    whose behaviour no longer matches the kernels) is smoothed by the generic
+    ``estimators.rts.smooth``, so the answer is always the generic path's; the last case
+    also warns, as the fast path needs updating. A
     covariance that stops being positive definite also hands over to the generic path,
     which then raises or copes as it always does.
     """
-    if type(model) is not QuadSSM or gate_sigma is not None:
+    if gate_sigma is not None:
         return generic_smooth(model, ys, gate_sigma=gate_sigma)
-    ys = np.ascontiguousarray(ys, dtype=float)
-    obs = model.obs
-    if ys.ndim != 2 or ys.shape[1] != model.meas_dim or not 0 < ys.shape[0] <= obs.n:
-        raise ValueError(f"ys has shape {ys.shape}; expected (N, {model.meas_dim}) with "
-                         f"0 < N <= {obs.n} for channels {obs.channels}")
-    consts = _kernel_inputs(model, ys.shape[1])
-    if consts is None or not _agrees_with_model(model, consts):
-        warnings.warn("QuadSSM no longer matches pinquad.fast_smoother's kernels; using the "
-                      "generic smoother (update the fast path)", RuntimeWarning, stacklevel=2)
+    prep = _prepared(model, ys)
+    if prep is None:
         return generic_smooth(model, ys)
-    x0, p0 = model.initial()
-    inputs = np.ascontiguousarray(obs.inputs, dtype=float)
-    f_mean, f_cov, p_mean, p_cov, jacs, loglik, bad = _forward(
-        np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(p0, dtype=float), inputs, ys,
-        *consts)
+    ys, consts = prep
+    f_mean, f_cov, p_mean, p_cov, jacs, loglik, bad = _run_forward(model, ys, consts, store=True)
     if bad < 0:
         mean, cov, cross, bad = _backward(f_mean, f_cov, p_mean, p_cov, jacs)
     if bad >= 0:

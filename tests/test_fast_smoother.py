@@ -25,14 +25,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from estimators.ekf import run_filter
 from estimators.protocol import Posterior
 from estimators.rts import smooth
 from pinquad.em import initial_theta
-from pinquad.fast_smoother import smooth_quad
+from pinquad.fast_smoother import loglik_quad, smooth_quad
 from pinquad.identify import kinematic_floor
 from pinquad.sim import SimConfig, flight_log, simulate
 from pinquad.sources import observations
-from pinquad.ssm import NoiseModel, Observations, QuadSSM, Theta
+from pinquad.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
 
 TOL = 1e-9
 N_STEPS = 600
@@ -103,6 +104,38 @@ def test_matches_generic_smoother(flight, source, kind):
     model = QuadSSM(obs, _theta(obs, kind))
     assert (model.theta.noise.fixed_q is not None) == kind.startswith("paper")
     _assert_same_posterior(smooth_quad(model, obs.ys), smooth(model, obs.ys))
+
+
+@pytest.mark.parametrize("source", ["A", "B", "C"])
+def test_kinematic_warm_up_matches_generic_smoother(flight, source):
+    """EM's first E-step: the force-free KinematicSSM at the paper's 1 g start with the
+    fixed Q0 (well posed there: no force term to diverge)."""
+    obs = _observations(flight, source)
+    model = KinematicSSM(obs, _theta(obs, "paper_start"))
+    _assert_same_posterior(smooth_quad(model, obs.ys), smooth(model, obs.ys))
+
+
+def test_kinematic_without_fixed_q_uses_the_generic_path(flight):
+    obs = _observations(flight, "B")
+    model = KinematicSSM(obs, _theta(obs, "structured"))
+    with pytest.raises(ValueError, match="fixed process covariance"):
+        smooth_quad(model, obs.ys)
+
+
+@pytest.mark.parametrize(("source", "kind"), [
+    ("A", "structured"), ("B", "structured"), ("C", "structured"), ("B", "paper_noise"),
+])
+def test_loglik_only_matches_generic_filter(flight, source, kind):
+    """The forward pass alone (observed information) against the generic EKF and against
+    the full compiled smoother's log-likelihood."""
+    obs = _observations(flight, source)
+    for scale in (1.0, 1.01):
+        theta = _theta(obs, kind)
+        theta = replace(theta, mass=theta.mass * scale, inertia=theta.inertia / scale)
+        model = QuadSSM(obs, theta)
+        ref = run_filter(model, obs.ys).loglik
+        assert abs(loglik_quad(model, obs.ys) - ref) <= TOL * abs(ref)
+        assert loglik_quad(model, obs.ys) == smooth_quad(model, obs.ys).loglik
 
 
 def test_wrapped_euler_residuals(flight):
