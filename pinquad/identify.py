@@ -173,7 +173,18 @@ def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> Regre
     return RegressorStats(y, tau, a, b, c, int(idx.size))
 
 
-def _row_sums(stats: RegressorStats, pi: Array) -> Array:
+def expected_quadratics(post: Posterior, obs: Observations, gravity: float):
+    """The a, b, c, n of ``regressor_stats`` (what the M-step needs of it): the compiled
+    ``pinquad.fast_mstep.regressor_quadratics`` (equal up to rounding; it skips the
+    per-transition arrays) when available, else ``regressor_stats`` itself."""
+    try:
+        from pinquad.fast_mstep import regressor_quadratics
+    except ImportError:  # the compiled path is optional
+        return regressor_stats(post, obs, gravity)
+    return regressor_quadratics(post, obs, gravity)
+
+
+def _row_sums(stats, pi: Array) -> Array:
     """E[sum_k rho_kj^2] for each of the 6 rows."""
     return np.einsum("p,apq,q->a", pi, stats.a, pi) - 2.0 * stats.b @ pi + stats.c
 
@@ -273,7 +284,7 @@ def _d_from_inertia(i_diag: Array) -> Array:
 
 def regressor_mstep(post: Posterior, obs: Observations, theta: Theta) -> MStepResult:
     """Joint ML update of mass, diagonal inertia and all noise variances (see module)."""
-    stats = regressor_stats(post, obs, theta.gravity)
+    stats = expected_quadratics(post, obs, theta.gravity)
     n = stats.n
     # Mass: force rows x, y cancel against two of the three log m terms; the z row
     # gives m = c_z / b_z (sum F^2 / sum E[a_z] F).
