@@ -496,6 +496,42 @@ class EffectSSM(QuadSSM):
         return nxt, jac
 
 
+def effect_mstep(coefficients: dict[str, Array]):
+    """The regressor M-step (``pinquad.identify.regressor_mstep``) with the lateral wrench
+    noise of an ``EffectSSM``: the body x/y force rows' variance is re-estimated from the
+    residual the drag / wind forces leave,
+
+        S_j = dt / n sum_k (E[(Y_k pi)_j] - (Phi_k c)_j)^2 + dt / n pi^T Cov-part_j pi,  j = x, y,
+
+    (Phi at the smoothed state), instead of from Y pi alone, which would re-inflate the
+    noise by the very forces the extended model now explains. Without drag or wind in
+    ``coefficients`` it is ``regressor_mstep`` itself."""
+    wrench_effects = [e for e in ("drag", "wind") if e in coefficients]
+    if not wrench_effects:
+        return regressor_mstep
+
+    def mstep(post: Posterior, obs: Observations, theta: Theta):
+        out = regressor_mstep(post, obs, theta)
+        new = out.theta
+        stats = regressor_stats(post, obs, theta.gravity)
+        idx = np.flatnonzero(transition_mask(obs))
+        data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
+                              index=idx, dt=obs.dt)
+        force = sum(np.einsum("kap,p->ka", wrench_features(e, data), coefficients[e])
+                    for e in wrench_effects)
+        pi = np.r_[new.mass, np.diag(new.inertia)]
+        rho = np.einsum("kap,p->ka", stats.y, pi) - stats.tau - force
+        cov_part = np.einsum("p,apq,q->a", pi, stats.a - np.einsum("kap,kaq->apq", stats.y, stats.y),
+                             pi)
+        var = (np.sum(rho**2, axis=0) + cov_part) / max(idx.size, 1)
+        wrench = new.noise.wrench.copy()
+        wrench[0:2] = np.maximum(obs.dt * var[0:2], 1e-6 * wrench[2])
+        return replace(out, theta=new.with_noise(replace(new.noise, wrench=wrench)))
+
+    mstep.__name__ = "regressor_mstep"  # keeps EM's over-relaxation for this M-step
+    return mstep
+
+
 def _model_factory(coefficients: dict[str, Array]):
     """QuadSSM unless drag or wind need body x/y forces in the transition."""
     if "drag" not in coefficients and "wind" not in coefficients:
@@ -523,7 +559,8 @@ def _estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, eff
 
 def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[str],
           smoother, cfg: DiscoveryConfig = DiscoveryConfig(),
-          train_blocks: NDArray[np.bool_] | None = None
+          train_blocks: NDArray[np.bool_] | None = None,
+          gyro_bias_used: Array | None = None
           ) -> tuple[Theta, Posterior, dict[str, Array]]:
     """Re-identify mass and inertia with ``effects`` in the model.
 
@@ -548,29 +585,31 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
     theta = theta.with_noise(replace(theta.noise, wrench=wrench))
     gyro_hist: list[tuple[Array, Array]] = []
     if "gyro_bias" in coeffs:
-        gyro_hist.append((np.zeros(3), coeffs["gyro_bias"].copy()))
-    for _ in range(cfg.refit_passes):
+        # f(b): mean gyro residual of the observations de-biased by b; coeffs holds b + f(b).
+        # The smoother absorbs part of an offset into the rates, f(b) = alpha (b_true - b)
+        # with 0 < alpha < 1: secant steps on f between passes; the returned offset is the
+        # one the returned posterior was smoothed with.
+        b0 = np.zeros(3) if gyro_bias_used is None else np.asarray(gyro_bias_used, dtype=float)
+        gyro_hist.append((b0, coeffs["gyro_bias"] - b0))
+        coeffs["gyro_bias"] = b0.copy() if gyro_bias_used is not None else coeffs["gyro_bias"].copy()
+    for p in range(cfg.refit_passes):
         factory = _model_factory(coeffs)
         corr = replace(corrected_observations(obs, post.mean, coeffs),
                        exclude=exclude)
-        em = run_em(corr, theta, smoother, regressor_mstep, max_iterations=cfg.em_iterations,
+        em = run_em(corr, theta, smoother, effect_mstep(coeffs), max_iterations=cfg.em_iterations,
                     tol=1e-5, tol_loglik=1e-7, model_factory=factory)
         b_used = coeffs.get("gyro_bias")
         theta, post = em.theta, em.posterior
         coeffs, _, _ = _estimate_coefficients(obs, post, theta, effects, cfg, train)
         if b_used is not None:
-            # the smoother absorbs a fraction of a gyro offset into the rates, so the
-            # residual mean f(b) = alpha (b_true - b) with alpha < 1: secant step on f
-            f_now = coeffs["gyro_bias"] - b_used
-            gyro_hist.append((b_used, f_now))
-            if len(gyro_hist) >= 2:
-                (b0, f0), (b1, f1) = gyro_hist[-2], gyro_hist[-1]
-                db = b1 - b0
-                alpha = np.where(np.abs(db) > 1e-9, (f0 - f1) / np.where(db == 0, 1.0, db), 1.0)
-                alpha = np.clip(alpha, 0.05, 1.0)
-                coeffs["gyro_bias"] = b1 + f1 / alpha
-            else:
-                coeffs["gyro_bias"] = b_used + f_now
+            gyro_hist.append((b_used, coeffs["gyro_bias"] - b_used))
+            if p == cfg.refit_passes - 1:
+                coeffs["gyro_bias"] = b_used
+                continue
+            (b0, f0), (b1, f1) = gyro_hist[-2], gyro_hist[-1]
+            db = b1 - b0
+            alpha = np.where(np.abs(db) > 1e-9, (f0 - f1) / np.where(db == 0, 1.0, db), 1.0)
+            coeffs["gyro_bias"] = b1 + f1 / np.clip(alpha, 0.05, 1.0)
     return theta, post, coeffs
 
 
@@ -688,7 +727,8 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
     after = _heldout_rms(res_tr, pi_tr, coeffs_tr, test, window)
     if cfg.full_refit:
         th_f, post_f, coeffs_f = refit(obs, th_tr, post_tr, selected, smoother,
-                                       replace(cfg, refit_passes=1))
+                                       replace(cfg, refit_passes=1),
+                                       gyro_bias_used=coeffs_tr.get("gyro_bias"))
         all_blocks = np.ones(res0.n_blocks, dtype=bool)
     else:
         th_f, post_f, coeffs_f = th_tr, post_tr, coeffs_tr
@@ -751,3 +791,71 @@ def _figures(out: Path, selected: Sequence[str], res0: _Residuals, pi0: Array, r
         plt.close(fig)
         paths.append(str(path))
     return paths
+
+
+# --------------------------------------------------------------------------------------
+# report text
+# --------------------------------------------------------------------------------------
+
+_AXIS_UNITS = {**{a: "N" for a in AXES[:3]}, **{a: "N m" for a in AXES[3:]},
+               **{a: "rad/s" for a in GYRO_AXES}}
+
+
+def discovery_markdown(section: dict) -> str:
+    """The ``report.md`` text of a ``DiscoveryResult.to_report()`` section: each selected
+    effect with its evidence and coefficients (value +- standard error), the held-out
+    residual RMS per axis before/after (and the change in %), the candidate tests and
+    the figures (paths as stored in the section, relative to the run directory)."""
+    lines = ["## Effect discovery", ""]
+    if "error" in section:
+        return "\n".join([*lines, f"Not completed: {section['error']}", ""])
+    sel = section.get("selected", [])
+    if not sel:
+        lines.append("No significant unmodelled effect: no candidate passed the held-out test.")
+    for s in sel:
+        ev = s["evidence"]
+        lines.append(f"### {s['effect']}")
+        lines.append("")
+        lines.append(f"Evidence (round {ev['round']}): held-out SSE on {', '.join(ev['rows'])} "
+                     f"falls by {100 * ev['heldout_gain']:.1f} %; held-out log-likelihood "
+                     f"+{ev['d_loglik_heldout']:.1f} nats; training BIC margin "
+                     f"{ev['d_bic_train']:.1f}.")
+        lines.append("")
+        lines.append("| coefficient | value | std. error | unit |")
+        lines.append("|---|---|---|---|")
+        for n, v in s["coefficients"].items():
+            lines.append(f"| {n} | {v:.4g} | {s['stderr'][n]:.2g} | {s['units'][n]} |")
+        lines.append("")
+    before, after = section.get("residual_rms_before", {}), section.get("residual_rms_after", {})
+    if before:
+        lines += ["### Held-out residual RMS per axis", "",
+                  "| axis | before | after | change | unit |", "|---|---|---|---|---|"]
+        for a, b in before.items():
+            x = after.get(a, float("nan"))
+            ch = 100.0 * (x / b - 1.0) if b and np.isfinite(b) and np.isfinite(x) else float("nan")
+            lines.append(f"| {a} | {b:.3g} | {x:.3g} | {ch:+.0f} % | {_AXIS_UNITS.get(a, '')} |")
+        lines.append("")
+    lines += [f"Validation: {section.get('validation', '')}", ""]
+    cands = section.get("candidates", [])
+    if cands:
+        lines += ["### Candidate tests", "", "| round | effect | held-out gain | d loglik (held out) "
+                  "| BIC margin | selected |", "|---|---|---|---|---|---|"]
+        for c in cands:
+            lines.append(f"| {c['round']} | {c['effect']} | {c['heldout_gain']:+.3f} | "
+                         f"{c['d_loglik_heldout']:+.1f} | {c['d_bic_train']:+.1f} | "
+                         f"{'yes' if c['selected'] else ''} |")
+        lines.append("")
+    refit = section.get("refit")
+    if refit and sel:
+        inertia = np.diag(np.asarray(refit["inertia"])) * 1e6
+        lines += [f"Refit with the effects: mass {refit['mass'] * 1e3:.2f} g, inertia diagonal "
+                  f"({', '.join(f'{v:.2f}' for v in inertia)}) 1e-6 kg m^2.", ""]
+    for f in section.get("figures", []):
+        lines += [f"![{Path(f).stem}]({f})", ""]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":  # python -m pinquad.discovery: the seeded Monte Carlo
+    from pinquad.discovery_mc import main
+
+    raise SystemExit(main())

@@ -77,6 +77,9 @@ class LogResult:
     notes: tuple[str, ...]
     kind: str
     extra: dict
+    disc_obs: Observations | None = None
+    disc_theta: object | None = None
+    disc_posterior: object | None = None
 
 
 def _msteps(args: argparse.Namespace) -> tuple[str, ...]:
@@ -102,6 +105,14 @@ def _guess(log: FlightLog) -> tuple[float, Array, str]:
         raise ValueError(f"{meta.source}: initial guess must be positive; got mass {mass0} kg, "
                          f"inertia diagonal {np.diag(inertia0).tolist()} kg m^2")
     return mass0, inertia0, "; ".join(parts)
+
+
+def _plain_theta(theta):
+    """The plain :class:`~pinquad.ssm.Theta` of a measured run's ``RealTheta`` (its
+    nuisance moment travels in ``realdata.corrected`` observations instead)."""
+    from pinquad.ssm import Theta
+
+    return Theta(theta.mass, np.asarray(theta.inertia), theta.noise, theta.gravity)
 
 
 def default_sensor(log: FlightLog) -> str:
@@ -131,6 +142,7 @@ def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
     msteps = _msteps(args)
     runs: list[LogRun] = []
     first = None
+    disc = (None, None, None)
     for sensor in sensors:
         real = build_observations(raw, options_for_sensor(sensor))
         label = sensor or ",".join(real.obs.channels)
@@ -161,6 +173,7 @@ def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
                                ident.iterations, ident.loglik, ident.converged, detail))
             if first is None:
                 first = (real, post.mean)
+                disc = (corrected(real.obs, theta), _plain_theta(theta), post)
         if "paper" in msteps:
             # The paper's M-step knows no air-speed moment: give it the torques with the
             # regressor run's moment added when there is one.
@@ -175,13 +188,14 @@ def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
                                 "seconds": ident_p.seconds}))
             if first is None:
                 first = (real, post_p.mean)
+                disc = (obs, ident_p.noise, post_p)
     assert first is not None
     real, smoothed = first
     extra = {"kf": {"value": real.kf.kf, "stderr": real.kf.kf_se, "pooled": real.kf.pooled,
                     "runs": {r.source: r.kf for r in real.kf.runs}, "note": real.kf.note},
              "faults": list(real.faults.notes)}
     return LogResult(tuple(runs), real.log, real.obs, smoothed, guess, real.excluded,
-                     real.notes, kind, extra)
+                     real.notes, kind, extra, *disc)
 
 
 # ----------------------------------------------------------------------------- simulated
@@ -206,14 +220,14 @@ def _simulated(log: FlightLog, args: argparse.Namespace) -> LogResult:
                                                             ident.history_inertia]).tolist(),
                                 "seconds": ident.seconds}))
             if first is None:
-                first = (obs, post.mean)
+                first = (obs, post.mean, ident.noise, post)
     assert first is not None
-    obs, smoothed = first
+    obs, smoothed, theta, post = first
     n_ex = int(obs.exclude[: obs.n - 1].sum())
     excluded = (f"{n_ex} transitions: touching the floor (the log's contact flags)",
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
     return LogResult(tuple(runs), log, obs, smoothed, guess, excluded, tuple(log.meta.notes),
-                     "simulated", {})
+                     "simulated", {}, obs, theta, post)
 
 
 # ----------------------------------------------------------------------------- output
@@ -310,6 +324,60 @@ def _report(result: LogResult, args: argparse.Namespace, seconds: float) -> dict
     }
 
 
+def run_discovery(result: LogResult, figs: Path) -> dict:
+    """Effect discovery (``pinquad.discovery.discover``) on the reported run: the DESIGN 4.3
+    ``discovery`` section, figures written to ``figs`` and named relative to the run
+    directory. A numerical failure of the refit is reported in the section (key
+    ``error``) instead of stopping the run: the identification stands without it."""
+    from pinquad.discovery import DiscoveryConfig, discover
+
+    if result.disc_obs is None or result.disc_posterior is None:
+        return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+                "validation": "not run", "error": "no EM run to start from"}
+    cfg = DiscoveryConfig(**DISCOVERY_SETTINGS.get(result.kind, {}))
+    try:
+        out = discover(result.disc_obs, result.disc_theta, result.disc_posterior, cfg=cfg,
+                       figures_dir=figs)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+        return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+                "validation": "not run", "error": f"discovery failed numerically: {exc}"}
+    section = out.to_report()
+    section["figures"] = [f"figures/{Path(f).name}" for f in section["figures"]]
+    return section
+
+
+DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
+                                        "measured-table": {"refit_em": False}}
+"""DiscoveryConfig overrides by log kind (``simulated``, ``sdlog``, ``measured-table``).
+Measured flights keep the base estimates of ``realdata``'s band-limited M-step (the
+plain regressor M-step of the EM refit does not hold their inertia: on jana10 it moved
+I_xx from 17 to 24 e-6 kg m^2); their effects are fitted on the base posterior."""
+
+
+def discovery_summary(section: dict) -> str:
+    """A few printed lines: what was selected, its coefficients and the held-out RMS."""
+    if "error" in section:
+        return f"effect discovery: {section['error']}"
+    sel = section["selected"]
+    if not sel:
+        return "effect discovery: no significant unmodelled effect (held-out test)"
+    lines = [f"effect discovery: selected {', '.join(s['effect'] for s in sel)}"]
+    for s in sel:
+        co = ", ".join(f"{n} = {v:.4g} ± {s['stderr'][n]:.2g} {s['units'][n]}"
+                       for n, v in s["coefficients"].items())
+        lines.append(f"  {s['effect']}: {co}; held-out gain "
+                     f"{100 * s['evidence']['heldout_gain']:.0f} %")
+    refit = section.get("refit")
+    if refit:
+        inertia = np.diag(np.asarray(refit["inertia"])) * 1e6
+        lines.append(f"  refit with the effects: mass {refit['mass'] * 1e3:.3f} g, inertia diagonal "
+                     f"({', '.join(f'{v:.2f}' for v in inertia)}) 1e-6 kg m^2")
+    b, a = section["residual_rms_before"], section["residual_rms_after"]
+    lines.append("  held-out residual RMS before -> after: " + ", ".join(
+        f"{k} {b[k]:.3g} -> {a[k]:.3g}" for k in b))
+    return "\n".join(lines)
+
+
 def _load(args: argparse.Namespace) -> LogResult:
     from pinquad.logs import read_log
     from pinquad.realdata import RawFlight, raw_from_sdflight
@@ -357,14 +425,17 @@ def identify_log(args: argparse.Namespace) -> int:
     print()
     print(_table(result))
     print(f"\n{seconds:.1f} s")
-    if args.no_discover is False:
-        print("effect discovery: not run by this command yet (report 'discovery' left empty)")
 
     out_dir = args.out or new_run_dir("log")
     writer = RunWriter(out_dir)
     try:
         figs = writer.path("figures")
         figs.mkdir(exist_ok=True)
+        discovery = None
+        if not args.no_discover:
+            discovery = run_discovery(result, figs)
+            print()
+            print(discovery_summary(discovery))
         logs_dir = writer.path("logs")
         logs_dir.mkdir(exist_ok=True)
         write_log(result.log, logs_dir / "flight.parquet")
@@ -372,10 +443,16 @@ def identify_log(args: argparse.Namespace) -> int:
         plot_trajectory(result.log, None, figs / "trajectory.png", result.smoothed)
         _plot_residuals(result.obs, result.smoothed, figs / "residuals.png")
         report = _report(result, args, seconds)
+        if discovery is not None:
+            report["discovery"] = discovery
         atomic_write_json(writer.path("report.json"), report)
-        writer.path("report.md").write_text(
-            f"# pinquad: identification from {args.log}\n\n" + _table(result) + "\n\n"
-            + "\n".join(f"- excluded: {e}" for e in result.excluded) + "\n")
+        md = (f"# pinquad: identification from {args.log}\n\n" + _table(result) + "\n\n"
+              + "\n".join(f"- excluded: {e}" for e in result.excluded) + "\n")
+        if discovery is not None:
+            from pinquad.discovery import discovery_markdown
+
+            md += "\n" + discovery_markdown(discovery)
+        writer.path("report.md").write_text(md)
         final = writer.publish()
     except BaseException:
         writer.abort()

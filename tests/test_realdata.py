@@ -156,7 +156,7 @@ def test_offline_cli_identifies_a_real_log(tmp_path):
     out = tmp_path / "run"
     proc = subprocess.run(
         [sys.executable, "-m", "pinquad.offline", "--log", str(FLIGHTS / "jana00"), "--out",
-         str(out), "--no-information", "--mstep", "regressor"],
+         str(out), "--no-information", "--mstep", "regressor", "--no-discover"],
         capture_output=True, text=True, cwd=REPO, env=_env(), timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert "34.7" in proc.stdout
