@@ -34,6 +34,7 @@ from pinquad.conventions import (
     euler_rate_matrix,
     wrap_angle,
 )
+from pinquad.model import cross3
 from pinquad.params import Scenario
 
 Array = NDArray[np.float64]
@@ -142,9 +143,9 @@ def flatness_attitude(acc_cmd: Array, yaw: float, gravity: float) -> tuple[Array
     norm = float(np.linalg.norm(t))
     z_b = t / max(norm, 1e-9)
     y_c = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
-    x_b = np.cross(y_c, z_b)
+    x_b = cross3(y_c, z_b)
     x_b /= max(float(np.linalg.norm(x_b)), 1e-9)
-    y_b = np.cross(z_b, x_b)
+    y_b = cross3(z_b, x_b)
     rot = np.column_stack([x_b, y_b, z_b])
     return euler_from_rotation(rot), norm
 
@@ -180,5 +181,5 @@ def control_step(x_est: Array, k: int, ref: Reference, gains: ControllerGains,
     cos_tilt = max(math.cos(euler[0]) * math.cos(euler[1]), 0.3)
     thrust = mass * (acc_cmd[2] + gravity) / cos_tilt
     thrust = min(max(thrust, thrust_limits[0]), thrust_limits[1])
-    torque = inertia @ u_w + np.cross(omega, inertia @ omega)
+    torque = inertia @ u_w + cross3(omega, inertia @ omega)
     return ControlOutput(np.concatenate([[thrust], torque]), euler_ref, acc_cmd)

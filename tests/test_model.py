@@ -162,3 +162,13 @@ def test_conventions_round_trip():
     eul = np.column_stack([rng.uniform(-3, 3, 50), rng.uniform(-1.5, 1.5, 50), rng.uniform(-3, 3, 50)])
     np.testing.assert_allclose(euler_from_rotation(rotation_from_euler(eul)), eul, atol=1e-10)
     np.testing.assert_allclose(euler_from_quat_wxyz(quat_wxyz_from_euler(eul)), eul, atol=1e-10)
+
+
+def test_cross3_is_numpy_cross_bit_for_bit():
+    from pinquad.model import cross3
+
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        a = rng.normal(size=3) * 10.0 ** rng.uniform(-6, 6, 3)
+        b = rng.normal(size=3) * 10.0 ** rng.uniform(-6, 6, 3)
+        np.testing.assert_array_equal(cross3(a, b), np.cross(a, b))
