@@ -75,7 +75,10 @@ class DiscoveryConfig:
     min_heldout_gain [-]: minimum relative held-out SSE reduction on the candidate's rows
     (calibrated on clean flights, see ``python -m pinquad.discovery``);
     max_effects: stop after this many; candidates: effect names searched;
-    refit_passes: coefficient/EM alternations of the refit; em_iterations: per EM run;
+    refit_passes: coefficient/EM alternations of the refit; em_iterations: E-steps per EM
+    run with ``EffectSSM`` (drag / wind, generic smoother), em_iterations_fast: with the
+    compiled E-step (every other effect); restart_em: with the compiled E-step, start the
+    refit EM from the paper's warm-up (fixed Q0/R0) rather than the base fit's noise;
     full_refit: also refit on all transitions for the reported estimates (else the
     training-block refit is reported); refit_em: False skips the EM refit (coefficients
     fitted on the base posterior with the base mass and inertia, for quick checks).
@@ -88,6 +91,8 @@ class DiscoveryConfig:
     candidates: tuple[str, ...] = EFFECT_NAMES
     refit_passes: int = 2
     em_iterations: int = 30
+    em_iterations_fast: int = 100
+    restart_em: bool = True
     full_refit: bool = True
     refit_em: bool = True
 
@@ -557,6 +562,46 @@ def _estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, eff
     return coeffs, res, mf
 
 
+def _gyro_residual_mean(obs: Observations, post: Posterior, steps: NDArray[np.bool_]) -> Array:
+    """(3,) mean over the steps ``steps`` of y_gyro - omega_k|N [rad/s]."""
+    i = obs.channels.index("gyro")
+    e = obs.ys[:, 3 * i:3 * i + 3] - post.mean[:, 9:12]
+    ok = ~np.isnan(e) & steps[:, None]
+    return np.array([float(np.mean(e[ok[:, j], j])) if ok[:, j].any() else 0.0 for j in range(3)])
+
+
+def solve_gyro_bias(obs: Observations, theta: Theta, smoother, factory, steps: NDArray[np.bool_],
+                    start: Array, iterations: int = 3) -> tuple[Array, Posterior]:
+    """The gyro offset b (3,) [rad/s] at which the smoothed gyro residual has zero mean.
+
+    With theta fixed, the residual mean of the observations de-biased by b is close to
+    linear, f(b) = alpha (b_true - b) with 0 < alpha < 1 (the smoother absorbs part of an
+    offset into the rates); f is evaluated by one E-step per point and its root found by
+    secant steps per axis from b = start. Returns (b, posterior at b)."""
+    i = obs.channels.index("gyro")
+
+    def evaluate(b: Array) -> tuple[Array, Posterior]:
+        ys = obs.ys.copy()
+        ys[:, 3 * i:3 * i + 3] -= b
+        o = replace(obs, ys=ys)
+        post = smoother(factory(o, theta), o.ys)
+        return _gyro_residual_mean(o, post, steps), post
+
+    b0 = np.asarray(start, dtype=float)
+    f0, post = evaluate(b0)
+    b1 = b0 + f0
+    for _ in range(iterations):
+        f1, post = evaluate(b1)
+        db = b1 - b0
+        alpha = np.where(np.abs(db) > 1e-12, (f0 - f1) / np.where(np.abs(db) > 1e-12, db, 1.0), 1.0)
+        b_next = b1 + f1 / np.clip(alpha, 0.02, 1.0)
+        b0, f0, b1 = b1, f1, b_next
+        if np.all(np.abs(f1) < 1e-6):
+            break
+    f1, post = evaluate(b1)
+    return b1, post
+
+
 def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[str],
           smoother, cfg: DiscoveryConfig = DiscoveryConfig(),
           train_blocks: NDArray[np.bool_] | None = None,
@@ -567,49 +612,64 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
     Alternates ``cfg.refit_passes`` times: coefficients from the current posterior
     (residuals against the original observations, training blocks), then EM (warm start
     at ``theta``) on ``corrected_observations`` with the held-out transitions excluded
-    from the M-step. Returns the refit parameters, their posterior (on the corrected
-    observations) and the final coefficients.
+    from the M-step. A gyro offset is solved before each EM pass (``solve_gyro_bias``,
+    from ``gyro_bias_used`` when given: the offset already removed from the observations
+    ``post`` was smoothed on) and finally at the EM's parameters, so the returned offset
+    is the one the returned posterior used. Returns the refit parameters, their posterior
+    (on the corrected observations) and the final coefficients.
     """
     n_blocks = int(_blocks(obs, cfg.block_seconds).max()) + 1
     train = np.ones(n_blocks, dtype=bool) if train_blocks is None else train_blocks
     steps_block = _blocks(obs, cfg.block_seconds)
     exclude = (obs.exclude.copy() if obs.exclude.size else np.zeros(obs.n, dtype=bool))
     exclude |= ~train[steps_block]
+    train_steps = train[steps_block]
     from pinquad.em import run_em
 
-    coeffs, _, _ = _estimate_coefficients(obs, post, theta, effects, cfg, train)
-    # the base fit inflated the lateral wrench noise to absorb the missing forces; start
-    # the refit from the thrust row's level so the smoother leans on the extended model
-    wrench = theta.noise.wrench.copy()
+    coeffs, _, mf = _estimate_coefficients(obs, post, theta, effects, cfg, train)
+    # The base fit bent mass, inertia and the wrench noise to absorb the missing effect
+    # (a CoM torque can inflate the inertia a hundredfold): start the refit EM from the
+    # joint fit of (pi, c) at the base posterior, its profiled row variances as wrench
+    # noise (S_j = dt s_j), the lateral rows no larger than the thrust row's.
+    wrench = obs.dt * np.maximum(mf.fit.row_var, 1e-30)
     wrench[0:2] = np.minimum(wrench[0:2], wrench[2])
+    if np.all(np.isfinite(mf.fit.pi)) and np.all(mf.fit.pi > 0):
+        theta = replace(theta, mass=float(mf.fit.pi[0]), inertia=np.diag(mf.fit.pi[1:4]))
     theta = theta.with_noise(replace(theta.noise, wrench=wrench))
-    gyro_hist: list[tuple[Array, Array]] = []
-    if "gyro_bias" in coeffs:
-        # f(b): mean gyro residual of the observations de-biased by b; coeffs holds b + f(b).
-        # The smoother absorbs part of an offset into the rates, f(b) = alpha (b_true - b)
-        # with 0 < alpha < 1: secant steps on f between passes; the returned offset is the
-        # one the returned posterior was smoothed with.
-        b0 = np.zeros(3) if gyro_bias_used is None else np.asarray(gyro_bias_used, dtype=float)
-        gyro_hist.append((b0, coeffs["gyro_bias"] - b0))
-        coeffs["gyro_bias"] = b0.copy() if gyro_bias_used is not None else coeffs["gyro_bias"].copy()
-    for p in range(cfg.refit_passes):
+    from_start = _model_factory(coeffs) is QuadSSM and cfg.restart_em
+    if from_start:
+        # compiled E-step: afford EM from the paper's data-driven warm-up (fixed Q0/R0,
+        # force-free first E-step) at the joint fit's mass and inertia, as the base EM
+        # started, so the refit does not inherit the base fit's distorted noise levels
+        from pinquad.em import initial_theta
+
+        theta = initial_theta(obs, theta.mass, theta.inertia, theta.gravity)
+    gyro = "gyro_bias" in coeffs and "gyro" in obs.channels
+    if gyro and gyro_bias_used is not None:
+        coeffs["gyro_bias"] = np.asarray(gyro_bias_used, dtype=float).copy()
+    for _ in range(cfg.refit_passes):
         factory = _model_factory(coeffs)
+        if gyro:
+            others = {e: c for e, c in coeffs.items() if e != "gyro_bias"}
+            base = corrected_observations(obs, post.mean, others)
+            coeffs["gyro_bias"], _ = solve_gyro_bias(base, theta, smoother, factory, train_steps,
+                                                     coeffs["gyro_bias"])
         corr = replace(corrected_observations(obs, post.mean, coeffs),
                        exclude=exclude)
-        em = run_em(corr, theta, smoother, effect_mstep(coeffs), max_iterations=cfg.em_iterations,
+        # the compiled E-step covers QuadSSM; EffectSSM (drag / wind) runs the generic one
+        iters = cfg.em_iterations if factory is not QuadSSM else cfg.em_iterations_fast
+        em = run_em(corr, theta, smoother, effect_mstep(coeffs), max_iterations=iters,
                     tol=1e-5, tol_loglik=1e-7, model_factory=factory)
         b_used = coeffs.get("gyro_bias")
         theta, post = em.theta, em.posterior
         coeffs, _, _ = _estimate_coefficients(obs, post, theta, effects, cfg, train)
-        if b_used is not None:
-            gyro_hist.append((b_used, coeffs["gyro_bias"] - b_used))
-            if p == cfg.refit_passes - 1:
-                coeffs["gyro_bias"] = b_used
-                continue
-            (b0, f0), (b1, f1) = gyro_hist[-2], gyro_hist[-1]
-            db = b1 - b0
-            alpha = np.where(np.abs(db) > 1e-9, (f0 - f1) / np.where(db == 0, 1.0, db), 1.0)
-            coeffs["gyro_bias"] = b1 + f1 / np.clip(alpha, 0.05, 1.0)
+        if gyro:
+            coeffs["gyro_bias"] = b_used
+    if gyro:
+        others = {e: c for e, c in coeffs.items() if e != "gyro_bias"}
+        base = replace(corrected_observations(obs, post.mean, others), exclude=exclude)
+        coeffs["gyro_bias"], post = solve_gyro_bias(base, theta, smoother, _model_factory(coeffs),
+                                                    train_steps, coeffs["gyro_bias"])
     return theta, post, coeffs
 
 

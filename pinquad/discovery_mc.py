@@ -1,0 +1,359 @@
+"""Seeded Monte Carlo of effect discovery through the user path (``python -m pinquad.discovery``).
+
+For each condition (no effect, each single effect of DESIGN 4.4 at its realistic default
+coefficient from ``pinquad.effects``, and drag + wind together) and each seed:
+
+1. simulate a Crazyflie-like flight (``discovery_scenario``: the paper's waypoints scaled
+   by 0.3 reshuffled to include a low pass at 7 cm above the floor, cruise 1 m/s, sensor
+   B, a 40 rad/s attitude-rate loop) with the effect injected into the true vehicle;
+2. write its log to CSV (the log does not mention the effect; ``true_*`` columns are
+   never read by estimators) and read it back with ``pinquad.logs.read_log``;
+3. identify it exactly as ``python -m pinquad.offline --log`` does (``logmode``'s simulated
+   path, regressor M-step) and run discovery (``pinquad.logmode.run_discovery``);
+4. score: the names selected; the coefficients against the injected ones (relative
+   error per coefficient, ``|c - c0| / |c0|``); mass and inertia after the refit against
+   the truth; the held-out residual RMS per affected axis before and after.
+
+Targets (issue 7): no effect -> nothing selected in >= 95 % of seeds; each single effect
+-> its name selected in >= 95 %, every coefficient within 10 %, mass and inertia within
+the clean-data accuracy (``|error| <= 2 x RMS relative error of the clean condition`` per
+parameter), affected held-out RMS down by >= 50 %; drag + wind -> both named.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+CONDITIONS: dict[str, tuple[str, ...]] = {
+    "none": (), "drag": ("drag",), "ground_effect": ("ground_effect",),
+    "com_offset": ("com_offset",), "wind": ("wind",), "motor_lag": ("motor_lag",),
+    "gyro_bias": ("gyro_bias",), "drag+wind": ("drag", "wind"),
+}
+"""Condition name -> effects injected (each at its ``pinquad.effects`` default)."""
+
+AFFECTED_AXES: dict[str, tuple[str, ...]] = {
+    "drag": ("force_x", "force_y", "force_z"), "ground_effect": ("force_z",),
+    "com_offset": ("torque_x", "torque_y"), "wind": ("force_x", "force_y"),
+    "motor_lag": ("force_z", "torque_x", "torque_y", "torque_z"),
+    "gyro_bias": ("gyro_x", "gyro_y", "gyro_z"),
+}
+"""Residual axes an effect acts on (where its before/after drop is scored)."""
+
+PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
+
+
+def discovery_scenario():
+    """The Monte Carlo flight (about 19 s): the crazyflie21 scaling of the paper's scenario
+    (start (0.15, 0.3, 0) m) through six waypoints [m] (1.2, 0.9, 0.9), (0.6, 1.5, 0.5),
+    (1.8, 1.2, 1.2), (1.2, 0.6, 0.07), (0.5, 0.4, 0.12), (1.0, 1.0, 0.8), cruise 1 m/s,
+    1 s hover at each: speeds up to ~1.1 m/s and a pass 5-12 cm above the floor, as in
+    the real random flights (0.1-1.5 m/s, down to 6 cm)."""
+    from pinquad.params import PAPER_SCENARIO
+
+    sc = PAPER_SCENARIO.scaled(0.3)
+    wp = np.array([[1.2, 0.9, 0.9], [0.6, 1.5, 0.5], [1.8, 1.2, 1.2], [1.2, 0.6, 0.07],
+                   [0.5, 0.4, 0.12], [1.0, 1.0, 0.8]])
+    return replace(sc, waypoints=wp, cruise_speed=1.0, hover_time=1.0)
+
+
+def discovery_gains():
+    """LQR attitude weights (100, 1600) and angle gain 20 (rate loop about 40 rad/s, as the
+    Crazyflie's): the default 80 rad/s loop is driven unstable by a 20-30 ms motor lag."""
+    from pinquad.control import design_gains
+
+    return design_gains(att_weights=(100.0, 1600.0), k_theta=20.0)
+
+
+def simulate_log(effects_in: tuple[str, ...], seed: int):
+    """(FlightLog, Flight) of one discovery flight with ``effects_in`` injected (defaults)."""
+    from pinquad import effects
+    from pinquad.params import CRAZYFLIE21
+    from pinquad.sim import SimConfig, flight_log, simulate
+
+    dist = tuple(effects.SIMULATOR_FACTORIES[e]() for e in effects_in)
+    cfg = SimConfig(vehicle=CRAZYFLIE21, scenario=discovery_scenario(), sensor="B",
+                    disturbances=dist, gains=discovery_gains())
+    flight = simulate(cfg, np.random.default_rng(seed))
+    return flight_log(flight), flight
+
+
+def case_seed(base: int, condition: str, i: int) -> int:
+    """Flight seed: base * 100000 + condition index * 1000 + i."""
+    return base * 100000 + list(CONDITIONS).index(condition) * 1000 + i
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    """One seeded case: selected names; coefficient relative errors by effect (max over its
+    coefficients, NaN when not selected); refit and base relative errors of
+    [m, Ixx, Iyy, Izz]; held-out RMS before/after per axis; seconds; crashed flight."""
+
+    condition: str
+    seed: int
+    selected: tuple[str, ...]
+    coef_rel_err: dict[str, float]
+    coefficients: dict[str, list[float]]
+    refit_err: Array
+    base_err: Array
+    rms_before: dict[str, float]
+    rms_after: dict[str, float]
+    seconds: float
+    crashed: bool
+
+    def to_json(self) -> dict:
+        return {"condition": self.condition, "seed": self.seed, "selected": list(self.selected),
+                "coef_rel_err": self.coef_rel_err, "coefficients": self.coefficients,
+                "refit_rel_err": dict(zip(PARAMS, self.refit_err.tolist(), strict=True)),
+                "base_rel_err": dict(zip(PARAMS, self.base_err.tolist(), strict=True)),
+                "rms_before": self.rms_before, "rms_after": self.rms_after,
+                "seconds": self.seconds, "crashed": self.crashed}
+
+
+def run_case(condition: str, seed: int, workdir: Path) -> CaseResult:
+    """Simulate, write CSV, read back, identify and discover as ``offline --log`` does."""
+    from pinquad import effects
+    from pinquad.logmode import _simulated, run_discovery
+    from pinquad.logs import read_log, write_log
+    from pinquad.params import CRAZYFLIE21
+
+    t0 = time.perf_counter()
+    injected = CONDITIONS[condition]
+    log, flight = simulate_log(injected, seed)
+    path = write_log(log, workdir / f"{condition}-{seed}.csv")
+    back = read_log(path)
+    args = argparse.Namespace(sensor=None, mstep="regressor", estep="rts", max_iterations=100,
+                              no_information=True)
+    result = _simulated(back, args)
+    figs = workdir / f"figs-{condition}-{seed}"
+    section = run_discovery(result, figs)
+    truth = np.r_[CRAZYFLIE21.mass, np.diag(CRAZYFLIE21.inertia)]
+    refit = section.get("refit", {})
+    main = result.runs[0]
+    base = np.r_[main.mass, main.inertia]
+    est = (np.r_[refit["mass"], np.diag(np.asarray(refit["inertia"]))] if section["selected"]
+           else base)
+    coef_err: dict[str, float] = {}
+    coefs: dict[str, list[float]] = {}
+    for s in section["selected"]:
+        coefs[s["effect"]] = list(s["coefficients"].values())
+    for e in injected:
+        if e not in coefs:
+            coef_err[e] = float("nan")
+            continue
+        c0 = np.asarray(list(effects.injected_coefficients(e).values()))
+        coef_err[e] = float(np.max(np.abs(np.asarray(coefs[e]) - c0) / np.abs(c0)))
+    return CaseResult(condition, seed, tuple(s["effect"] for s in section["selected"]), coef_err,
+                      coefs, est / truth - 1.0, base / truth - 1.0,
+                      section["residual_rms_before"], section["residual_rms_after"],
+                      time.perf_counter() - t0, bool(flight.crashed))
+
+
+def _run_job(job: tuple[str, int, str]) -> CaseResult:
+    condition, seed, workdir = job
+    return run_case(condition, seed, Path(workdir))
+
+
+def summarize(cases: list[CaseResult]) -> dict:
+    """Counts and figures per condition against the targets (module docstring)."""
+    clean = [c for c in cases if c.condition == "none"]
+    clean_rms = (np.sqrt(np.mean(np.array([c.refit_err for c in clean]) ** 2, axis=0))
+                 if clean else np.full(4, np.nan))
+    out: dict = {"clean_rms_rel_err": dict(zip(PARAMS, clean_rms.tolist(), strict=True)),
+                 "conditions": {}}
+    for cond, injected in CONDITIONS.items():
+        cs = [c for c in cases if c.condition == cond]
+        if not cs:
+            continue
+        n = len(cs)
+        row: dict = {"n": n, "seeds": [c.seed for c in cs],
+                     "crashed": sum(c.crashed for c in cs)}
+        if not injected:
+            row["nothing_selected"] = sum(not c.selected for c in cs)
+            row["spurious"] = sorted({e for c in cs for e in c.selected})
+        else:
+            row["all_named"] = sum(all(e in c.selected for e in injected) for c in cs)
+            row["exact"] = sum(set(c.selected) == set(injected) for c in cs)
+            row["extra_selected"] = sorted({e for c in cs for e in c.selected if e not in injected})
+            for e in injected:
+                errs = np.array([c.coef_rel_err[e] for c in cs])
+                row[f"{e}_coef_within_10pct"] = int(np.sum(errs <= 0.10))
+                row[f"{e}_coef_rel_err_median"] = float(np.nanmedian(errs)) if np.isfinite(errs).any() \
+                    else float("nan")
+                row[f"{e}_coef_rel_err_max"] = float(np.nanmax(errs)) if np.isfinite(errs).any() \
+                    else float("nan")
+                drops = {}
+                for a in AFFECTED_AXES[e]:
+                    d = np.array([1.0 - c.rms_after[a] / c.rms_before[a] for c in cs])
+                    drops[a] = float(np.median(d))
+                    row[f"{e}_drop50_{a}"] = int(np.sum(d >= 0.5))
+                row[f"{e}_median_drop"] = drops
+        ref = np.array([c.refit_err for c in cs])
+        row["refit_rms_rel_err"] = dict(zip(PARAMS, np.sqrt(np.mean(ref**2, axis=0)).tolist(),
+                                            strict=True))
+        base = np.array([c.base_err for c in cs])
+        row["base_rms_rel_err"] = dict(zip(PARAMS, np.sqrt(np.mean(base**2, axis=0)).tolist(),
+                                           strict=True))
+        if np.all(np.isfinite(clean_rms)):
+            row["within_clean_accuracy"] = int(np.sum(np.all(np.abs(ref) <= 2.0 * clean_rms, axis=1)))
+        row["seconds_mean"] = float(np.mean([c.seconds for c in cs]))
+        out["conditions"][cond] = row
+    return out
+
+
+def markdown(summary: dict) -> str:
+    """The result table (one row per condition)."""
+    cr = summary["clean_rms_rel_err"]
+    lines = ["| condition | n | named (all) | exact set | coef within 10 % | coef err median / max "
+             "| refit within clean acc. | affected-axis median RMS drop | extra selected |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for cond, r in summary["conditions"].items():
+        if cond == "none":
+            lines.append(f"| none | {r['n']} | nothing selected {r['nothing_selected']}/{r['n']} | "
+                         f"| | | {r.get('within_clean_accuracy', '')}/{r['n']} | | "
+                         f"{', '.join(r['spurious']) or '-'} |")
+            continue
+        effs = CONDITIONS[cond]
+        within = "; ".join(f"{e} {r[f'{e}_coef_within_10pct']}/{r['n']}" for e in effs)
+        errs = "; ".join(f"{100 * r[f'{e}_coef_rel_err_median']:.1f} / "
+                         f"{100 * r[f'{e}_coef_rel_err_max']:.1f} %" for e in effs)
+        drops = "; ".join(", ".join(f"{a} {100 * v:.0f} %" for a, v in r[f"{e}_median_drop"].items())
+                          for e in effs)
+        lines.append(f"| {cond} | {r['n']} | {r['all_named']}/{r['n']} | {r['exact']}/{r['n']} | "
+                     f"{within} | {errs} | {r.get('within_clean_accuracy', '')}/{r['n']} | {drops} | "
+                     f"{', '.join(r['extra_selected']) or '-'} |")
+    lines.append("")
+    lines.append("Clean-data accuracy (RMS relative error, no effect): "
+                 + ", ".join(f"{k} {100 * v:.2f} %" for k, v in cr.items())
+                 + "; 'within' = every parameter within 2x that.")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from tqdm import tqdm
+
+    from pinquad.runs import atomic_write_json, new_run_dir
+
+    p = argparse.ArgumentParser(prog="python -m pinquad.discovery",
+                                description="Seeded Monte Carlo of effect discovery through "
+                                            "the CSV --log path (module pinquad.discovery_mc).")
+    p.add_argument("--seeds", type=int, default=20, help="seeds per condition")
+    p.add_argument("--base-seed", type=int, default=0, help="base seed")
+    p.add_argument("--conditions", nargs="*", default=list(CONDITIONS), choices=list(CONDITIONS))
+    p.add_argument("--jobs", type=int, default=1, help="worker processes")
+    p.add_argument("--start-index", type=int, default=0,
+                   help="first seed index i (to extend an earlier run with more seeds)")
+    p.add_argument("--merge", type=Path, nargs="+", default=None,
+                   help="only summarise these discovery_mc.json files together (a later file's "
+                        "case replaces an earlier one with the same condition and seed)")
+    p.add_argument("--out", type=Path, default=None, help="output directory (default runs/...)")
+    args = p.parse_args(argv)
+    if args.merge:
+        return _merge(args.merge, args.out)
+    if args.seeds < 1:
+        print("error: --seeds must be at least 1", file=sys.stderr)
+        return 2
+    out = args.out or new_run_dir("discovery-mc")
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = [(c, case_seed(args.base_seed, c, i)) for c in args.conditions
+            for i in range(args.start_index, args.start_index + args.seeds)]
+    print(f"discovery Monte Carlo: {len(args.conditions)} condition(s) x {args.seeds} seeds, "
+          f"base seed {args.base_seed} (seed = base*100000 + condition*1000 + i), {args.jobs} worker(s)")
+    t0 = time.perf_counter()
+    cases: list[CaseResult] = []
+    with tempfile.TemporaryDirectory(prefix="pinquad-dmc-") as tmp:
+        work = [(c, s, tmp) for c, s in jobs]
+        if args.jobs > 1:
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(args.jobs) as pool:
+                it = pool.map(_run_job, work)
+                for res in tqdm(it, total=len(work), unit="flight", file=sys.stderr):
+                    cases.append(res)
+                    _append(out, res)
+        else:
+            for job in tqdm(work, unit="flight", file=sys.stderr):
+                res = _run_job(job)
+                cases.append(res)
+                _append(out, res)
+    summary = summarize(cases)
+    summary["seconds"] = time.perf_counter() - t0
+    summary["base_seed"] = args.base_seed
+    summary["seeds_per_condition"] = args.seeds
+    table = markdown(summary)
+    print()
+    for cond in args.conditions:
+        seeds = [c.seed for c in cases if c.condition == cond]
+        print(f"{cond}: seeds {seeds[0]}..{seeds[-1]}")
+    print(table)
+    print(f"\n{len(cases)} flights in {summary['seconds']:.0f} s")
+    atomic_write_json(out / "discovery_mc.json", {"summary": summary,
+                                                  "cases": [c.to_json() for c in cases]})
+    (out / "discovery_mc.md").write_text("# Effect discovery Monte Carlo\n\n" + table + "\n")
+    print(f"written to {out}")
+    return 0
+
+
+def _case_from_json(d: dict) -> CaseResult:
+    def f(v):
+        return float("nan") if v is None else float(v)
+
+    return CaseResult(d["condition"], int(d["seed"]), tuple(d["selected"]),
+                      {k: f(v) for k, v in d["coef_rel_err"].items()}, d["coefficients"],
+                      np.array([f(d["refit_rel_err"][k]) for k in PARAMS]),
+                      np.array([f(d["base_rel_err"][k]) for k in PARAMS]),
+                      {k: f(v) for k, v in d["rms_before"].items()},
+                      {k: f(v) for k, v in d["rms_after"].items()}, f(d["seconds"]), bool(d["crashed"]))
+
+
+def _merge(paths: list[Path], out: Path | None) -> int:
+    """Summarise several runs' cases together (later files win on duplicates)."""
+    from pinquad.runs import atomic_write_json
+
+    cases: dict[tuple[str, int], CaseResult] = {}
+    for p in paths:
+        try:
+            data = json.loads(Path(p).read_text())
+        except (OSError, ValueError) as exc:
+            print(f"error: {p}: cannot read a discovery_mc.json ({exc})", file=sys.stderr)
+            return 2
+        for d in data["cases"]:
+            cases[(d["condition"], int(d["seed"]))] = _case_from_json(d)
+    ordered = sorted(cases.values(), key=lambda c: (list(CONDITIONS).index(c.condition), c.seed))
+    summary = summarize(ordered)
+    table = markdown(summary)
+    for cond in CONDITIONS:
+        seeds = [c.seed for c in ordered if c.condition == cond]
+        if seeds:
+            print(f"{cond}: {len(seeds)} seeds {seeds[0]}..{seeds[-1]}")
+    print(table)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(out / "discovery_mc.json",
+                          {"summary": summary, "merged_from": [str(p) for p in paths],
+                           "cases": [c.to_json() for c in ordered]})
+        (out / "discovery_mc.md").write_text("# Effect discovery Monte Carlo\n\n" + table + "\n")
+        print(f"written to {out}")
+    return 0
+
+
+def _append(out: Path, res: CaseResult) -> None:
+    """Stream each case to cases.jsonl (a long run can be inspected while it runs)."""
+    with open(out / "cases.jsonl", "a") as fh:
+        fh.write(json.dumps(res.to_json(), default=lambda v: None if isinstance(v, float)
+                            and math.isnan(v) else v) + "\n")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
