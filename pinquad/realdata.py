@@ -28,6 +28,20 @@ nuisance body moment (thrust, body-frame air speed, body rates) that the measure
 flights demand: the rotor torques that cancel rotor-drag / blade-flapping moments are
 ten times the inertial torque I omega' and, left in, inflate the inertia thirty-fold.
 
+Yaw: the rotors' drag torque gamma kf omega_i^2 is not the whole yaw torque. A rotor the
+motor speeds up takes J_r omega_i' [N m] from the motor, and the body takes the reaction:
+
+    tau_z = sum_i spin_i (gamma kf omega_i^2 + J_r omega_i')
+
+with omega_i' from the measured rotor speeds (:func:`rotor_acceleration`). In the 3-8 Hz
+band the second term is as large as the first (the yaw acceleration leads the drag torque
+by 40-70 deg on the yaw flights, with |omega_z'| / |tau_drag| rising in proportion to the
+frequency, which is what a derivative term does). Regressing the band-passed gyro yaw
+acceleration on the drag torque alone leaves 72-86 % of its variance unexplained on
+jana01/04/05; adding J_r omega' with one J_r = 20e-9 kg m^2 for all logs leaves 25-66 %.
+J_r is identified per flight by the M-step (a yaw-row regressor projected out with the
+nuisance features, ``RealMStep``) and reported; no published Crazyflie value was found.
+
 Flight data identify only kf / m and kf L / I (every input is proportional to kf), so
 the identified mass and inertia scale exactly with the kf taken from the thrust stand;
 :func:`thrust_coefficient` picks kf and its uncertainty, and :func:`identify_real`
@@ -88,7 +102,19 @@ REPAIR_REL_SE = np.array([0.011, 0.07, 0.05, 0.24])
 rebuilt from PWM, measured by hiding M1 on the seven clean flights (zero in ~30 % of the
 rows, a stuck half value elsewhere, as on jana20-29), rebuilding it with the partner map
 and identifying again: root-mean-square change of the estimate over the seven flights
-(mass 1.1 %: mean +0.55 %, largest +2.6 % on jana01; I_xx 7 %, I_yy 5 %, I_zz 24 %)."""
+(mass 1.1 %: mean +0.55 %, largest +2.6 % on jana01; I_xx 7 %, I_yy 5 %, I_zz 24 %).
+
+On jana20-29 themselves the rebuilt M1 is checked against M1's own readings: the stuck
+channel updates a few hundred times per flight, and each fresh value is half the speed
+(a ratio to M3 of 0.48 where the clean flights give 0.92-0.99); twice the fresh values
+agree with the partner-map rebuild to +0.5..+1.3 % (median, six logs) and -0.5 % (jana25),
+residual 50-160 rev/min. The +2.3..+3.3 % mass excess of those flights is not the repair:
+the mocap-acceleration force balance with the measured M2 + M3 + M4 alone gives
+26.9-27.0 g-equivalents there against 26.1-26.5 on jana02-05 (same M1/M3 and M2/M4 speed
+balance), +2.5-3 % from motors that were never rebuilt, and it persists in slow level
+flight (< 0.3 m/s, |v_z| < 0.1 m/s) and away from the floor. Thrust per rpm^2 (air
+density, propellers) or the vehicle's mass differed in that session; flight data
+identify only kf / m and cannot tell which."""
 GRID_DT = 0.01
 """Resampled step [s]: 100 Hz."""
 
@@ -211,6 +237,7 @@ class RealDataOptions:
     faults: str = "repair"
     kf: float | None = None
     yaw_ratio: float = YAW_RATIO_CRAZYFLIE
+    rotor_inertia: float = 0.0
     spin: tuple[float, float, float, float] = SPIN_CRAZYFLIE
     contact_height: float = 0.03
     contact_speed: float = 0.2
@@ -381,7 +408,9 @@ class RealObservations:
     exclusions: why transitions were skipped, with counts; notes: what else was done
     (repairs, dropouts, glitches) in words; faults: the actuation fault report of the
     original-rate log; kf: the thrust coefficient used; source: the file; repaired:
-    motors (0-based) whose readings were rebuilt from PWM.
+    motors (0-based) whose readings were rebuilt from PWM; rotor_acc (N,) [rad/s^2]: mean
+    over [t_k, t_k + dt) of sum_i spin_i d(omega_i)/dt (:func:`rotor_acceleration`, gaps
+    interpolated), the regressor of the rotor-inertia yaw torque J_r * rotor_acc.
     """
 
     obs: Observations
@@ -393,6 +422,7 @@ class RealObservations:
     source: str
     options: RealDataOptions = field(default_factory=RealDataOptions)
     repaired: tuple[int, ...] = ()
+    rotor_acc: Array | None = None
 
     @property
     def n_transitions(self) -> int:
@@ -456,6 +486,27 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
     return rec.rpm, np.zeros(log.n, dtype=bool), notes
 
 
+def rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float]) -> Array:
+    """(N,) sum_i spin_i d(omega_i)/dt [rad/s^2] from rotor speeds rpm (N, 4) [rev/min] at
+    times t (N,) [s]: central differences, NaN where a neighbouring interval is a log gap
+    (longer than twice the median step) or a speed is not finite.
+
+    Times J_r [kg m^2] it is the reaction torque of the rotors' own angular acceleration on
+    the body about z, tau_z = sum_i spin_i J_r d(omega_i)/dt [N m], with the sign of the
+    rotor's drag torque (the motor supplies J_r omega_i' + Q_i to the rotor along its spin
+    axis and the body takes the opposite).
+    """
+    omega = np.asarray(rpm, dtype=float) * (2.0 * math.pi / 60.0)
+    t = np.asarray(t, dtype=float)
+    if t.size < 3:
+        return np.full(t.size, np.nan)
+    acc = np.gradient(omega, t, axis=0) @ np.asarray(spin, dtype=float)
+    step = np.diff(t)
+    gap = step > 2.0 * float(np.median(step))
+    acc[np.concatenate([gap, [False]]) | np.concatenate([[False], gap])] = np.nan
+    return acc
+
+
 def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
                        kf: ThrustCoefficient | None = None) -> RealObservations:
     """Resample a measured flight to the grid and build the EM observations (module
@@ -487,6 +538,9 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     torque = np.full((log.n, 3), np.nan)
     if finite_rpm.any():
         thrust[finite_rpm], torque[finite_rpm] = actuator.wrench(rpm[finite_rpm])
+    rotor_acc = rotor_acceleration(log.t, rpm, options.spin)
+    if options.rotor_inertia:
+        torque[:, 2] += options.rotor_inertia * rotor_acc
     # Untrusted rows carry no input: their bins become NaN and are excluded below.
     wrench = np.column_stack([thrust, torque])
     wrench[untrusted_rows] = np.nan
@@ -500,6 +554,8 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     vel = _bin_mean(t_src, log.velocity, centred, dt, k)
     rpm_g = _bin_mean(t_src, np.where(untrusted_rows[:, None], np.nan, rpm), grid, dt, k)
     inputs = _bin_mean(t_src, wrench, grid, dt, k)
+    rotor_acc_g = _interp_nan(grid, _bin_mean(
+        t_src, np.where(untrusted_rows, np.nan, rotor_acc), grid, dt, k)[:, 0])
     vbat = None
     if log.vbat is not None and not report.vbat_stuck:
         vbat = _bin_mean(t_src, log.vbat, centred, dt, k)[:, 0]
@@ -623,7 +679,8 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         if not untrusted_rows.any() else ()
     return RealObservations(obs=obs, log=resampled, exclusions=tuple(exclusions),
                             notes=tuple(notes), faults=report, kf=kf, source=source,
-                            options=options, repaired=repaired)
+                            options=options, repaired=repaired,
+                            rotor_acc=np.nan_to_num(rotor_acc_g))
 
 
 def _interp_nan(t: Array, x: Array) -> Array:
@@ -678,11 +735,14 @@ class RealTheta(Theta):
 
     torque_offset (N, 3) [N m] or None: added to the rotor torques before the E-step,
     tau_eff = tau_rotors + torque_offset; moment_coef (3, Z): its coefficients on the
-    :data:`TORQUE_FEATURES` (N m per feature unit), torque_offset = z @ moment_coef^T.
+    :data:`TORQUE_FEATURES` (N m per feature unit); rotor_inertia: J_r [kg m^2] of the
+    yaw reaction torque J_r * rotor_acc (None: not fitted), so that torque_offset =
+    z @ moment_coef^T + [0, 0, J_r * rotor_acc].
     """
 
     torque_offset: Array | None = None
     moment_coef: Array | None = None
+    rotor_inertia: float | None = None
 
 
 def corrected(obs: Observations, theta: Theta) -> Observations:
@@ -780,25 +840,43 @@ class BandStats:
     """Band-limited torque-row regression data of one posterior.
 
     x (K, 3, 3): regressor rows of [I_xx, I_yy, I_zz] for the three torque rows; t (K, 3):
-    rotor torques [N m]; z (K, Z): nuisance features; all band-passed; rows: index of
-    each used transition (K,).
+    rotor torques [N m]; z (K, Z): nuisance features; e (K, 1) or (K, 0): the rotor
+    acceleration sum_i spin_i omega_i' [rad/s^2], a feature of the yaw row only (its
+    coefficient is the rotor inertia J_r); all band-passed; rows: index of each used
+    transition (K,).
     """
 
     x: Array
     t: Array
     z: Array
     rows: NDArray[np.int64]
+    e: Array | None = None
+
+    def features(self, j: int, keep: BoolArray | None = None) -> Array:
+        """Features projected out of torque row j: z, plus e for the yaw row (j = 2)."""
+        z = self.z if keep is None else self.z[keep]
+        if j == 2 and self.e is not None and self.e.shape[1]:
+            z = np.column_stack([z, self.e if keep is None else self.e[keep]])
+        return z
+
+    def rotor_inertia(self, inertia: Array) -> float:
+        """J_r [kg m^2]: least-squares coefficient of e in the band-passed yaw residual
+        I_zz-row regressor @ inertia - tau_z = z c + J_r e (NaN without e)."""
+        if self.e is None or not self.e.shape[1]:
+            return float("nan")
+        r = self.x[:, 2, :] @ inertia - self.t[:, 2]
+        return float(np.linalg.lstsq(self.features(2), r, rcond=None)[0][-1])
 
     def quadratic(self, keep: BoolArray | None = None) -> tuple[Array, Array, Array]:
         """Quadratic forms (a (3, 3, 3), b (3, 3), c (3,)) of the torque residuals with
         the features projected out (over the rows in ``keep``)."""
-        x, t, z = (self.x, self.t, self.z) if keep is None else \
-            (self.x[keep], self.t[keep], self.z[keep])
-        zz = z.T @ z
+        x, t = (self.x, self.t) if keep is None else (self.x[keep], self.t[keep])
         a = np.empty((3, 3, 3))
         b = np.empty((3, 3))
         c = np.empty(3)
         for j in range(3):
+            z = self.features(j, keep)
+            zz = z.T @ z
             g = z.T @ x[:, j, :]
             h = z.T @ t[:, j]
             sol = np.linalg.lstsq(zz, np.column_stack([g, h]), rcond=None)[0]
@@ -827,15 +905,21 @@ class RealMStep:
     band-passed regression skips transitions within ``1 / (2 band[0])`` s of an
     excluded one or of the ends (filter transients).
 
-    Nuisance moment: with pi fixed, moment_coef = least squares of the full-band residual
-    Y pi - tau on the features z; the E-step then sees tau + z moment_coef^T.
+    Rotor inertia (when ``rotor_acc`` (N,) [rad/s^2] is given): the yaw row also projects
+    out e = sum_i spin_i omega_i', and with I fixed J_r = the least-squares coefficient of
+    e in the band-passed yaw residual (``BandStats.rotor_inertia``).
+
+    Nuisance moment: with pi (and J_r) fixed, moment_coef = least squares of the full-band
+    residual Y pi - tau - [0, 0, J_r e] on the features z; the E-step then sees
+    tau + z moment_coef^T + [0, 0, J_r e].
 
     Noise: S = dt * residual variance of each wrench row (full band, with the moment),
     measurement variances as the shared ``update_noise``.
     """
 
-    def __init__(self, band: tuple[float, float] = (3.0, 8.0)):
+    def __init__(self, band: tuple[float, float] = (3.0, 8.0), rotor_acc: Array | None = None):
         self.band = band
+        self.rotor_acc = None if rotor_acc is None else np.asarray(rotor_acc, dtype=float)
 
     def band_stats(self, post, obs: Observations, gravity: float) -> BandStats:
         from scipy.signal import butter, sosfiltfilt
@@ -862,8 +946,11 @@ class RealMStep:
         rows = np.flatnonzero(~near)
         if rows.size < 50:
             rows = np.flatnonzero(use)
+        e = None
+        if self.rotor_acc is not None:
+            e = bp(self.rotor_acc[:n_tr, None])[rows]
         return BandStats(x=bp(y.reshape(n_tr, 9)).reshape(n_tr, 3, 3)[rows],
-                         t=bp(tau)[rows], z=bp(z)[rows], rows=rows)
+                         t=bp(tau)[rows], z=bp(z)[rows], rows=rows, e=e)
 
     def __call__(self, post, obs: Observations, theta: Theta):
         from pinquad.identify import MStepResult, regressor_stats, update_noise
@@ -881,8 +968,13 @@ class RealMStep:
         idx = np.flatnonzero(transition_mask(obs))
         z_all = torque_features(post.mean, obs.inputs[:, 0])
         resid = stats.y[:, 3:6, :] @ pi - stats.tau[:, 3:6]
+        jr = band.rotor_inertia(inertia)
+        rotor = np.zeros((obs.n, 3))
+        if np.isfinite(jr):
+            rotor[:, 2] = jr * self.rotor_acc
+            resid = resid - rotor[idx]
         coef = np.linalg.lstsq(z_all[idx], resid, rcond=None)[0].T
-        offset = z_all @ coef.T
+        offset = z_all @ coef.T + rotor
         # Wrench residual variances with the moment in place (first order in the state
         # uncertainty, as the shared M-step): q_j = pi^T A_j pi - 2 pi^T b'_j + c'_j.
         tau_eff = stats.tau.copy()
@@ -893,7 +985,8 @@ class RealMStep:
         row_var = np.maximum(q / stats.n, 0.0)
         noise = update_noise(post, obs, theta, row_var)
         new = RealTheta(mass=mass, inertia=np.diag(inertia), noise=noise, gravity=g,
-                        torque_offset=offset, moment_coef=coef)
+                        torque_offset=offset, moment_coef=coef,
+                        rotor_inertia=jr if np.isfinite(jr) else None)
         return MStepResult(new, objective, row_var)
 
     def jackknife(self, post, obs: Observations, theta: Theta, blocks: int = 10) -> Array:
@@ -960,6 +1053,7 @@ class RealIdentification:
     notes: tuple[str, ...]
     seconds: float
     band: tuple[float, float] = (3.0, 8.0)
+    rotor_inertia: float = float("nan")
 
     @property
     def params(self) -> Array:
@@ -992,7 +1086,7 @@ def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
 def identify_real(real: RealObservations, mass0: float, inertia0: Array,
                   max_iterations: int = 100, information: bool = True,
                   band: tuple[float, float] = (3.0, 8.0), tol: float = 1e-4,
-                  name: str | None = None, estep: str = "rts"):
+                  name: str | None = None, estep: str = "rts", fit_rotor_inertia: bool = True):
     """EM on a measured flight (``RealMStep``; E-step ``estep``: ``rts`` = compiled EKF +
     RTS, or ``gtsam``) from (mass0 [kg], inertia0 (3, 3) [kg m^2]), then standard errors
     (the observed information always uses the EKF likelihood).
@@ -1008,7 +1102,8 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     t0 = time.perf_counter()
     obs = real.obs
     gravity = real.log.meta.gravity
-    mstep = RealMStep(band)
+    fit_jr = fit_rotor_inertia and real.rotor_acc is not None and not real.options.rotor_inertia
+    mstep = RealMStep(band, real.rotor_acc if fit_jr else None)
     theta0 = initial_theta(obs, mass0, inertia0, gravity)
     res = run_em(obs, theta0, get_smoother(estep), mstep, max_iterations=max_iterations,
                  tol=tol, tol_loglik=0.1 * tol, accelerate=False, model_factory=real_model)
@@ -1033,7 +1128,9 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         converged=res.converged, loglik=res.loglik, e_steps=res.e_steps, history=history,
         moment_coef=np.zeros((3, 7)) if coef is None else coef, n_used=real.n_used,
         n_excluded=real.n_excluded, excluded=real.excluded, notes=real.notes,
-        seconds=time.perf_counter() - t0, band=band)
+        seconds=time.perf_counter() - t0, band=band,
+        rotor_inertia=float(getattr(theta, "rotor_inertia", None) or real.options.rotor_inertia
+                            or float("nan")))
     return out, res.posterior, theta
 
 
@@ -1140,7 +1237,9 @@ def format_table(results: Sequence[RealIdentification]) -> str:
             + f" e-6 kg m^2; spread (max - min) / mean = "
               f"{100 * float(np.ptp(izz) / izz.mean()):.0f} %, sd / mean = "
               f"{100 * float(izz.std(ddof=1) / izz.mean()):.0f} % (kf and the yaw ratio are "
-              "common to all logs and cancel in this comparison)")
+              "common to all logs and cancel in this comparison); rotor inertia J_r fitted "
+              "per log: " + ", ".join(f"{1e9 * r.rotor_inertia:.1f}" for r in yaw)
+            + " e-9 kg m^2")
     inert = np.array([r.inertia for r in results])
     mean, sd = inert.mean(axis=0), inert.std(ddof=1, axis=0) if len(results) > 1 else np.zeros(3)
     lines += [
