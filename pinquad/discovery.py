@@ -90,7 +90,7 @@ class DiscoveryConfig:
     max_effects: int = 3
     candidates: tuple[str, ...] = EFFECT_NAMES
     refit_passes: int = 2
-    em_iterations: int = 30
+    em_iterations: int = 10
     em_iterations_fast: int = 100
     restart_em: bool = True
     full_refit: bool = True
