@@ -39,16 +39,27 @@ by 40-70 deg on the yaw flights, with |omega_z'| / |tau_drag| rising in proporti
 frequency, which is what a derivative term does). Regressing the band-passed gyro yaw
 acceleration on the drag torque alone leaves 72-86 % of its variance unexplained on
 jana01/04/05; adding J_r omega' with one J_r = 20e-9 kg m^2 for all logs leaves 25-66 %.
-J_r is identified per flight by the M-step (a yaw-row regressor projected out with the
-nuisance features, ``RealMStep``) and reported; no published Crazyflie value was found.
+J_r can be identified per flight by the M-step (a yaw-row regressor projected out with
+the nuisance features, ``RealMStep``), but within one log it trades off against I_zz
+(per-flight J_r 7-23e-9, yaw I_zz spread 88 %). By default one J_r is pooled over the
+seven logs with every rotor speed measured (:func:`pooled_rotor_inertia`: each log keeps
+its own inertia; 15.5 +- 4.1 e-9 kg m^2, delete-one-log jackknife), and each of those
+logs is identified with the J_r fitted on the other six (leave-one-out), so no log's
+I_zz uses a J_r fitted on its own data. Held out, that J_r leaves 53 / 22 / 27 % of the
+band-passed yaw acceleration variance unexplained on jana01/04/05, against 53 / 20 / 25 %
+with each log's own J_r and 67 / 34 / 39 % without J_r; the yaw I_zz spread narrows
+(88 % -> ~70 %) but stays far from 10 %: no single J_r brings jana01 (I_zz ~27e-6
+whatever J_r) and jana04/05 (13-18e-6) together. No published Crazyflie J_r was found.
 
 Flight data identify only kf / m and kf L / I (every input is proportional to kf), so
 the identified mass and inertia scale exactly with the kf taken from the thrust stand;
 :func:`thrust_coefficient` picks kf and its uncertainty, and :func:`identify_real`
 propagates that uncertainty into the standard errors.
 
-``python -m pinquad.realdata [--data DIR] [--jobs N]`` identifies every flight of the
-IMRC Lab data set and prints the table.
+``python -m pinquad.realdata [--data DIR] [--jobs N] [--rotor-inertia pooled|per-flight|
+none|VALUE]`` identifies every flight of the IMRC Lab data set and prints the table
+(pooled J_r: a first pass fits J_r per flight on the pool logs, then every log is
+identified with J_r fixed).
 """
 
 from __future__ import annotations
@@ -1030,7 +1041,10 @@ class RealIdentification:
     kf: the thrust coefficient; iterations, converged, loglik (I,), e_steps: the EM run;
     history (I+1, 4): [m, I_xx, I_yy, I_zz] per iteration; moment_coef (3, 7): the
     nuisance moment (``TORQUE_FEATURES``); n_used / n_excluded transitions; excluded:
-    exclusion notes; notes: other notes; seconds: wall time.
+    exclusion notes; notes: other notes; seconds: wall time; band: the torque band [Hz];
+    rotor_inertia: J_r [kg m^2] used (fitted or fixed; NaN: none); band_stats: the
+    band-passed regression at the final posterior (``keep_band_stats``); rotor_source:
+    how J_r was obtained, in words (set by the table).
     """
 
     name: str
@@ -1054,6 +1068,8 @@ class RealIdentification:
     seconds: float
     band: tuple[float, float] = (3.0, 8.0)
     rotor_inertia: float = float("nan")
+    band_stats: BandStats | None = None
+    rotor_source: str = ""
 
     @property
     def params(self) -> Array:
@@ -1086,10 +1102,14 @@ def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
 def identify_real(real: RealObservations, mass0: float, inertia0: Array,
                   max_iterations: int = 100, information: bool = True,
                   band: tuple[float, float] = (3.0, 8.0), tol: float = 1e-4,
-                  name: str | None = None, estep: str = "rts", fit_rotor_inertia: bool = True):
+                  name: str | None = None, estep: str = "rts", fit_rotor_inertia: bool = True,
+                  keep_band_stats: bool = False):
     """EM on a measured flight (``RealMStep``; E-step ``estep``: ``rts`` = compiled EKF +
     RTS, or ``gtsam``) from (mass0 [kg], inertia0 (3, 3) [kg m^2]), then standard errors
     (the observed information always uses the EKF likelihood).
+
+    keep_band_stats: store :func:`yaw_band_stats` at the final posterior in the result
+    (the input of :func:`pooled_rotor_inertia`).
 
     Returns (RealIdentification, Posterior, RealTheta). EM stops when the relative change
     of (m, I) is below ``tol`` (1e-4, far below the standard errors) and the relative
@@ -1130,8 +1150,117 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         n_excluded=real.n_excluded, excluded=real.excluded, notes=real.notes,
         seconds=time.perf_counter() - t0, band=band,
         rotor_inertia=float(getattr(theta, "rotor_inertia", None) or real.options.rotor_inertia
-                            or float("nan")))
+                            or float("nan")),
+        band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None)
     return out, res.posterior, theta
+
+
+def yaw_band_stats(real: RealObservations, post, band: tuple[float, float] = (3.0, 8.0)
+                   ) -> BandStats:
+    """The band-passed torque-row regression data of ``post`` with the rotor acceleration
+    e as a separate column and t the rotor drag torques alone (a J_r fixed in
+    ``real.options`` is taken back out of the yaw row), so that any J_r can be tried:
+    yaw torque = t_z + J_r e."""
+    if real.rotor_acc is None:
+        raise ValueError(f"{real.source}: no rotor acceleration; expected measured rotor speeds")
+    bs = RealMStep(band, real.rotor_acc).band_stats(post, real.obs, real.log.meta.gravity)
+    t = bs.t.copy()
+    t[:, 2] -= real.options.rotor_inertia * bs.e[:, 0]
+    return replace(bs, t=t)
+
+
+def band_fit(bs: BandStats, rotor_inertia: float, start: Array | None = None
+             ) -> tuple[Array, float, float]:
+    """(inertia (3,) [kg m^2], objective, yaw residual variance [(rad/s^2)^2]) of the
+    inertia M-step on ``bs`` (from :func:`yaw_band_stats`) with J_r fixed at
+    ``rotor_inertia`` [kg m^2]: the yaw torque is t_z + J_r e, e not projected out. The
+    variance is that of the band-passed, nuisance-projected yaw residual in angular
+    acceleration units, q_z / (K I_zz^2)."""
+    t = bs.t.copy()
+    t[:, 2] += rotor_inertia * bs.e[:, 0]
+    fixed = BandStats(x=bs.x, t=t, z=bs.z, rows=bs.rows, e=None)
+    a, b, c = fixed.quadratic()
+    if start is None:  # the EM's start; the least-squares solution is tried as well
+        start = np.diag(default_guess("crazyflie21")[1])
+    inertia, objective = _profiled_inertia(a, b, c, start)
+    q = float(inertia @ a[2] @ inertia - 2.0 * b[2] @ inertia + c[2])
+    return inertia, objective, q / (bs.x.shape[0] * inertia[2] ** 2)
+
+
+POOL_FLIGHTS = ("jana00", "jana01", "jana02", "jana03", "jana04", "jana05", "jana10")
+"""The logs that share one rotor inertia by default: the seven with every rotor speed
+measured (on jana20-29 M1's speed, hence its acceleration, is rebuilt from PWM through a
+first-order lag: a model, not a measurement)."""
+ROTOR_INERTIA_BOUNDS = (-2e-7, 2e-7)
+"""Search interval of the pooled J_r [kg m^2] (ten times any per-flight value)."""
+
+
+@dataclass(frozen=True)
+class PooledRotorInertia:
+    """One rotor inertia J_r for several flights, each with its own inertia.
+
+    value [kg m^2]: argmin over J_r of sum_l K_l J_l(I_l; J_r), each log's profiled
+    band-passed objective (:func:`band_fit`, minimised over its own I_l) weighted by its
+    number of band rows K_l; se [kg m^2]: delete-one-log jackknife standard error;
+    logs: the flights it was fitted on; leave_one_out: J_r fitted on all the logs but
+    that one, per log [kg m^2]; per_flight: each log's own J_r (fitted alone with its
+    I_l) [kg m^2].
+    """
+
+    value: float
+    se: float
+    logs: tuple[str, ...]
+    leave_one_out: dict[str, float]
+    per_flight: dict[str, float]
+
+    def for_log(self, name: str) -> tuple[float, str]:
+        """(J_r [kg m^2], how it was obtained) for identifying ``name``: the value fitted
+        without that log if it is one of the pool (leave-one-out), else the pooled one."""
+        if name in self.leave_one_out:
+            return self.leave_one_out[name], "leave-one-out"
+        return self.value, "pooled"
+
+    def describe(self) -> str:
+        loo = ", ".join(f"{k} {1e9 * v:.1f}" for k, v in self.leave_one_out.items())
+        own = ", ".join(f"{k} {1e9 * v:.1f}" for k, v in self.per_flight.items())
+        return (f"rotor inertia J_r pooled over {', '.join(self.logs)} (each log with its own "
+                f"inertia): {1e9 * self.value:.2f} ± {1e9 * self.se:.2f} e-9 kg m^2 (delete-one-"
+                f"log jackknife standard error), fitted on the band-passed regressions of the "
+                f"per-flight-J_r EM posteriors. Each of these logs is identified with the J_r "
+                f"fitted on the others (leave-one-out, never its own data): {loo} e-9; the other "
+                f"logs with the pooled value. Per-flight J_r for comparison: {own} e-9.")
+
+
+def _pool_value(stats: Sequence[BandStats]) -> float:
+    from scipy.optimize import minimize_scalar
+
+    def total(jr: float) -> float:
+        return sum(bs.x.shape[0] * band_fit(bs, jr)[1] for bs in stats)
+
+    res = minimize_scalar(total, bounds=ROTOR_INERTIA_BOUNDS, method="bounded",
+                          options={"xatol": 1e-13})
+    return float(res.x)
+
+
+def pooled_rotor_inertia(stats: dict[str, BandStats]) -> PooledRotorInertia:
+    """J_r shared by the logs ``stats`` (name -> :func:`yaw_band_stats`), with its
+    delete-one-log jackknife standard error and leave-one-out values (needs >= 2 logs;
+    one log gives its own J_r, no standard error and no leave-one-out)."""
+    if not stats:
+        raise ValueError("pooled rotor inertia: no log given")
+    names = tuple(stats)
+    value = _pool_value([stats[n] for n in names])
+    per = {}
+    for n in names:
+        bs = stats[n]
+        inertia, _ = _profiled_inertia(*bs.quadratic(), band_fit(bs, value)[0])
+        per[n] = bs.rotor_inertia(inertia)
+    if len(names) < 2:
+        return PooledRotorInertia(value, float("nan"), names, {}, per)
+    loo = {h: _pool_value([stats[n] for n in names if n != h]) for h in names}
+    jk = np.array(list(loo.values()))
+    se = float(np.sqrt((jk.size - 1) / jk.size * np.sum((jk - jk.mean()) ** 2)))
+    return PooledRotorInertia(value, se, names, loo, per)
 
 
 def default_guess(vehicle: str) -> tuple[float, Array, str]:
@@ -1159,20 +1288,39 @@ class TableJob:
     information: bool
     band: tuple[float, float]
     stand: Path
+    fit_rotor_inertia: bool = True
+    keep_band_stats: bool = False
+    rotor_source: str = ""
 
 
 def run_table_job(job: TableJob) -> RealIdentification | str:
     """Load one flight and identify it (a worker of ``python -m pinquad.realdata``); a
-    log that cannot be identified gives the reason as a string instead."""
+    log that cannot be identified gives the reason as a string instead. J_r: fitted per
+    flight if ``job.fit_rotor_inertia`` and ``job.options.rotor_inertia`` is 0, else the
+    options' fixed value."""
     try:
         kf = thrust_coefficient(job.stand)
         real = load_real(job.path, job.options, kf)
         mass0, inertia0, _ = default_guess("crazyflie21")
         ident, _, _ = identify_real(real, mass0, inertia0, job.max_iterations,
-                                    job.information, job.band, name=job.path.name)
+                                    job.information, job.band, name=job.path.name,
+                                    fit_rotor_inertia=job.fit_rotor_inertia,
+                                    keep_band_stats=job.keep_band_stats)
     except (LogFormatError, ValueError) as exc:
         return str(exc)
-    return ident
+    return replace(ident, rotor_source=job.rotor_source)
+
+
+def run_jobs(jobs: Sequence[TableJob], workers: int) -> list[RealIdentification | str]:
+    """run_table_job over ``jobs`` in ``workers`` processes (results in job order)."""
+    if workers > 1 and len(jobs) > 1:
+        # Longest logs first so the pool finishes together.
+        order = sorted(range(len(jobs)), key=lambda i: -jobs[i].path.stat().st_size)
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            done = dict(zip(order, pool.map(run_table_job, [jobs[i] for i in order]),
+                            strict=True))
+        return [done[i] for i in range(len(jobs))]
+    return [run_table_job(j) for j in jobs]
 
 
 def _short_reasons(ident: RealIdentification) -> str:
@@ -1191,8 +1339,16 @@ def _pm(value: float, total: float, stat: float, scale: float, fmt: str = ".2f")
             f"({stat * scale:{fmt}})")
 
 
-def format_table(results: Sequence[RealIdentification]) -> str:
-    """The markdown table of the identified flights and the summaries below it."""
+def _rotor_words(r: RealIdentification) -> str:
+    if not np.isfinite(r.rotor_inertia):
+        return f"{r.name} none"
+    return f"{r.name} {1e9 * r.rotor_inertia:.1f} ({r.rotor_source or 'fitted on this log'})"
+
+
+def format_table(results: Sequence[RealIdentification],
+                 rotor: PooledRotorInertia | None = None) -> str:
+    """The markdown table of the identified flights and the summaries below it
+    (``rotor``: the pooled rotor inertia the flights were identified with, described)."""
     if not results:
         return "(no flights)"
     kf = results[0].kf
@@ -1222,6 +1378,8 @@ def format_table(results: Sequence[RealIdentification]) -> str:
         "",
         kf.note,
     ]
+    if rotor is not None:
+        lines += ["", rotor.describe()]
     masses = np.array([r.mass for r in results])
     rel = masses / SCALE_MASS - 1.0
     lines += ["", f"mass: mean {1e3 * masses.mean():.2f} g, spread (sd) {1e3 * masses.std(ddof=1):.2f} g "
@@ -1237,9 +1395,8 @@ def format_table(results: Sequence[RealIdentification]) -> str:
             + f" e-6 kg m^2; spread (max - min) / mean = "
               f"{100 * float(np.ptp(izz) / izz.mean()):.0f} %, sd / mean = "
               f"{100 * float(izz.std(ddof=1) / izz.mean()):.0f} % (kf and the yaw ratio are "
-              "common to all logs and cancel in this comparison); rotor inertia J_r fitted "
-              "per log: " + ", ".join(f"{1e9 * r.rotor_inertia:.1f}" for r in yaw)
-            + " e-9 kg m^2")
+              "common to all logs and cancel in this comparison); rotor inertia J_r used "
+              "[e-9 kg m^2]: " + ", ".join(_rotor_words(r) for r in yaw))
     inert = np.array([r.inertia for r in results])
     mean, sd = inert.mean(axis=0), inert.std(ddof=1, axis=0) if len(results) > 1 else np.zeros(3)
     lines += [
@@ -1254,6 +1411,16 @@ def format_table(results: Sequence[RealIdentification]) -> str:
         + " | ".join(f"{1e6 * v:.2f}" for v in PUBLISHED_INERTIA) + " |",
     ]
     return "\n".join(lines)
+
+
+def _rotor_choice(text: str) -> str | float:
+    if text in ("pooled", "per-flight", "none"):
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected pooled, per-flight, none or a value in kg m^2") from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -1278,10 +1445,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--band", type=float, nargs=2, default=(3.0, 8.0),
                         metavar=("LO", "HI"), help="torque-row band of the inertia M-step [Hz]")
     parser.add_argument("--only", nargs="*", help="log names to run (default: all)")
+    parser.add_argument("--rotor-inertia", type=_rotor_choice, default="pooled",
+                        help="rotor inertia J_r of the yaw torque J_r sum spin_i omega_i': "
+                             "pooled (default: one J_r fitted jointly on the --pool logs, each "
+                             "pool log identified with the J_r of the others, leave-one-out), "
+                             "per-flight (fitted on each log), none, or a value [kg m^2]")
+    parser.add_argument("--pool", nargs="*", default=list(POOL_FLIGHTS),
+                        help="logs the pooled J_r is fitted on (default: the seven with every "
+                             "rotor speed measured); run whatever --only says")
     args = parser.parse_args(argv)
     flights = flights_dir(args.data)
     logs = sorted(p for p in flights.iterdir() if p.is_file() and p.name.startswith("jana")) \
         if flights.is_dir() else []
+    all_logs = list(logs)
     if args.only:
         logs = [p for p in logs if p.name in set(args.only)]
     if not logs:
@@ -1296,32 +1472,59 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (LogFormatError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    jobs = [TableJob(p, options, args.max_iterations, not args.no_information,
-                     tuple(args.band), stand) for p in logs]
     t0 = time.perf_counter()
-    print(f"pinquad real data: {len(jobs)} logs from {flights}, channels {options.channels}, "
+    mode = args.rotor_inertia
+    print(f"pinquad real data: {len(logs)} logs from {flights}, channels {options.channels}, "
           f"faults {options.faults}, torque band {args.band[0]:g}-{args.band[1]:g} Hz, "
-          f"{args.jobs} worker(s); {kf.note}", file=sys.stderr)
+          f"rotor inertia {mode}, {args.jobs} worker(s); {kf.note}", file=sys.stderr)
+    rotor, pass1 = None, ""
     try:
-        if args.jobs > 1:
-            # Longest logs first so the pool finishes together.
-            order = sorted(range(len(jobs)), key=lambda i: -jobs[i].path.stat().st_size)
-            with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-                done = dict(zip(order, pool.map(run_table_job, [jobs[i] for i in order]),
-                                strict=True))
-            results = [done[i] for i in range(len(jobs))]
+        if mode == "pooled":
+            pool = [p for p in all_logs if p.name in set(args.pool)]
+            if len(pool) < 2:
+                print(f"error: --pool {' '.join(args.pool)}: fewer than two of these logs in "
+                      f"{flights}; expected at least two to pool J_r over", file=sys.stderr)
+                return 2
+            print(f"pass 1: J_r fitted per flight on the {len(pool)} pool logs "
+                  f"({', '.join(p.name for p in pool)}) to pool it", file=sys.stderr)
+            first = run_jobs([TableJob(p, options, args.max_iterations, False, tuple(args.band),
+                                       stand, keep_band_stats=True) for p in pool], args.jobs)
+            bad = [(p.name, r) for p, r in zip(pool, first, strict=True) if isinstance(r, str)]
+            if bad:
+                print("error: pool log not identified: " + "; ".join(f"{n}: {w}" for n, w in bad),
+                      file=sys.stderr)
+                return 2
+            rotor = pooled_rotor_inertia({r.name: r.band_stats for r in first})
+            pass1 = (f"; pass 1 (J_r per flight on the pool logs, then pooled) "
+                     f"{time.perf_counter() - t0:.0f} s")
+            print(rotor.describe(), file=sys.stderr)
+            jobs = []
+            for p in logs:
+                jr, how = rotor.for_log(p.name)
+                src = how if how == "leave-one-out" else "pooled on " + ", ".join(rotor.logs)
+                jobs.append(TableJob(p, replace(options, rotor_inertia=jr), args.max_iterations,
+                                     not args.no_information, tuple(args.band), stand,
+                                     fit_rotor_inertia=False, rotor_source=src))
         else:
-            results = [run_table_job(j) for j in jobs]
+            fixed = 0.0 if isinstance(mode, str) else mode
+            src = {"per-flight": "fitted on this log", "none": ""}.get(mode, "given") \
+                if isinstance(mode, str) else "given"
+            jobs = [TableJob(p, replace(options, rotor_inertia=fixed), args.max_iterations,
+                             not args.no_information, tuple(args.band), stand,
+                             fit_rotor_inertia=mode == "per-flight", rotor_source=src)
+                    for p in logs]
+        results = run_jobs(jobs, args.jobs)
     except (LogFormatError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     failed = [(j.path.name, r) for j, r in zip(jobs, results, strict=True) if isinstance(r, str)]
     results = [r for r in results if not isinstance(r, str)]
-    print(format_table(results))
+    print(format_table(results, rotor))
     for name, why in failed:
         print(f"\n{name}: not identified: {why}")
     print(f"\n{len(results)} logs in {time.perf_counter() - t0:.0f} s "
-          f"({sum(r.seconds for r in results):.0f} s of EM + standard errors in the workers)")
+          f"({sum(r.seconds for r in results):.0f} s of EM + standard errors in the workers"
+          f"{pass1})")
     return 0
 
 

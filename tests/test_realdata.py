@@ -219,3 +219,67 @@ def test_yaw_flight_rotor_inertia_is_identified_and_positive():
     a 7 mm motor (1e-9..1e-7 kg m^2)."""
     ident = identified("jana04")
     assert 1e-9 < ident.rotor_inertia < 1e-7, ident.rotor_inertia
+
+
+def _synthetic_band(inertia, jr, k=1500, seed=0):
+    """Band-passed regression data of a log whose yaw torque is t_z + jr e: the rotor drag
+    torque t_z = x_z . I - jr e - nuisance, plus noise."""
+    from pinquad.realdata import BandStats
+
+    rng = np.random.default_rng(seed)
+    x = rng.normal(0.0, 10.0, (k, 3, 3))
+    e = rng.normal(0.0, 5e3, (k, 1))
+    z = rng.normal(0.0, 1.0, (k, 7))
+    t = np.einsum("kjp,p->kj", x, inertia) + rng.normal(0.0, 2e-6, (k, 3))
+    t -= z @ rng.normal(0.0, 1e-5, (7, 3))
+    t[:, 2] -= jr * e[:, 0]
+    return BandStats(x=x, t=t, z=z, rows=np.arange(k), e=e)
+
+
+def test_pooled_rotor_inertia_recovers_a_shared_value_and_leaves_each_log_out():
+    from pinquad.realdata import band_fit, pooled_rotor_inertia
+
+    jr = 15e-9
+    inertias = [np.array([16e-6, 17e-6, iz]) for iz in (12e-6, 20e-6, 28e-6)]
+    stats = {f"log{i}": _synthetic_band(inertia, jr, seed=i)
+             for i, inertia in enumerate(inertias)}
+    pooled = pooled_rotor_inertia(stats)
+    assert pooled.value == pytest.approx(jr, rel=0.02)
+    assert set(pooled.leave_one_out) == set(stats) == set(pooled.per_flight)
+    for name, value in pooled.leave_one_out.items():
+        assert value == pytest.approx(jr, rel=0.05)
+        assert pooled.for_log(name) == (value, "leave-one-out")
+    assert pooled.for_log("other") == (pooled.value, "pooled")
+    assert 0.0 < pooled.se < 0.05 * jr
+    for bs, inertia in zip(stats.values(), inertias, strict=True):
+        fitted, _, var = band_fit(bs, pooled.value)
+        np.testing.assert_allclose(fitted, inertia, rtol=0.02)
+        assert var < band_fit(bs, 0.0)[2]
+    assert "leave-one-out" in pooled.describe() and "jackknife" in pooled.describe()
+
+
+def test_fixed_rotor_inertia_is_taken_back_out_of_the_band_stats():
+    """jana02 identified with a J_r fitted elsewhere (fixed, 15e-9): the stored band-passed
+    regression has the drag torque alone, band_fit at that J_r gives the EM's inertia
+    back, and the J_r term explains yaw motion it was not fitted on."""
+    from pinquad.realdata import band_fit
+
+    require_data()
+    jr = 15e-9
+    real = load_real(FLIGHTS / "jana02", RealDataOptions(rotor_inertia=jr), thrust_coefficient(STAND))
+    mass0, inertia0, _ = default_guess("crazyflie21")
+    ident, _, _ = identify_real(real, mass0, inertia0, max_iterations=100, information=False,
+                                keep_band_stats=True)
+    assert ident.rotor_inertia == jr
+    inertia, _, var = band_fit(ident.band_stats, jr, ident.inertia)
+    np.testing.assert_allclose(inertia, ident.inertia, rtol=0.01)
+    assert var < 0.9 * band_fit(ident.band_stats, 0.0)[2]
+
+
+def test_pooled_cli_needs_two_pool_logs():
+    from pinquad.realdata import main
+
+    require_data()
+    assert main(["--data", str(DATA), "--only", "jana00", "--pool", "jana00"]) == 2
+    with pytest.raises(SystemExit):
+        main(["--data", str(DATA), "--rotor-inertia", "lots"])
