@@ -210,3 +210,181 @@ def regressor_quadratics(post: Posterior, obs: Observations, gravity: float
                           np.ascontiguousarray(obs.inputs, dtype=float), idx, float(obs.dt),
                           float(gravity))
     return RegressorQuadratics(a, b, c, int(idx.size))
+
+
+@njit(cache=True)
+def _physical(i_diag):
+    """identify._physical: positive and the triangle inequalities (2 I_i < sum I)."""
+    total = i_diag[0] + i_diag[1] + i_diag[2]
+    for i in range(3):
+        if not (i_diag[i] > 0.0 and 2.0 * i_diag[i] < total):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _solve3(a, b, x):
+    """x = a^{-1} b for a (3, 3) by Gaussian elimination with partial pivoting (what
+    LAPACK's gesv does); False, like numpy's LinAlgError, when a pivot is exactly zero."""
+    m = np.empty((3, 4))
+    for r in range(3):
+        for c in range(3):
+            m[r, c] = a[r, c]
+        m[r, 3] = b[r]
+    for col in range(3):
+        piv = col
+        for r in range(col + 1, 3):
+            if abs(m[r, col]) > abs(m[piv, col]):
+                piv = r
+        if m[piv, col] == 0.0:
+            return False
+        if piv != col:
+            for c in range(4):
+                m[col, c], m[piv, c] = m[piv, c], m[col, c]
+        for r in range(col + 1, 3):
+            f = m[r, col] / m[col, col]
+            for c in range(col, 4):
+                m[r, c] -= f * m[col, c]
+    for r in range(2, -1, -1):
+        s = m[r, 3]
+        for c in range(r + 1, 3):
+            s -= m[r, c] * x[c]
+        x[r] = s / m[r, r]
+    return True
+
+
+@njit(cache=True)
+def _q_rows(mass, a_t, b_t, c_t, i_diag, q):
+    """q_j = pi^T A_j pi - 2 b_j^T pi + c_j, pi = [m, I] (3 torque rows j)."""
+    pi = np.empty(4)
+    pi[0] = mass
+    for i in range(3):
+        pi[1 + i] = i_diag[i]
+    for j in range(3):
+        s = 0.0
+        for p in range(4):
+            t = 0.0
+            for r in range(4):
+                t += a_t[j, p, r] * pi[r]
+            s += pi[p] * t - 2.0 * b_t[j, p] * pi[p]
+        q[j] = s + c_t[j]
+
+
+@njit(cache=True)
+def _parts(mass, a_t, b_t, c_t, i_diag, grad, hess, want_derivatives):
+    """J(I) and (when asked, into grad and hess) its gradient and Hessian, as
+    identify._inertia_newton's ``parts``; J = inf (gradient 0, Hessian identity) where
+    some q_j <= 0."""
+    q = np.empty(3)
+    _q_rows(mass, a_t, b_t, c_t, i_diag, q)
+    if q[0] <= 0.0 or q[1] <= 0.0 or q[2] <= 0.0:
+        if not want_derivatives:
+            return np.inf
+        for p in range(3):
+            grad[p] = 0.0
+            for r in range(3):
+                hess[p, r] = 1.0 if p == r else 0.0
+        return np.inf
+    val = 0.5 * (math.log(q[0]) + math.log(q[1]) + math.log(q[2]))
+    val -= math.log(i_diag[0]) + math.log(i_diag[1]) + math.log(i_diag[2])
+    if not want_derivatives:
+        return val
+    pi = np.empty(4)
+    pi[0] = mass
+    for i in range(3):
+        pi[1 + i] = i_diag[i]
+    dq = np.empty((3, 3))
+    for j in range(3):
+        for p in range(3):
+            t = 0.0
+            for r in range(4):
+                t += a_t[j, 1 + p, r] * pi[r]
+            dq[j, p] = 2.0 * t - 2.0 * b_t[j, 1 + p]
+    for p in range(3):
+        g = 0.0
+        for j in range(3):
+            g += dq[j, p] / q[j]
+        grad[p] = 0.5 * g - 1.0 / i_diag[p]
+        for r in range(3):
+            h = 0.0
+            for j in range(3):
+                h += a_t[j, 1 + p, 1 + r] / q[j] - 0.5 * dq[j, p] * dq[j, r] / (q[j] * q[j])
+            hess[p, r] = h
+        hess[p, p] += 1.0 / (i_diag[p] * i_diag[p])
+    return val
+
+
+@njit(cache=True)
+def inertia_newton(mass, a_t, b_t, c_t, previous):
+    """identify._inertia_newton compiled: the same candidates (previous inertia, the
+    unweighted least-squares solution), damped Newton steps, backtracking and stopping
+    rule, so the same minimiser up to rounding. a_t (3, 4, 4), b_t (3, 4), c_t (3,) of
+    the torque rows; previous (3,) diagonal inertia. Returns the diagonal inertia (3,)."""
+    grad = np.empty(3)
+    hess = np.empty((3, 3))
+    a_sum = np.zeros((3, 3))
+    rhs = np.zeros(3)
+    for j in range(3):
+        for p in range(3):
+            rhs[p] += b_t[j, 1 + p] - a_t[j, 1 + p, 0] * mass
+            for r in range(3):
+                a_sum[p, r] += a_t[j, 1 + p, 1 + r]
+    prev = previous.astype(np.float64)
+    current = np.empty(3)
+    have = False
+    best = np.inf
+    if _physical(prev):
+        current[:] = prev
+        best = _parts(mass, a_t, b_t, c_t, prev, grad, hess, False)
+        have = True
+    i_ls = np.empty(3)
+    if _solve3(a_sum, rhs, i_ls) and _physical(i_ls):
+        q_ls = np.empty(3)
+        _q_rows(mass, a_t, b_t, c_t, i_ls, q_ls)
+        if q_ls[0] <= 1e-12 * c_t[0] and q_ls[1] <= 1e-12 * c_t[1] and q_ls[2] <= 1e-12 * c_t[2]:
+            return i_ls
+        v_ls = _parts(mass, a_t, b_t, c_t, i_ls, grad, hess, False)
+        if not have or v_ls < best:  # min() keeps the first of equal values
+            current[:] = i_ls
+            have = True
+    if not have:
+        mean_prev = (prev[0] + prev[1] + prev[2]) / 3.0
+        for i in range(3):
+            current[i] = mean_prev
+    val = _parts(mass, a_t, b_t, c_t, current, grad, hess, True)
+    step = np.empty(3)
+    trial = np.empty(3)
+    for _ in range(100):
+        ok = _solve3(hess, grad, step)
+        slope = 0.0
+        if ok:
+            for i in range(3):
+                step[i] = -step[i]
+                slope += grad[i] * step[i]
+        if not ok or slope >= 0.0:  # not a descent direction: fall back to gradient
+            cmin = min(current[0], current[1], current[2])
+            slope = 0.0
+            for i in range(3):
+                step[i] = -grad[i] * cmin * cmin
+                slope += grad[i] * step[i]
+        t = 1.0
+        accepted = False
+        while t > 1e-12:
+            for i in range(3):
+                trial[i] = current[i] + t * step[i]
+            if _physical(trial):
+                v_new = _parts(mass, a_t, b_t, c_t, trial, grad, hess, False)
+                if v_new <= val + 1e-4 * t * slope:
+                    accepted = True
+                    break
+            t *= 0.5
+        if not accepted:
+            break
+        rel = 0.0
+        for i in range(3):
+            rel = max(rel, abs(trial[i] - current[i]) / current[i])
+        current[:] = trial
+        val = _parts(mass, a_t, b_t, c_t, current, grad, hess, True)
+        if rel < 1e-12:
+            break
+    return current

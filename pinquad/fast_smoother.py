@@ -41,6 +41,7 @@ away from these kernels) goes to the generic smoother instead.
 from __future__ import annotations
 
 import math
+import threading
 import warnings
 
 import numpy as np
@@ -293,30 +294,6 @@ def _chol_solve(low, p, b):
 
 
 @njit(cache=True)
-def _mul(a, b, out):
-    """out = a @ b (12 x 12), skipping a's exact zeros (F and I - K H are mostly zeros;
-    adding 0 * b is exact, so skipping changes nothing)."""
-    for r in range(_N):
-        for c in range(_N):
-            out[r, c] = 0.0
-        for m in range(_N):
-            arm = a[r, m]
-            if arm != 0.0:
-                for c in range(_N):
-                    out[r, c] += arm * b[m, c]
-
-
-@njit(cache=True)
-def _sandwich(a, p, tmp, tmp_t, out):
-    """out = a p a^T for symmetric p, as a @ (a @ p)^T (two row-oriented products)."""
-    _mul(a, p, tmp)
-    for r in range(_N):
-        for c in range(_N):
-            tmp_t[r, c] = tmp[c, r]
-    _mul(a, tmp_t, out)
-
-
-@njit(cache=True)
 def _symmetrise(c, out):
     """out = (c + c^T) / 2, as the generic path does after every covariance update."""
     for r in range(_N):
@@ -325,22 +302,65 @@ def _symmetrise(c, out):
 
 
 @njit(cache=True)
+def _f_times(f, p, out):
+    """out = F p for a transition Jacobian F (12 x 12) with the block pattern of
+    ``_transition`` / ``_transition_kinematic`` (rows 0-2: columns r, r+3; rows 3-5: r,
+    6-8; rows 6-8: 6-11; rows 9-11: 9-11; every other entry is an exact zero, so leaving
+    it out of the sums changes nothing)."""
+    for r in range(3):
+        f0 = f[r, r]
+        f1 = f[r, r + 3]
+        for c in range(_N):
+            out[r, c] = f0 * p[r, c] + f1 * p[r + 3, c]
+    for r in range(3, 6):
+        f0 = f[r, r]
+        f6, f7, f8 = f[r, 6], f[r, 7], f[r, 8]
+        for c in range(_N):
+            out[r, c] = f0 * p[r, c] + f6 * p[6, c] + f7 * p[7, c] + f8 * p[8, c]
+    for r in range(6, 9):
+        f6, f7, f8 = f[r, 6], f[r, 7], f[r, 8]
+        f9, f10, f11 = f[r, 9], f[r, 10], f[r, 11]
+        for c in range(_N):
+            out[r, c] = (f6 * p[6, c] + f7 * p[7, c] + f8 * p[8, c] + f9 * p[9, c]
+                         + f10 * p[10, c] + f11 * p[11, c])
+    for r in range(9, 12):
+        f9, f10, f11 = f[r, 9], f[r, 10], f[r, 11]
+        for c in range(_N):
+            out[r, c] = f9 * p[9, c] + f10 * p[10, c] + f11 * p[11, c]
+
+
+@njit(cache=True)
 def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
              state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic, store):
-    """EKF forward pass (see module docstring). Returns filtered and predicted means and
-    covariances, the transition Jacobians, the log-likelihood and the first step whose
-    innovation covariance was not positive definite (-1 if none).
+    """EKF forward pass (see module docstring) into fresh arrays. Returns filtered and
+    predicted means and covariances, the products F_k P_k the backward pass needs, the
+    log-likelihood and the first step whose innovation covariance was not positive
+    definite (-1 if none).
 
     kinematic: the force-free warm-up transition (KinematicSSM) instead of the dynamic
     one; store: keep the per-step arrays (False when only the log-likelihood is wanted:
     the arrays then have length 1 and hold nothing of use, saving the memory traffic)."""
-    n_steps, m = ys.shape
+    n_steps = ys.shape[0]
     n_store = n_steps if store else 1
     f_mean = np.empty((n_store, _N))
     f_cov = np.empty((n_store, _N, _N))
     p_mean = np.empty((n_store, _N))
     p_cov = np.empty((n_store, _N, _N))
-    jacs = np.empty((max(n_store - 1, 0) if store else 1, _N, _N))
+    fps = np.empty((max(n_store - 1, 0) if store else 1, _N, _N))
+    loglik, bad = _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity,
+                                meas_var, state_of_row, is_angle, use_fixed, fixed_q, q_kin,
+                                s_f, q_tau, kinematic, store, f_mean, f_cov, p_mean, p_cov, fps)
+    return f_mean, f_cov, p_mean, p_cov, fps, loglik, bad
+
+
+@njit(cache=True)
+def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
+                  state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic,
+                  store, f_mean, f_cov, p_mean, p_cov, fps):
+    """``_forward`` into given arrays (f_mean, p_mean (N, 12), f_cov, p_cov (N, 12, 12),
+    fps (N - 1, 12, 12); unused when not store). Returns (log-likelihood, first bad
+    step or -1)."""
+    n_steps, m = ys.shape
     mean = x0.copy()
     cov = p0.copy()
     idx = np.empty(m, dtype=np.int64)
@@ -349,10 +369,9 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
     white = np.empty(m)
     s_mat = np.empty((m, m))
     low = np.empty((m, m))
-    gain_t = np.empty((m, _N))
-    a_mat = np.empty((_N, _N))
-    tmp = np.empty((_N, _N))
-    tmp_t = np.empty((_N, _N))
+    w_mat = np.empty((m, _N))
+    fp = np.empty((_N, _N))
+    fp_t = np.empty((_N, _N))
     new_cov = np.empty((_N, _N))
     jac = np.empty((_N, _N))
     q = np.empty((_N, _N))
@@ -370,8 +389,7 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
                 sidx[p] = state_of_row[i]
                 p += 1
         if p > 0:
-            # H selects state rows, so H P H^T and H P are plain gathers (exactly what the
-            # generic products with 0/1 entries give).
+            # H selects state rows, so H P H^T and H P are plain gathers.
             for a in range(p):
                 i = idx[a]
                 res = y[i] - mean[sidx[a]]
@@ -380,42 +398,41 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
                     s_mat[a, b] = cov[sidx[a], sidx[b]]
                 s_mat[a, a] += meas_var[i]
             if not _cholesky(s_mat, p, low):
-                return f_mean, f_cov, p_mean, p_cov, jacs, loglik, k
+                return loglik, k
+            # white = L^{-1} nu, W = L^{-1} H P (S = L L^T); then K nu = W^T white and
+            # K S K^T = W^T W, so P - K S K^T needs no gain and is symmetric by construction.
             quad = 0.0
             logdet = 0.0
             for a in range(p):
                 w = nu[a]
+                srow = sidx[a]
+                for c in range(_N):
+                    w_mat[a, c] = cov[srow, c]
                 for b in range(a):
-                    w -= low[a, b] * white[b]
-                w = w / low[a, a]
+                    lab = low[a, b]
+                    w -= lab * white[b]
+                    for c in range(_N):
+                        w_mat[a, c] -= lab * w_mat[b, c]
+                d = low[a, a]
+                w = w / d
+                for c in range(_N):
+                    w_mat[a, c] /= d
                 white[a] = w
                 quad += w * w
-                logdet += math.log(low[a, a])
-            # K^T = S^{-1} (H P)
-            for a in range(p):
-                for c in range(_N):
-                    gain_t[a, c] = cov[sidx[a], c]
-            _chol_solve(low, p, gain_t[:p])
-            for a in range(p):
-                na = nu[a]
-                for c in range(_N):
-                    mean[c] += gain_t[a, c] * na
+                logdet += math.log(d)
+            for c in range(_N):
+                acc = 0.0
+                for a in range(p):
+                    acc += w_mat[a, c] * white[a]
+                mean[c] += acc
             for r in range(_N):
-                for c in range(_N):
-                    a_mat[r, c] = 0.0
-                a_mat[r, r] = 1.0
-            for a in range(p):
-                for r in range(_N):
-                    a_mat[r, sidx[a]] -= gain_t[a, r]
-            _sandwich(a_mat, cov, tmp, tmp_t, new_cov)
-            # + K R K^T
-            for a in range(p):
-                ra = meas_var[idx[a]]
-                for r in range(_N):
-                    kr = gain_t[a, r] * ra
-                    for c in range(_N):
-                        new_cov[r, c] += kr * gain_t[a, c]
-            _symmetrise(new_cov, cov)
+                for c in range(r + 1):
+                    acc = 0.0
+                    for a in range(p):
+                        acc += w_mat[a, r] * w_mat[a, c]
+                    v = cov[r, c] - acc
+                    cov[r, c] = v
+                    cov[c, r] = v
             loglik += -0.5 * (quad + 2.0 * logdet + p * _LOG_2PI)
         if store:
             _copy_vec(mean, f_mean[k])
@@ -427,43 +444,59 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
             else:
                 _transition(mean, inputs[k], dt, mass, inertia, inertia_inv, gravity, x_next,
                             jac)
+            _f_times(jac, cov, fp)
             if store:
-                _copy_mat(jac, jacs[k])
-            _sandwich(jac, cov, tmp, tmp_t, new_cov)
+                _copy_mat(fp, fps[k])
+            # F P F^T = F (F P)^T (P symmetric)
+            for r in range(_N):
+                for c in range(_N):
+                    fp_t[r, c] = fp[c, r]
+            _f_times(jac, fp_t, new_cov)
             for r in range(_N):
                 for c in range(_N):
                     new_cov[r, c] += q[r, c]
             _symmetrise(new_cov, cov)
             _copy_vec(x_next, mean)
-    return f_mean, f_cov, p_mean, p_cov, jacs, loglik, -1
+    return loglik, -1
 
 
 @njit(cache=True)
-def _backward(f_mean, f_cov, p_mean, p_cov, jacs):
-    """RTS backward pass with lag-one cross-covariances (see module docstring). Returns
-    smoothed means, covariances, cross-covariances and the first step whose predicted
-    covariance was not positive definite (-1 if none)."""
+def _backward(f_mean, f_cov, p_mean, p_cov, fps):
+    """``_backward_into`` fresh arrays: returns smoothed means, covariances,
+    cross-covariances and the first step whose predicted covariance was not positive
+    definite (-1 if none)."""
     n_steps = f_mean.shape[0]
     mean = np.empty((n_steps, _N))
     cov = np.empty((n_steps, _N, _N))
     cross = np.empty((max(n_steps - 1, 0), _N, _N))
+    bad = _backward_into(f_mean, f_cov, p_mean, p_cov, fps, mean, cov, cross)
+    return mean, cov, cross, bad
+
+
+@njit(cache=True)
+def _backward_into(f_mean, f_cov, p_mean, p_cov, fps, mean, cov, cross):
+    """RTS backward pass with lag-one cross-covariances (see module docstring), from the
+    forward pass's products F_k P_k, into mean (N, 12), cov (N, 12, 12) and cross
+    (N - 1, 12, 12). Returns the first step whose predicted covariance was not positive
+    definite (-1 if none).
+
+    With G^T = Pp^{-1} (F P) and C = Ps G^T = Cov(x_{k+1}, x_k | y):
+    G (Ps - Pp) G^T = G (C - Pp G^T) = G (C - F P), one product instead of two."""
+    n_steps = f_mean.shape[0]
     _copy_vec(f_mean[n_steps - 1], mean[n_steps - 1])
     _copy_mat(f_cov[n_steps - 1], cov[n_steps - 1])
     low = np.empty((_N, _N))
     gain_t = np.empty((_N, _N))
     diff = np.empty((_N, _N))
-    gd = np.empty((_N, _N))
-    new_cov = np.empty((_N, _N))
-    out = np.empty((_N, _N))
     acc = np.empty(_N)
     for k in range(n_steps - 2, -1, -1):
         pf = f_cov[k]
         pp = p_cov[k + 1]
         ps = cov[k + 1]
+        fp = fps[k]
         if not _cholesky(pp, _N, low):
-            return mean, cov, cross, k + 1
-        # G^T = Pp^{-1} (F P), Pp symmetric positive definite
-        _mul(jacs[k], pf, gain_t)
+            return k + 1
+        _copy_mat(fp, gain_t)
         _chol_solve(low, _N, gain_t)
         # m^s_k = m_k + G (m^s_{k+1} - m^-_{k+1}); G[r, j] = gain_t[j, r]
         for c in range(_N):
@@ -474,38 +507,28 @@ def _backward(f_mean, f_cov, p_mean, p_cov, jacs):
                 acc[c] += gain_t[j, c] * dj
         for c in range(_N):
             mean[k, c] = f_mean[k, c] + acc[c]
-        # P^s_k = P + (G (Ps - Pp)) G^T
+        # C = Ps G^T, into cross[k]; diff = C - F P
+        ck = cross[k]
         for r in range(_N):
             for c in range(_N):
-                diff[r, c] = ps[r, c] - pp[r, c]
-        for r in range(_N):
-            for c in range(_N):
-                gd[r, c] = 0.0
-            for j in range(_N):
-                g = gain_t[j, r]
-                for c in range(_N):
-                    gd[r, c] += g * diff[j, c]
-        for r in range(_N):
-            for c in range(_N):
-                out[r, c] = 0.0
-            for j in range(_N):
-                g = gd[r, j]
-                for c in range(_N):
-                    out[r, c] += g * gain_t[j, c]
-            for c in range(_N):
-                new_cov[r, c] = pf[r, c] + out[r, c]
-        _symmetrise(new_cov, out)
-        _copy_mat(out, cov[k])
-        # Cov(x_{k+1}, x_k) = Ps G^T
-        for r in range(_N):
-            for c in range(_N):
-                out[r, c] = 0.0
+                ck[r, c] = 0.0
             for j in range(_N):
                 s = ps[r, j]
                 for c in range(_N):
-                    out[r, c] += s * gain_t[j, c]
-        _copy_mat(out, cross[k])
-    return mean, cov, cross, -1
+                    ck[r, c] += s * gain_t[j, c]
+            for c in range(_N):
+                diff[r, c] = ck[r, c] - fp[r, c]
+        # P^s_k = P + G diff (symmetric: lower triangle, mirrored)
+        out = cov[k]
+        for r in range(_N):
+            for c in range(r + 1):
+                s = 0.0
+                for j in range(_N):
+                    s += gain_t[j, r] * diff[j, c]
+                v = pf[r, c] + s
+                out[r, c] = v
+                out[c, r] = v
+    return -1
 
 
 _PROBE = np.array([0.3, -0.2, 0.5, 0.4, -0.5, 0.6, 0.2, -0.3, 0.4, 0.5, -0.6, 0.7])
@@ -630,6 +653,38 @@ def _run_forward(model: QuadSSM, ys: Array, consts: tuple, store: bool) -> tuple
                     np.ascontiguousarray(model.obs.inputs, dtype=float), ys, *consts, store)
 
 
+# The forward pass's per-step arrays (filtered and predicted moments, F P), reused from
+# call to call (per thread): fresh arrays of this size cost more in page faults (about
+# 1 ms per 800 steps) than the arithmetic that fills them. They never leave this module.
+_workspace = threading.local()
+
+
+def _filter_arrays(n_steps: int) -> tuple[Array, Array, Array, Array, Array]:
+    arrays = getattr(_workspace, "arrays", None)
+    if arrays is None or arrays[0].shape[0] != n_steps:
+        arrays = (np.empty((n_steps, _N)), np.empty((n_steps, _N, _N)), np.empty((n_steps, _N)),
+                  np.empty((n_steps, _N, _N)), np.empty((max(n_steps - 1, 0), _N, _N)))
+        _workspace.arrays = arrays
+    return arrays
+
+
+def posterior_arrays(n_steps: int) -> tuple[Array, Array, Array]:
+    """Arrays for ``smooth_quad(..., out=...)``: mean (N, 12), cov (N, 12, 12),
+    cross-covariances (N - 1, 12, 12)."""
+    return (np.empty((n_steps, _N)), np.empty((n_steps, _N, _N)),
+            np.empty((max(n_steps - 1, 0), _N, _N)))
+
+
+def _check_out(out: tuple[Array, Array, Array], n_steps: int) -> None:
+    shapes = ((n_steps, _N), (n_steps, _N, _N), (max(n_steps - 1, 0), _N, _N))
+    if len(out) != 3 or any(
+            not (isinstance(a, np.ndarray) and a.shape == s and a.dtype == np.float64
+                 and a.flags.c_contiguous and a.flags.writeable)
+            for a, s in zip(out, shapes, strict=True)):
+        raise ValueError(f"out must be three writeable C-contiguous float64 arrays of shapes "
+                         f"{shapes} (see posterior_arrays)")
+
+
 def loglik_quad(model: StateSpaceModel, ys: Array) -> float:
     """log p(y | theta) [nats] of the EKF on a QuadSSM (or KinematicSSM): the compiled
     forward pass alone, equal to ``estimators.ekf.run_filter(model, ys).loglik`` up to
@@ -645,8 +700,8 @@ def loglik_quad(model: StateSpaceModel, ys: Array) -> float:
     return float(run_filter(model, ys).loglik)
 
 
-def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = None
-                ) -> Posterior:
+def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = None, *,
+                out: tuple[Array, Array, Array] | None = None) -> Posterior:
     """EKF + RTS smoother of a :class:`~pinquad.ssm.QuadSSM`, compiled (module docstring).
 
     A drop-in for ``estimators.rts.smooth`` (e.g. as ``run_em``'s smoother): ys (N, m)
@@ -659,6 +714,11 @@ def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = No
     also warns, as the fast path needs updating. A
     covariance that stops being positive definite also hands over to the generic path,
     which then raises or copes as it always does.
+
+    out: arrays (``posterior_arrays(N)``) the compiled path writes the smoothed means,
+    covariances and cross-covariances into, and the returned Posterior then holds,
+    instead of fresh ones (a caller smoothing window after window reuses them and saves
+    the page faults of fresh memory); the generic fallback ignores them.
     """
     if gate_sigma is not None:
         return generic_smooth(model, ys, gate_sigma=gate_sigma)
@@ -666,9 +726,20 @@ def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = No
     if prep is None:
         return generic_smooth(model, ys)
     ys, consts = prep
-    f_mean, f_cov, p_mean, p_cov, jacs, loglik, bad = _run_forward(model, ys, consts, store=True)
+    n_steps = ys.shape[0]
+    if out is None:
+        out = posterior_arrays(n_steps)
+    else:
+        _check_out(out, n_steps)
+    mean, cov, cross = out
+    fwd = _filter_arrays(n_steps)
+    x0, p0 = model.initial()
+    loglik, bad = _forward_into(np.ascontiguousarray(x0, dtype=float),
+                                np.ascontiguousarray(p0, dtype=float),
+                                np.ascontiguousarray(model.obs.inputs, dtype=float), ys, *consts,
+                                True, *fwd)
     if bad < 0:
-        mean, cov, cross, bad = _backward(f_mean, f_cov, p_mean, p_cov, jacs)
+        bad = _backward_into(*fwd, mean, cov, cross)
     if bad >= 0:
         # A covariance lost positive definiteness: the generic path then raises its own
         # error (innovation S) or carries on with an LU solve (predicted P^-); either way

@@ -272,6 +272,18 @@ def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: A
     return current
 
 
+def inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array) -> Array:
+    """``_inertia_newton``, compiled (``pinquad.fast_mstep.inertia_newton``: the same
+    algorithm, so the same minimiser up to rounding, in ~1 % of the time) when available."""
+    try:
+        from pinquad.fast_mstep import inertia_newton as compiled
+    except ImportError:  # the compiled path is optional
+        return _inertia_newton(mass, a_t, b_t, c_t, previous)
+    return compiled(float(mass), np.ascontiguousarray(a_t, dtype=float),
+                    np.ascontiguousarray(b_t, dtype=float), np.ascontiguousarray(c_t, dtype=float),
+                    np.array(previous, dtype=float))
+
+
 def _inertia_from_d(d: Array) -> Array:
     return np.array([d[1] + d[2], d[0] + d[2], d[0] + d[1]])
 
@@ -291,7 +303,7 @@ def regressor_mstep(post: Posterior, obs: Observations, theta: Theta) -> MStepRe
     mass = float(stats.c[2] / stats.b[2, 0]) if stats.b[2, 0] > 0 else theta.mass
 
     a_t, b_t, c_t = stats.a[3:6], stats.b[3:6], stats.c[3:6]
-    inertia = _inertia_newton(mass, a_t, b_t, c_t, np.diag(theta.inertia))
+    inertia = inertia_newton(mass, a_t, b_t, c_t, np.diag(theta.inertia))
     pi = np.concatenate([[mass], inertia])
     row_var = np.maximum(_row_sums(stats, pi) / n, 0.0)
     noise = update_noise(post, obs, theta, row_var)

@@ -1,4 +1,5 @@
-"""The compiled M-step statistics against ``identify.regressor_stats``."""
+"""The compiled M-step statistics against ``identify.regressor_stats``, and the compiled
+inertia Newton step against ``identify._inertia_newton``."""
 
 from __future__ import annotations
 
@@ -9,8 +10,9 @@ import pytest
 
 from pinquad.em import initial_theta, run_em
 from pinquad.experiment import get_smoother
+from pinquad.fast_mstep import inertia_newton as fast_inertia_newton
 from pinquad.fast_mstep import regressor_quadratics
-from pinquad.identify import regressor_mstep, regressor_stats
+from pinquad.identify import _inertia_newton, inertia_newton, regressor_mstep, regressor_stats
 from pinquad.params import PAPER_VEHICLE
 from pinquad.sim import SimConfig, flight_log, simulate
 from pinquad.sources import observations
@@ -42,3 +44,44 @@ def test_quadratics_match_regressor_stats(flight, source):
         np.testing.assert_allclose(fast.b[j], ref.b[j], rtol=0,
                                    atol=TOL * max(np.max(np.abs(ref.b[j])), 1e-300))
     np.testing.assert_allclose(fast.c, ref.c, rtol=TOL, atol=0)
+
+
+def _torque_problems(flight):
+    """(mass, a_t, b_t, c_t) of the torque rows from a few EM steps on each source, as
+    the M-step hands them to the inertia Newton step."""
+    out = []
+    for source in "ABC":
+        obs = observations(flight_log(flight).slice(0, 900), source)
+        theta0 = initial_theta(obs, PAPER_VEHICLE.mass * 0.9, PAPER_VEHICLE.inertia * 1.2, 9.81)
+        post = run_em(obs, theta0, get_smoother("rts"), regressor_mstep, max_iterations=2).posterior
+        s = regressor_stats(post, obs, 9.81)
+        out.append((float(s.c[2] / s.b[2, 0]), s.a[3:6], s.b[3:6], s.c[3:6]))
+    return out
+
+
+def test_compiled_inertia_newton_matches_python(flight):
+    """The compiled Newton step (same candidates, steps, line search and stopping rule)
+    against identify._inertia_newton: from the truth, from far-off and from unphysical
+    previous estimates, and on noise-free statistics (the least-squares solution returned
+    as is). To 1e-12 relative, or to twice what the reference itself moves when its
+    inputs move by 1e-15 relative (its stopping rule ends on a flat objective there: up
+    to ~3e-9 from the truth as start)."""
+    truth = np.diag(PAPER_VEHICLE.inertia)
+    starts = [truth, 1.3 * truth, 0.5 * truth, np.array([1e-4, 2e-4, 1e-4]),
+              np.array([1.0, 1e-6, 1e-6]), np.array([-1.0, 1.0, 1.0])]
+    problems = _torque_problems(flight)
+    mass, a_t, b_t, _ = problems[0]
+    pi = np.concatenate([[mass], truth])
+    b_exact = np.einsum("apq,q->ap", a_t, pi)  # makes truth the exact LS solution
+    c_exact = np.einsum("p,apq,q->a", pi, a_t, pi)
+    problems.append((mass, a_t, b_exact, c_exact))
+    for mass, a_t, b_t, c_t in problems:
+        for start in starts:
+            ref = _inertia_newton(mass, a_t, b_t, c_t, start)
+            wobble = max(np.max(np.abs(_inertia_newton(mass, a_t * f, b_t * f, c_t * f, start)
+                                       - ref)) for f in (1 + 1e-15, 1 - 1e-15))
+            tol = 1e-12 * np.abs(ref) + 2.0 * wobble
+            fast = fast_inertia_newton(mass, np.ascontiguousarray(a_t), np.ascontiguousarray(b_t),
+                                       np.ascontiguousarray(c_t), start.astype(float))
+            assert np.all(np.abs(fast - ref) <= tol), (fast, ref, wobble)
+            assert np.array_equal(inertia_newton(mass, a_t, b_t, c_t, start), fast)

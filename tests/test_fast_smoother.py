@@ -28,8 +28,9 @@ import pytest
 from estimators.ekf import run_filter
 from estimators.protocol import Posterior
 from estimators.rts import smooth
+from pinquad import fast_smoother as fs
 from pinquad.em import initial_theta
-from pinquad.fast_smoother import loglik_quad, smooth_quad
+from pinquad.fast_smoother import loglik_quad, posterior_arrays, smooth_quad
 from pinquad.identify import kinematic_floor
 from pinquad.sim import SimConfig, flight_log, simulate
 from pinquad.sources import observations
@@ -104,6 +105,58 @@ def test_matches_generic_smoother(flight, source, kind):
     model = QuadSSM(obs, _theta(obs, kind))
     assert (model.theta.noise.fixed_q is not None) == kind.startswith("paper")
     _assert_same_posterior(smooth_quad(model, obs.ys), smooth(model, obs.ys))
+
+
+def test_out_arrays_hold_the_same_posterior(flight):
+    """smooth_quad(..., out=...) writes into the given arrays (reused window after window
+    by the online estimator) and returns exactly what a call without them returns, also
+    when the arrays held another window's posterior before; wrong arrays are refused."""
+    obs = _observations(flight, "B")
+    model = QuadSSM(obs, _theta(obs, "structured"))
+    ref = smooth_quad(model, obs.ys)
+    out = posterior_arrays(obs.n)
+    for a in out:
+        a.fill(np.nan)
+    for _ in range(2):
+        post = smooth_quad(model, obs.ys, out=out)
+        assert post.mean is out[0] and post.cov is out[1] and post.cross_cov is out[2]
+        assert np.array_equal(post.mean, ref.mean) and np.array_equal(post.cov, ref.cov)
+        assert np.array_equal(post.cross_cov, ref.cross_cov) and post.loglik == ref.loglik
+    short = replace(obs, ys=obs.ys[:300])
+    with pytest.raises(ValueError, match="posterior_arrays"):
+        smooth_quad(QuadSSM(short, model.theta), short.ys, out=out)
+    with pytest.raises(ValueError, match="posterior_arrays"):
+        smooth_quad(model, obs.ys, out=(out[0], out[1][:, :, ::-1].copy(order="F"), out[2]))
+
+
+@pytest.mark.parametrize("kinematic", [False, True])
+def test_structured_jacobian_product(flight, kinematic):
+    """The predict step's F P skips the entries of F outside its block pattern; the
+    transition kernels leave every one of them exactly zero, at random states too, and
+    the structured product equals the dense one."""
+    obs = _observations(flight, "B")
+    consts = fs._kernel_inputs(QuadSSM(obs, _theta(obs, "structured")), obs.ys.shape[1])
+    dt, mass, inertia, inertia_inv, gravity = consts[:5]
+    pattern = np.zeros((12, 12), dtype=bool)
+    for r in range(3):
+        pattern[r, [r, r + 3]] = True
+        pattern[3 + r, [3 + r, 6, 7, 8]] = True
+        pattern[6 + r, 6:12] = True
+        pattern[9 + r, 9:12] = True
+    rng = np.random.default_rng(7)
+    x_next, jac, out = np.empty(12), np.empty((12, 12)), np.empty((12, 12))
+    for _ in range(50):
+        x = rng.normal(size=12)
+        if kinematic:
+            fs._transition_kinematic(x, dt, x_next, jac)
+        else:
+            fs._transition(x, rng.normal(size=4), dt, mass, inertia, inertia_inv, gravity,
+                           x_next, jac)
+        assert not np.any(jac[~pattern])
+        a = rng.normal(size=(12, 12))
+        p = a @ a.T
+        fs._f_times(jac, p, out)
+        assert np.allclose(out, jac @ p, rtol=1e-14, atol=1e-14 * np.abs(jac @ p).max())
 
 
 @pytest.mark.parametrize("source", ["A", "B", "C"])
