@@ -296,7 +296,9 @@ def _fit(gram: Array, n: int, pi0: Array, p: int) -> _Fit:
         c0 = np.zeros(0)
 
     def unpack(v: Array) -> Array:
-        return np.concatenate([np.exp(v[0:4]) * pi0, v[4:] * scale_c, [1.0]])
+        # log-parameter steps clipped at e^+-20: a BFGS line search from a base fit far
+        # off (a CoM torque can put the inertia 100x off) must not overflow
+        return np.concatenate([np.exp(np.clip(v[0:4], -20.0, 20.0)) * pi0, v[4:] * scale_c, [1.0]])
 
     def fun(v: Array) -> tuple[float, Array]:
         th = unpack(v)

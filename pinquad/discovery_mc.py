@@ -195,8 +195,9 @@ def summarize(cases: list[CaseResult]) -> dict:
                     else float("nan")
                 drops = {}
                 for a in AFFECTED_AXES[e]:
-                    d = np.array([1.0 - c.rms_after[a] / c.rms_before[a] for c in cs])
-                    drops[a] = float(np.median(d))
+                    d = np.array([1.0 - c.rms_after.get(a, np.nan) / c.rms_before.get(a, np.nan)
+                                  for c in cs])
+                    drops[a] = float(np.nanmedian(d)) if np.isfinite(d).any() else float("nan")
                     row[f"{e}_drop50_{a}"] = int(np.sum(d >= 0.5))
                 row[f"{e}_median_drop"] = drops
         ref = np.array([c.refit_err for c in cs])
@@ -233,6 +234,13 @@ def markdown(summary: dict) -> str:
         lines.append(f"| {cond} | {r['n']} | {r['all_named']}/{r['n']} | {r['exact']}/{r['n']} | "
                      f"{within} | {errs} | {r.get('within_clean_accuracy', '')}/{r['n']} | {drops} | "
                      f"{', '.join(r['extra_selected']) or '-'} |")
+    lines += ["", "RMS relative error of mass and inertia over the seeds, base EM -> after the refit "
+              "(the none row is the clean-data accuracy):", "",
+              "| condition | mass | I_xx | I_yy | I_zz |", "|---|---|---|---|---|"]
+    for cond, r in summary["conditions"].items():
+        lines.append(f"| {cond} | " + " | ".join(
+            f"{100 * r['base_rms_rel_err'][k]:.2f} -> {100 * r['refit_rms_rel_err'][k]:.2f} %"
+            for k in PARAMS) + " |")
     lines.append("")
     lines.append("Clean-data accuracy (RMS relative error, no effect): "
                  + ", ".join(f"{k} {100 * v:.2f} %" for k, v in cr.items())
@@ -255,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--start-index", type=int, default=0,
                    help="first seed index i (to extend an earlier run with more seeds)")
     p.add_argument("--merge", type=Path, nargs="+", default=None,
-                   help="only summarise these discovery_mc.json files together (a later file's "
+                   help="only summarise these discovery_mc.json / cases.jsonl files together (a later file's "
                         "case replaces an earlier one with the same condition and seed)")
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/...)")
     args = p.parse_args(argv)
@@ -324,11 +332,13 @@ def _merge(paths: list[Path], out: Path | None) -> int:
     cases: dict[tuple[str, int], CaseResult] = {}
     for p in paths:
         try:
-            data = json.loads(Path(p).read_text())
+            text = Path(p).read_text()
+            data = ([json.loads(line) for line in text.splitlines() if line.strip()]
+                    if Path(p).suffix == ".jsonl" else json.loads(text))
         except (OSError, ValueError) as exc:
             print(f"error: {p}: cannot read a discovery_mc.json ({exc})", file=sys.stderr)
             return 2
-        for d in data["cases"]:
+        for d in (data["cases"] if isinstance(data, dict) else data):
             cases[(d["condition"], int(d["seed"]))] = _case_from_json(d)
     ordered = sorted(cases.values(), key=lambda c: (list(CONDITIONS).index(c.condition), c.seed))
     summary = summarize(ordered)
