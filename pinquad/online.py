@@ -70,6 +70,11 @@ class OnlineEstimator:
     """The closed-loop estimator, called by the simulator after each step's measurements.
 
     history rows: [k, t, mass, Ixx, Iyy, Izz, seconds of the update].
+
+    With the compiled smoother the posteriors live in two sets of arrays used in turn
+    (``previous`` keeps the last one valid while the next is computed): a posterior's
+    arrays are overwritten two updates later, which saves the page faults of ~2 MB of
+    fresh memory per update.
     """
 
     config: OnlineConfig
@@ -84,10 +89,27 @@ class OnlineEstimator:
     previous: tuple[int, Posterior] | None = None
     mass: float = 0.0
     inertia: Array = field(default_factory=lambda: np.eye(3))
+    _smoother: object = field(default=None, init=False, repr=False)
+    _out: list = field(default_factory=lambda: [None, None], init=False, repr=False)
+    _turn: int = field(default=0, init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.mass = self.config.mass0
         self.inertia = np.array(self.config.inertia0, float)
+        self._smoother = get_smoother("rts")
+
+    def _smooth(self, model: QuadSSM, ys: Array) -> Posterior:
+        """The E-step, into the posterior arrays of this update's turn when compiled."""
+        try:
+            from pinquad.fast_smoother import posterior_arrays, smooth_quad
+        except ImportError:  # the compiled path is optional
+            return self._smoother(model, ys)
+        if self._smoother is not smooth_quad:
+            return self._smoother(model, ys)
+        out = self._out[self._turn]
+        if out is None or out[0].shape[0] != ys.shape[0]:
+            out = self._out[self._turn] = posterior_arrays(ys.shape[0])
+        return smooth_quad(model, ys, out=out)
 
     def _observations(self, buf: FlightSoFar, start: int, stop: int) -> Observations:
         channels = SOURCE_CHANNELS[self.sensor]
@@ -129,14 +151,14 @@ class OnlineEstimator:
             warm_up = theta is None
             if warm_up:
                 theta = initial_theta(obs, self.mass, self.inertia, cfg.gravity)
-            smoother = get_smoother("rts")
             post = None
             for it in range(cfg.iterations + (1 if warm_up else 0)):
                 model = (KinematicSSM if warm_up and it == 0 else QuadSSM)(obs, theta)
-                post = smoother(model, obs.ys)
+                post = self._smooth(model, obs.ys)
                 theta = regressor_mstep(post, obs, theta).theta
             self.theta = _match_meas(theta, obs)
             self.previous = (start, post)
+            self._turn = 1 - self._turn
             self.mass, self.inertia = theta.mass, np.asarray(theta.inertia)
             elapsed = time.perf_counter() - t0
             self.latencies.append(elapsed)
