@@ -30,6 +30,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.fast_smoother import _wrap
 from pinquad.ssm import Observations
 
 Array = NDArray[np.float64]
@@ -388,3 +389,39 @@ def inertia_newton(mass, a_t, b_t, c_t, previous):
         if rel < 1e-12:
             break
     return current
+
+
+@njit(cache=True)
+def _measurement_variances(mean, cov, ys, rejected, state_of_row, is_angle, previous):
+    out = previous.copy()
+    n_steps, m = ys.shape
+    for i in range(m):
+        s = state_of_row[i]
+        total = 0.0
+        count = 0
+        for k in range(n_steps):
+            y = ys[k, i]
+            if not math.isnan(y) and not rejected[k, i]:
+                res = y - mean[k, s]
+                if is_angle[i]:
+                    res = _wrap(res)
+                total += res * res + cov[k, s, s]
+                count += 1
+        if count > 0:
+            out[i] = max(total / count, 1e-12)
+    return out
+
+
+def measurement_variances(post: Posterior, obs: Observations, previous: Array) -> Array:
+    """identify.measurement_variances compiled (the same sums, in another order):
+    r_i = mean over observed, not rejected steps of (y_ki - m_k,s(i))^2 + P_k,s(i)s(i)
+    (Euler residuals wrapped), floored at 1e-12; ``previous`` where never observed."""
+    h = obs.measurement_matrix()
+    state_of_row = np.argmax(h, axis=1).astype(np.int64)
+    is_angle = np.zeros(h.shape[0], dtype=np.bool_)
+    is_angle[obs.angle_rows()] = True
+    return _measurement_variances(np.ascontiguousarray(post.mean, dtype=float),
+                                  np.ascontiguousarray(post.cov, dtype=float),
+                                  np.ascontiguousarray(obs.ys, dtype=float),
+                                  np.ascontiguousarray(post.rejected, dtype=np.bool_),
+                                  state_of_row, is_angle, np.array(previous, dtype=float))

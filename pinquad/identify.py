@@ -324,7 +324,11 @@ def update_noise(post: Posterior, obs: Observations, theta: Theta, wrench_row_va
     wrench = dt * wrench_row_var
     wrench[0:3] = np.maximum(wrench[0:3], dt * floor_f)
     wrench[3:6] = np.maximum(wrench[3:6], dt * floor_t)
-    meas = measurement_variances(post, obs, theta.noise.meas)
+    try:
+        from pinquad.fast_mstep import measurement_variances as compiled_meas
+    except ImportError:  # the compiled path is optional
+        compiled_meas = measurement_variances
+    meas = compiled_meas(post, obs, theta.noise.meas)
     q_kin = kinematic_floor(dt)
     return NoiseModel(wrench=wrench, q_kin=q_kin, meas=meas, fixed_q=None)
 

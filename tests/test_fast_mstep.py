@@ -8,14 +8,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from pinquad import identify
 from pinquad.em import initial_theta, run_em
 from pinquad.experiment import get_smoother
 from pinquad.fast_mstep import inertia_newton as fast_inertia_newton
+from pinquad.fast_mstep import measurement_variances as fast_measurement_variances
 from pinquad.fast_mstep import regressor_quadratics
 from pinquad.identify import _inertia_newton, inertia_newton, regressor_mstep, regressor_stats
 from pinquad.params import PAPER_VEHICLE
 from pinquad.sim import SimConfig, flight_log, simulate
 from pinquad.sources import observations
+from pinquad.ssm import QuadSSM
 
 TOL = 1e-11
 
@@ -64,8 +67,8 @@ def test_compiled_inertia_newton_matches_python(flight):
     against identify._inertia_newton: from the truth, from far-off and from unphysical
     previous estimates, and on noise-free statistics (the least-squares solution returned
     as is). To 1e-12 relative, or to twice what the reference itself moves when its
-    inputs move by 1e-15 relative (its stopping rule ends on a flat objective there: up
-    to ~3e-9 from the truth as start)."""
+    inputs move by 1e-15 relative, entry by entry (its stopping rule can end on a flat
+    stretch of the objective: up to ~3e-9 from the truth as start)."""
     truth = np.diag(PAPER_VEHICLE.inertia)
     starts = [truth, 1.3 * truth, 0.5 * truth, np.array([1e-4, 2e-4, 1e-4]),
               np.array([1.0, 1e-6, 1e-6]), np.array([-1.0, 1.0, 1.0])]
@@ -75,13 +78,43 @@ def test_compiled_inertia_newton_matches_python(flight):
     b_exact = np.einsum("apq,q->ap", a_t, pi)  # makes truth the exact LS solution
     c_exact = np.einsum("p,apq,q->a", pi, a_t, pi)
     problems.append((mass, a_t, b_exact, c_exact))
+    rng = np.random.default_rng(11)
+    wiggles = []
+    for _ in range(4):
+        fa = 1.0 + 1e-15 * rng.uniform(-1.0, 1.0, size=(3, 4, 4))
+        wiggles.append((0.5 * (fa + np.transpose(fa, (0, 2, 1))),
+                        1.0 + 1e-15 * rng.uniform(-1.0, 1.0, size=(3, 4)),
+                        1.0 + 1e-15 * rng.uniform(-1.0, 1.0, size=3)))
     for mass, a_t, b_t, c_t in problems:
         for start in starts:
             ref = _inertia_newton(mass, a_t, b_t, c_t, start)
-            wobble = max(np.max(np.abs(_inertia_newton(mass, a_t * f, b_t * f, c_t * f, start)
-                                       - ref)) for f in (1 + 1e-15, 1 - 1e-15))
+            wobble = max(np.max(np.abs(_inertia_newton(mass, a_t * fa, b_t * fb, c_t * fc, start)
+                                       - ref)) for fa, fb, fc in wiggles)
             tol = 1e-12 * np.abs(ref) + 2.0 * wobble
             fast = fast_inertia_newton(mass, np.ascontiguousarray(a_t), np.ascontiguousarray(b_t),
                                        np.ascontiguousarray(c_t), start.astype(float))
             assert np.all(np.abs(fast - ref) <= tol), (fast, ref, wobble)
             assert np.array_equal(inertia_newton(mass, a_t, b_t, c_t, start), fast)
+
+
+def test_compiled_measurement_variances_match_numpy(flight):
+    """fast_mstep.measurement_variances against identify.measurement_variances (Euler
+    residuals wrapped, NaN and rejected entries skipped, a never-observed row keeping its
+    previous value) to 1e-12 relative."""
+    obs = observations(flight_log(flight).slice(0, 900), "B")
+    ys = obs.ys.copy()
+    rng = np.random.default_rng(3)
+    ys[rng.random(ys.shape) < 0.05] = np.nan
+    ys[:, 4] = np.nan
+    ys[::7, 6:9] += 2.0 * np.pi  # residuals that need wrapping
+    obs = replace(obs, ys=ys)
+    theta0 = initial_theta(obs, PAPER_VEHICLE.mass, PAPER_VEHICLE.inertia, 9.81)
+    post = get_smoother("rts")(QuadSSM(obs, theta0), obs.ys)
+    rejected = np.zeros(ys.shape, dtype=bool)
+    rejected[rng.random(ys.shape) < 0.02] = True
+    post = replace(post, rejected=rejected)
+    previous = np.full(ys.shape[1], 0.123)
+    ref = identify.measurement_variances(post, obs, previous)
+    fast = fast_measurement_variances(post, obs, previous)
+    assert fast[4] == 0.123
+    np.testing.assert_allclose(fast, ref, rtol=1e-12, atol=0)
