@@ -521,7 +521,7 @@ def profile_estep(case_path: Path, runs: int = 5) -> dict:
             consts = fs._kernel_inputs(model, ys.shape[1])
             fs._agrees_with_model(model, consts)
             t1 = time.perf_counter()
-            fwd = fs._forward(x0, p0, inputs, ys, *consts)
+            fwd = fs._forward(x0, p0, inputs, ys, *consts, True)
             t2 = time.perf_counter()
             fs._backward(*fwd[:5])
             t3 = time.perf_counter()
