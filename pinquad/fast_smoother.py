@@ -661,9 +661,12 @@ def _run_forward(model: QuadSSM, ys: Array, consts: tuple, store: bool) -> tuple
 
 
 # The forward pass's per-step arrays (filtered and predicted moments, F P), reused from
-# call to call (per thread): fresh arrays of this size cost more in page faults (about
-# 1 ms per 800 steps) than the arithmetic that fills them. They never leave this module.
+# call to call (per thread): fresh arrays of this size cost about as much in page faults
+# (~1 ms per 800 steps) as the arithmetic that fills them. They never leave this module,
+# and are kept only up to _KEEP_STEPS steps (~35 MB) so that a long log's arrays are
+# not held after its E-step.
 _workspace = threading.local()
+_KEEP_STEPS = 10_000
 
 
 def _filter_arrays(n_steps: int) -> tuple[Array, Array, Array, Array, Array]:
@@ -671,7 +674,7 @@ def _filter_arrays(n_steps: int) -> tuple[Array, Array, Array, Array, Array]:
     if arrays is None or arrays[0].shape[0] != n_steps:
         arrays = (np.empty((n_steps, _N)), np.empty((n_steps, _N, _N)), np.empty((n_steps, _N)),
                   np.empty((n_steps, _N, _N)), np.empty((max(n_steps - 1, 0), _N, _N)))
-        _workspace.arrays = arrays
+        _workspace.arrays = arrays if n_steps <= _KEEP_STEPS else None
     return arrays
 
 

@@ -129,6 +129,23 @@ def test_out_arrays_hold_the_same_posterior(flight):
         smooth_quad(model, obs.ys, out=(out[0], out[1][:, :, ::-1].copy(order="F"), out[2]))
 
 
+def test_filter_arrays_kept_only_for_short_logs(flight, monkeypatch):
+    """The forward pass's arrays are reused from call to call, but not held after the
+    E-step of a log longer than _KEEP_STEPS."""
+    obs = _observations(flight, "B")
+    model = QuadSSM(obs, _theta(obs, "structured"))
+    ref = smooth_quad(model, obs.ys)
+    kept = fs._workspace.arrays
+    assert kept is not None and kept[0].shape[0] == obs.n
+    post = smooth_quad(model, obs.ys)
+    assert fs._workspace.arrays is kept and np.array_equal(post.cov, ref.cov)
+    monkeypatch.setattr(fs, "_KEEP_STEPS", obs.n - 1)
+    post = smooth_quad(QuadSSM(replace(obs, ys=obs.ys[:-1]), model.theta), obs.ys[:-1])
+    assert fs._workspace.arrays is not kept
+    post = smooth_quad(model, obs.ys)
+    assert fs._workspace.arrays is None and np.array_equal(post.cov, ref.cov)
+
+
 @pytest.mark.parametrize("kinematic", [False, True])
 def test_structured_jacobian_product(flight, kinematic):
     """The predict step's F P skips the entries of F outside its block pattern; the
