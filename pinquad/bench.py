@@ -58,6 +58,8 @@ from typing import Any
 
 import numpy as np
 
+from pinquad.cli import HelpFormatter
+
 RESULT_TAG = "BENCH-RESULT "
 DEFAULT_N = (1_000, 10_000, 100_000)
 LARGE_N = 100_000
@@ -699,7 +701,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m pinquad.bench",
         description="Benchmark the E-step against filterpy, pykalman, dynamax and GTSAM, "
                     "offline EM, the offline command and the online update.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--out", type=Path, default=Path("bench.json"), help="JSON result file")
     p.add_argument("--n", type=int, nargs="+", default=list(DEFAULT_N),
                    help="E-step lengths (steps)")
@@ -711,7 +713,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--peers", nargs="*", default=list(PEERS), choices=list(PEERS),
                    help="peers to compare with ours")
     p.add_argument("--only", nargs="+", choices=list(SECTIONS),
-                   default=argparse.SUPPRESS,
                    help="run only these sections (all when not given)")
     p.add_argument("--quick", action="store_true",
                    help="skip the end-to-end `python -m pinquad.offline` run (minutes)")
@@ -757,7 +758,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.repeats < 1 or args.repeats_large < 1 or any(n < 2 for n in args.n):
         print("error: --repeats must be >= 1 and every --n >= 2", file=sys.stderr)
         return 2
-    sections = set(getattr(args, "only", None) or SECTIONS)
+    sections = set(args.only or SECTIONS)
     if args.no_memory:
         sections.discard("memory")
     if args.quick:

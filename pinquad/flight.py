@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 
 from pinquad import paper_results as paper
+from pinquad.cli import HelpFormatter
 from pinquad.conventions import wrap_angle
 from pinquad.params import PAPER_SCENARIO, VEHICLES
 from pinquad.sim import SimConfig, simulate
@@ -71,7 +72,7 @@ def nees_band(n_steps: int, dim: int = 12, level: float = 0.95) -> tuple[float, 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m pinquad.flight", description=__doc__.split("\n\n")[1],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                                formatter_class=HelpFormatter)
     p.add_argument("--seeds", type=int, default=20, help="seeded runs per configuration")
     p.add_argument("--seed", type=int, default=0, help="first seed")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pinquad.cli import HelpFormatter
 from pinquad.logs import LogFormatError
 
 DESCRIPTION = __doc__.split("\n\n")[0].split(": ", 1)[1]
@@ -31,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m pinquad.offline",
         description="Offline EM identification of a quadcopter's mass and inertia. Without "
                     "--log: the paper's simulated offline experiment (Tables II and III).",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--log", type=Path, help="identify from a recorded log (CSV, Parquet or "
                    "Crazyflie micro-SD binary) instead of simulating")
     p.add_argument("--sensor", choices=["A", "B", "C"], action="append",

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.cli import HelpFormatter
 from pinquad.em import initial_theta
 from pinquad.experiment import SENSOR_INDEX, get_smoother
 from pinquad.identify import regressor_mstep
@@ -234,7 +235,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m pinquad.online",
                                 description="Online EM in the closed loop (paper's online "
                                 "experiment): sliding window, estimates fed to the controller.",
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                                formatter_class=HelpFormatter)
     p.add_argument("--sensor", choices=["A", "B", "C"], action="append",
                    help="observation source(s) (default: A, B and C)")
     p.add_argument("--cycles", type=int, default=20, help="seeded cycles per sensor")

@@ -12,6 +12,8 @@ import sys
 import time
 from pathlib import Path
 
+from pinquad.cli import HelpFormatter
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``python -m viz``."""
@@ -21,7 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "flying its logged trajectory (truth and estimate), the waypoints, the "
                     "mass and inertia estimates per EM iteration or online update beside "
                     "the truth, and any effect-discovery figures. Stop with Ctrl-C.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("run_dir", metavar="RUN_DIR", type=Path,
                    help="run directory written by python -m pinquad.offline or pinquad.online "
                         "(holds report.json)")
