@@ -459,8 +459,11 @@ def online_report(results: list[OnlineCycle], truth: Array, stats: dict,
 
 def _write_logs(results: list[OnlineCycle], writer) -> dict:
     """The first cycle's log per sensor, and the onboard estimate as its 'smoothed'
-    track (an online run has no whole-flight smoother)."""
+    track (an online run has no whole-flight smoother); its flown trajectory as a
+    figure."""
     from pinquad.logs import write_log
+    from pinquad.params import PAPER_SCENARIO
+    from pinquad.report import plot_trajectory
 
     out = {}
     for r in results:
@@ -471,6 +474,9 @@ def _write_logs(results: list[OnlineCycle], writer) -> dict:
         logs_dir.mkdir(exist_ok=True)
         write_log(r.log, logs_dir / f"{name}.parquet")
         np.save(logs_dir / f"{name}-smoothed.npy", r.log.onboard)
+        plot_trajectory(r.log, PAPER_SCENARIO.waypoints,
+                        writer.path("figures") / f"trajectory_{r.sensor}.png", r.log.onboard,
+                        "onboard filter estimate")
         out[r.sensor] = {"log": f"logs/{name}.parquet", "smoothed": f"logs/{name}-smoothed.npy"}
     return out
 

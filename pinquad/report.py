@@ -204,8 +204,8 @@ def plot_em_history(cycles: Sequence[CycleResult], mstep: str, path: Path) -> No
     plt.close(fig)
 
 
-def plot_trajectory(log, waypoints: Array | None, path: Path, estimate: Array | None = None
-                    ) -> None:
+def plot_trajectory(log, waypoints: Array | None, path: Path, estimate: Array | None = None,
+                    estimate_label: str = "smoothed estimate") -> None:
     """The flown trajectory in 3-D (truth, measurements, estimate) with the waypoints."""
     import matplotlib
 
@@ -219,7 +219,7 @@ def plot_trajectory(log, waypoints: Array | None, path: Path, estimate: Array | 
     ok = ~np.isnan(log.position).any(axis=1)
     ax.plot(*log.position[ok].T, ".", ms=1, alpha=0.3, label="measured position")
     if estimate is not None:
-        ax.plot(*estimate[:, 0:3].T, color="tab:orange", lw=1, label="smoothed estimate")
+        ax.plot(*estimate[:, 0:3].T, color="tab:orange", lw=1, label=estimate_label)
     if waypoints is not None:
         ax.scatter(*np.asarray(waypoints).T, color="red", s=40, label="waypoints")
     ax.set_xlabel("x [m]")
