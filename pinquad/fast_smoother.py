@@ -25,7 +25,8 @@ Forward pass (``estimators.ekf``), steps k = 0 .. N-1, prior (m^-_0, P^-_0) =
         P^-_{k+1} = F_k P_k F_k^T + Q_k(m_k)      (symmetrised; F P and F (F P)^T skip
                                                    the entries outside F's block pattern)
         Q_k = diag(fixed_q)  or  blockdiag(q_pos I3, dt (R/m) diag(S_f) (R/m)^T,
-                                           q_euler I3, dt I^{-1} diag(S_tau) I^{-1})
+                                           q_euler I3, dt I^{-1} diag(S_tau) I^{-1}),
+              + diag(RESET_VAR) on the transitions marked in ``Observations.resets``
 
 Backward pass (``estimators.rts``), k = N-2 .. 0:
 
@@ -59,7 +60,7 @@ from estimators.ekf import run_filter
 from estimators.protocol import Posterior, StateSpaceModel
 from estimators.rts import smooth as generic_smooth
 from pinquad import ssm as _ssm
-from pinquad.ssm import KinematicSSM, QuadSSM
+from pinquad.ssm import KinematicSSM, Observations, QuadSSM
 
 Array = NDArray[np.float64]
 
@@ -338,15 +339,17 @@ def _f_times(f, p, out):
 
 @njit(cache=True)
 def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
-             state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic, store):
+             state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic, resets,
+             reset_var, store):
     """EKF forward pass (see module docstring) into fresh arrays. Returns filtered and
     predicted means and covariances, the products F_k P_k the backward pass needs, the
     log-likelihood and the first step whose innovation covariance was not positive
     definite (-1 if none).
 
     kinematic: the force-free warm-up transition (KinematicSSM) instead of the dynamic
-    one; store: keep the per-step arrays (False when only the log-likelihood is wanted:
-    the arrays then have length 1 and hold nothing of use, saving the memory traffic)."""
+    one; resets (N,) bool: transitions whose Q gets diag(reset_var) added; store: keep
+    the per-step arrays (False when only the log-likelihood is wanted: the arrays then
+    have length 1 and hold nothing of use, saving the memory traffic)."""
     n_steps = ys.shape[0]
     n_store = n_steps if store else 1
     f_mean = np.empty((n_store, _N))
@@ -356,14 +359,15 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
     fps = np.empty((max(n_store - 1, 0) if store else 1, _N, _N))
     loglik, bad = _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity,
                                 meas_var, state_of_row, is_angle, use_fixed, fixed_q, q_kin,
-                                s_f, q_tau, kinematic, store, f_mean, f_cov, p_mean, p_cov, fps)
+                                s_f, q_tau, kinematic, resets, reset_var, store, f_mean, f_cov,
+                                p_mean, p_cov, fps)
     return f_mean, f_cov, p_mean, p_cov, fps, loglik, bad
 
 
 @njit(cache=True)
 def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
                   state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic,
-                  store, f_mean, f_cov, p_mean, p_cov, fps):
+                  resets, reset_var, store, f_mean, f_cov, p_mean, p_cov, fps):
     """``_forward`` into given arrays (f_mean, p_mean (N, 12), f_cov, p_cov (N, 12, 12),
     fps (N - 1, 12, 12); unused when not store). Returns (log-likelihood, first bad
     step or -1)."""
@@ -446,6 +450,9 @@ def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, m
             _copy_mat(cov, f_cov[k])
         if k + 1 < n_steps:
             _process_cov(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
+            if resets[k]:
+                for i in range(_N):
+                    q[i, i] += reset_var[i]
             if kinematic:
                 _transition_kinematic(mean, dt, x_next, jac)
             else:
@@ -563,7 +570,15 @@ def _kernel_inputs(model: QuadSSM, meas_dim: int) -> tuple | None:
             np.ascontiguousarray(nz.meas, dtype=float), state_of_row, is_angle, use_fixed,
             fixed_q, np.ascontiguousarray(nz.q_kin, dtype=float),
             np.ascontiguousarray(nz.wrench[0:3], dtype=float), np.ascontiguousarray(q_tau),
-            type(model) is KinematicSSM)
+            type(model) is KinematicSSM, _reset_mask(obs), _ssm.RESET_VAR.copy())
+
+
+def _reset_mask(obs: Observations) -> NDArray[np.bool_]:
+    """(N,) ``obs.resets`` as the kernels index it (all False when empty)."""
+    mask = np.zeros(obs.n, dtype=np.bool_)
+    given = np.asarray(obs.resets, dtype=bool)[:obs.n]
+    mask[:given.size] = given
+    return mask
 
 
 def _close(ours: Array, ref: Array) -> bool:
@@ -577,11 +592,14 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
     new terms): transition, Jacobian, Q, H, R and the wrapped residual at a probe state,
     at the first and the last transition."""
     (dt, mass, inertia, inertia_inv, gravity, meas_var, state_of_row, is_angle, use_fixed,
-     fixed_q, q_kin, s_f, q_tau, kinematic) = consts
+     fixed_q, q_kin, s_f, q_tau, kinematic, resets, reset_var) = consts
     n_steps = model.obs.n
     x = np.asarray(model.obs.x0, dtype=float) + _PROBE
     x_next, jac, q = np.empty(_N), np.empty((_N, _N)), np.empty((_N, _N))
-    for k in {0, max(n_steps - 2, 0)}:
+    probes = {0, max(n_steps - 2, 0)}
+    if resets[:max(n_steps - 1, 0)].any():
+        probes.add(int(np.flatnonzero(resets[:n_steps - 1])[0]))
+    for k in probes:
         ref_x, ref_jac = model.transition(x, k)
         u = np.ascontiguousarray(model.obs.inputs[k], dtype=float)
         if kinematic:
@@ -589,6 +607,8 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
         else:
             _transition(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
         _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
+        if resets[k]:
+            q = q + np.diag(reset_var)
         ref_q = model.process_cov(x, k)
         y_pred, h = model.measure(x, k)
         if not (_close(x_next, ref_x) and _close(jac, ref_jac) and _close(q, ref_q)
@@ -620,7 +640,7 @@ def _code_key(model: QuadSSM, consts: tuple) -> tuple | None:
     cls = type(model)
     return (cls, cls.__init__, *(getattr(cls, name) for name in _MODEL_METHODS),
             _ssm.state_derivative_and_jacobian, _ssm.wrap_angle, model.obs.channels,
-            consts[8], consts[13])
+            consts[8], consts[13], bool(consts[14].any()))
 
 
 def _agrees_cached(model: QuadSSM, consts: tuple) -> bool:

@@ -47,7 +47,8 @@ def sensor_a_estimate(log: FlightLog, tuning: NavTuning | None = None) -> Array:
 def observations(log: FlightLog, source: str) -> Observations:
     """Build the E-step's observations of a log for source A, B or C.
 
-    Transitions into or out of a contact row (log.contact) are excluded from the M-step.
+    Transitions into or out of a contact row (log.contact) are excluded from the M-step;
+    those into one are also resets for the E-step (``Observations.resets``).
     """
     if log.thrust is None or log.torque is None:
         raise ValueError("the log has no thrust/torque actuation; convert rotor speeds first")
@@ -71,10 +72,14 @@ def observations(log: FlightLog, source: str) -> Observations:
             i = channels.index(ch)
             x0[sl] = _first_valid(ys[:, 3 * i:3 * i + 3])
     exclude = np.zeros(log.n, dtype=bool)
+    resets = np.zeros(log.n, dtype=bool)
     if log.contact is not None:
         # a transition touching the floor at either end is not free flight
         exclude |= log.contact
         exclude[:-1] |= log.contact[1:]
+        # touching down, the floor stops and levels the vehicle within the step: the
+        # smoother must not carry the flight dynamics across that (ssm.RESET_VAR)
+        resets[:-1] = log.contact[1:]
     inputs = np.column_stack([log.thrust, log.torque])
     return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
-                        p0=p0, exclude=exclude)
+                        p0=p0, exclude=exclude, resets=resets)

@@ -10,6 +10,10 @@ S = diag(S_f (3), S_tau (3)) [N^2 s, (N m)^2 s], body frame) plus small kinemati
     Cov(w_k) = blockdiag(q_pos I3, dt (R/m) S_f (R/m)^T, q_euler I3, dt I^{-1} S_tau I^{-1})
 
 or, for the paper's own configuration, a fixed diagonal ``fixed_q`` (Q0 = 0.0707 I).
+On a transition marked in ``Observations.resets`` (touch-down on the floor: an impulse
+the model does not have stops and levels the vehicle within a step) the covariance is
+widened by diag(RESET_VAR), so that the smoother does not carry the flight dynamics
+across the impulse and the states on either side follow their own data.
 
 Measurements y_k: the rows of ``channels`` (pos, vel, euler, gyro, each 3 rows, world
 or body as in the log), y = H x + v, v ~ N(0, diag(r)); Euler rows wrap.
@@ -30,6 +34,12 @@ Array = NDArray[np.float64]
 
 CHANNEL_SLICES = {"pos": slice(0, 3), "vel": slice(3, 6), "euler": slice(6, 9),
                   "gyro": slice(9, 12)}
+
+RESET_VAR = np.array([1e-4] * 3 + [1.0] * 3 + [0.1] * 3 + [4.0] * 3)
+"""(12,) process variance added on a reset transition [m^2, (m/s)^2, rad^2, (rad/s)^2]:
+what a floor contact can change in one 10 ms step at take-off speeds, as standard
+deviations: position 1 cm (it is continuous), velocity 1 m/s, attitude 0.3 rad, body
+rates 2 rad/s (it stops them)."""
 
 
 @dataclass(frozen=True)
@@ -74,7 +84,10 @@ class Observations:
     channels: names of the measured 3-row blocks, in the order of the columns of ys;
     ys (N, 3 * len(channels)) with NaN where not sampled; x0 (12,) prior mean and
     p0 (12,) prior variances; exclude (N,) bool: transitions k -> k+1 the M-step must
-    not use (ground contact, implausible actuation).
+    not use (ground contact, implausible actuation); resets (N,) bool: transitions
+    k -> k+1 that the flight dynamics do not describe because something outside the
+    model changed the state (the floor stopping the vehicle as it touches down), whose
+    process covariance is widened by ``RESET_VAR`` (empty: none).
     """
 
     t: Array
@@ -85,6 +98,7 @@ class Observations:
     x0: Array
     p0: Array
     exclude: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    resets: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     @property
     def n(self) -> int:
@@ -122,6 +136,8 @@ class QuadSSM:
         self._fixed_q = None if nz.fixed_q is None else np.diag(nz.fixed_q)
         self._s_f = np.asarray(nz.wrench[0:3], dtype=float)
         self._q_tau = obs.dt * self.body.inertia_inv @ np.diag(nz.wrench[3:6]) @ self.body.inertia_inv
+        self._resets = np.asarray(obs.resets, dtype=bool)
+        self._reset_q = np.diag(RESET_VAR)
 
     def initial(self) -> tuple[Array, Array]:
         return self.obs.x0, np.diag(self.obs.p0)
@@ -132,6 +148,14 @@ class QuadSSM:
         return x + dt * f, self._eye + dt * jac
 
     def process_cov(self, x: Array, k: int) -> Array:
+        q = self._flight_process_cov(x)
+        return q + self._reset_q if self.is_reset(k) else q
+
+    def is_reset(self, k: int) -> bool:
+        """Whether transition k -> k+1 is a reset (``Observations.resets``)."""
+        return bool(k < self._resets.size and self._resets[k])
+
+    def _flight_process_cov(self, x: Array) -> Array:
         if self._fixed_q is not None:
             return self._fixed_q
         dt = self.obs.dt
@@ -202,7 +226,7 @@ class KinematicSSM(QuadSSM):
         jac[8, 11] = dt * cf / ct
         return nxt, jac
 
-    def process_cov(self, x: Array, k: int) -> Array:
+    def _flight_process_cov(self, x: Array) -> Array:
         if self._fixed_q is None:
             raise ValueError("the kinematic warm-up model needs a fixed process covariance")
         return self._fixed_q

@@ -185,6 +185,28 @@ def test_kinematic_warm_up_matches_generic_smoother(flight, source):
     _assert_same_posterior(smooth_quad(model, obs.ys), smooth(model, obs.ys))
 
 
+@pytest.mark.parametrize("kind", ["structured", "paper_noise", "kinematic"])
+def test_reset_transitions_match_generic_smoother(flight, kind):
+    """Transitions marked as resets (touch-down; ssm.RESET_VAR added to Q) give the
+    generic smoother's posterior, and the widening is applied (the posterior moves)."""
+    obs = _observations(flight, "C")
+    resets = np.zeros(obs.n, dtype=bool)
+    resets[[120, 121, 400]] = True
+    marked = replace(obs, resets=resets)
+    unmarked = replace(obs, resets=np.zeros(0, dtype=bool))
+    theta = _theta(obs, "paper_start" if kind == "kinematic" else kind)
+    cls = KinematicSSM if kind == "kinematic" else QuadSSM
+    model = cls(marked, theta)
+    fast = smooth_quad(model, obs.ys)
+    _assert_same_posterior(fast, smooth(model, obs.ys))
+    plain = smooth_quad(cls(unmarked, theta), obs.ys)
+    rates = slice(9, 12)
+    # just after the reset the rates are known from the gyro alone: wider than when the
+    # dynamics carry information across
+    assert np.all(np.diag(fast.cov[122][rates, rates]) > np.diag(plain.cov[122][rates, rates]))
+    assert fast.loglik != plain.loglik
+
+
 def test_kinematic_without_fixed_q_uses_the_generic_path(flight):
     obs = _observations(flight, "B")
     model = KinematicSSM(obs, _theta(obs, "structured"))
