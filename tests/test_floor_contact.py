@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pinquad import ssm
 from pinquad.experiment import flight_seed, identify
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.sim import SimConfig, flight_log, simulate
@@ -43,3 +44,20 @@ def test_take_off_chatter_leaves_mass_and_inertia_unbiased(chattering_take_off):
     assert abs(ident.mass / PAPER_VEHICLE.mass - 1.0) < 1e-3
     rel = np.diag(ident.inertia) / np.diag(PAPER_VEHICLE.inertia) - 1.0
     assert np.all(np.abs(rel) < 0.02), rel
+
+
+@pytest.mark.parametrize("scale", [0.1, 10.0])
+def test_estimates_do_not_depend_on_the_reset_variance(chattering_take_off, monkeypatch, scale):
+    """RESET_VAR is a bound on what a touch-down changes, not a tuned value: a tenth or
+    ten times of it gives the same mass and inertia to 0.1 %."""
+    _, obs = chattering_take_off
+
+    def run() -> np.ndarray:
+        ident, _ = identify(obs, PAPER_INITIAL_MASS, PAPER_INITIAL_INERTIA,
+                            PAPER_VEHICLE.gravity, "rts", "regressor", 100, False)
+        return np.concatenate([[ident.mass], np.diag(ident.inertia)])
+
+    base = run()
+    monkeypatch.setattr(ssm, "RESET_VAR", ssm.RESET_VAR * scale)
+    scaled = run()
+    np.testing.assert_allclose(scaled, base, rtol=1e-3)
