@@ -36,7 +36,8 @@ class EMResult:
     (I, 3): the iterates (index 0 = initial guess, last = theta); loglik (I,): log
     p(y | iterate) [nats]; converged; decreases: iterations whose log-likelihood fell by
     more than 1e-6 relative; e_steps: smoother runs used (over-relaxation may reject
-    some).
+    some); failure: why EM stopped early if an E-step broke down (the result is then
+    the last iterate whose E-step worked, not converged), else None.
     """
 
     theta: Theta
@@ -47,6 +48,7 @@ class EMResult:
     converged: bool
     decreases: tuple[int, ...]
     e_steps: int = 0
+    failure: str | None = None
 
     @property
     def iterations(self) -> int:
@@ -132,21 +134,39 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     post = e_step(theta)
     eta = 1.0
     converged = False
+    failure: str | None = None
+
+    def try_e_step(candidate: Theta) -> Posterior | None:
+        nonlocal failure
+        try:
+            return e_step(candidate)
+        except (np.linalg.LinAlgError, FloatingPointError) as exc:
+            # the filter broke down at these parameters (a covariance lost positive
+            # definiteness): an over-relaxed step is retried as a plain one, a plain
+            # step ends EM at the last iterate whose E-step worked
+            failure = (f"E-step {n_esteps} failed at m = {mass_of(candidate):.6g} kg, "
+                       f"I = {inertia_of(candidate)} kg m^2: {exc}")
+            return None
+
     while n_esteps < max_iterations:
         proposal = mstep(post, obs, theta).theta
         step_theta = proposal
         if over_relax and eta > 1.0 and theta.noise.fixed_q is None:
             p_old, p_new = _pack(theta), _pack(proposal)
             step_theta = _unpack(p_old + eta * (p_new - p_old), proposal)
-        new_post = e_step(step_theta)
-        if step_theta is not proposal and not (new_post.loglik >= post.loglik):
+        new_post = try_e_step(step_theta)
+        if step_theta is not proposal and (new_post is None
+                                           or not (new_post.loglik >= post.loglik)):
             eta = 1.0
             step_theta = proposal
             if n_esteps >= max_iterations:
                 break
-            new_post = e_step(step_theta)
+            new_post = try_e_step(step_theta)
         elif over_relax and theta.noise.fixed_q is None:
             eta = min(eta * 1.5, 16.0)
+        if new_post is None:
+            break
+        failure = None
         ll_change = abs(new_post.loglik - post.loglik) / max(abs(post.loglik), 1.0)
         change = distance(step_theta, theta)
         # the posterior recorded with an iterate is the E-step at that iterate
@@ -163,4 +183,4 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     decreases = tuple(int(i) for i in range(start + 1, ll.size)
                       if ll[i] < ll[i - 1] - 1e-6 * abs(ll[i - 1]))
     return EMResult(theta, post, np.asarray(masses[1:]), np.vstack(inertias[1:]), ll,
-                    converged, decreases, n_esteps)
+                    converged, decreases, n_esteps, failure)

@@ -89,7 +89,8 @@ class Identification:
     [m, Ixx, Iyy, Izz] from the observed information (NaN if not computed);
     history_mass (I+1,), history_inertia (I+1, 3): after each EM iteration;
     loglik (I,); converged; decreases; info_truth (4, 4) observed information at the
-    true parameters (simulation only, else None).
+    true parameters (simulation only, else None); failure: why EM stopped early, if it
+    did (``EMResult.failure``).
     """
 
     mstep: str
@@ -104,6 +105,7 @@ class Identification:
     seconds: float
     info_truth: Array | None = None
     noise: Theta | None = None
+    failure: str | None = None
 
 
 @dataclass(frozen=True)
@@ -144,6 +146,7 @@ def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, e
         stderr=stderr, history_mass=res.mass, history_inertia=res.inertia_diag,
         loglik=res.loglik, converged=res.converged, decreases=res.decreases,
         seconds=time.perf_counter() - t0, info_truth=info_truth, noise=res.theta,
+        failure=res.failure,
     )
     return out, res.posterior
 

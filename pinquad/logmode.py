@@ -216,6 +216,7 @@ def _simulated(log: FlightLog, args: argparse.Namespace) -> LogResult:
             runs.append(LogRun(sensor, mstep, ident.mass, np.diag(ident.inertia), ident.stderr,
                                int(ident.loglik.size), ident.loglik, ident.converged,
                                {"stderr_note": "observed information of the EKF likelihood",
+                                "em_failure": ident.failure,
                                 "history": np.column_stack([ident.history_mass,
                                                             ident.history_inertia]).tolist(),
                                 "seconds": ident.seconds}))

@@ -43,6 +43,33 @@ def test_em_loglik_never_decreases_on_linear_gaussian_model():
     assert ll[-1] > ll[0] + 10.0  # it did climb
 
 
+def test_em_stops_at_the_last_good_iterate_when_the_e_step_breaks_down():
+    """A filter that loses positive definiteness mid-run ends EM at the last iterate
+    whose E-step worked, not converged, with the reason recorded (no traceback)."""
+    rng = np.random.default_rng(5)
+    n = 2
+    truth = LinearGaussianModel(a=0.9 * np.eye(n), c=np.eye(n), q=0.1 * np.eye(n),
+                                r=0.2 * np.eye(n), m0=np.zeros(n), p0=np.eye(n))
+    _, ys = truth.simulate(200, rng)
+    start = LinearGaussianModel(a=0.5 * np.eye(n), c=np.eye(n), q=np.eye(n), r=np.eye(n),
+                                m0=np.zeros(n), p0=np.eye(n))
+    calls = []
+
+    def breaking(model, data):
+        calls.append(model)
+        if len(calls) == 4:
+            raise np.linalg.LinAlgError("Matrix is not positive definite")
+        return smooth(model, data)
+
+    res = run_em(_Data(ys), start, breaking, linear_em_mstep, max_iterations=10, tol=0.0,
+                 tol_loglik=0.0, model_factory=lambda data, model: model,
+                 distance=linear_change)
+    assert not res.converged
+    assert res.failure is not None and "not positive definite" in res.failure
+    assert res.loglik.size == 3 and res.e_steps == 4
+    assert res.theta is calls[2]  # the iterate of the last E-step that worked
+
+
 def _clean_flight():
     flight = simulate(SimConfig(sensor="B"), np.random.default_rng(3))
     return flight, flight_log(flight)
