@@ -85,25 +85,29 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
            accelerate: bool = True,
            on_iteration: Callable[[int, Theta], None] | None = None,
            model_factory: Callable[[Any, Any], StateSpaceModel] = QuadSSM,
-           distance: Callable[[Any, Any], float] = relative_change) -> EMResult:
+           distance: Callable[[Any, Any], float] = relative_change,
+           extrapolate: Callable[[Theta, Theta, float], Theta] | None = None) -> EMResult:
     """Run EM from theta0 (see module docstring).
 
-    With ``accelerate`` (regressor M-step only) the steps are over-relaxed in
-    log-parameter space (adaptive over-relaxed EM, Salakhutdinov and Roweis 2003):
-    theta_p = theta_t * (M(theta_t) / theta_t)^eta; if log p(y | theta_p) >= log p(y |
+    With ``accelerate`` (the regressor M-step, or any M-step given its ``extrapolate``)
+    the steps are over-relaxed in log-parameter space (adaptive over-relaxed EM,
+    Salakhutdinov and Roweis 2003): theta_p = theta_t * (M(theta_t) / theta_t)^eta
+    (``extrapolate(theta_t, M(theta_t), eta)``); if log p(y | theta_p) >= log p(y |
     theta_t) the step is taken and eta grows by 1.5x (at most 16), otherwise eta falls
     back to 1 and the plain EM step M(theta_t) is taken. Every E-step counts towards
     ``max_iterations``; the recorded history holds the accepted iterates only, so the
     recorded log-likelihood is the EM sequence's.
 
-    When theta0 carries the paper's fixed Q0 (``initial_theta``), the first E-step uses
-    the force-free ``KinematicSSM`` (a data-driven warm-up); every later one the full
-    model. ``model_factory(obs, theta)`` builds the E-step's model and ``distance`` measures the
+    When theta0 carries the paper's fixed Q0 (``initial_theta``) and the model is a
+    QuadSSM (or a subclass), the first E-step uses the force-free ``KinematicSSM`` (a
+    data-driven warm-up); every later one the full model. ``model_factory(obs, theta)``
+    builds the E-step's model and ``distance`` measures the
     parameter change; the defaults are the quadcopter's, other models (the
     linear-Gaussian test model) pass their own.
     """
     is_quad = isinstance(theta0, Theta)
-    warm_up = is_quad and model_factory is QuadSSM and theta0.noise.fixed_q is not None
+    warm_up = (is_quad and isinstance(model_factory, type) and issubclass(model_factory, QuadSSM)
+               and theta0.noise.fixed_q is not None)
 
     def mass_of(theta: Any) -> float:
         return theta.mass if is_quad else float("nan")
@@ -116,7 +120,8 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     logliks: list[float] = []
     n_esteps = 0
     over_relax = (accelerate and is_quad
-                  and getattr(mstep, "__name__", "") == "regressor_mstep")
+                  and (extrapolate is not None
+                       or getattr(mstep, "__name__", "") == "regressor_mstep"))
 
     def e_step(theta: Theta) -> Posterior:
         nonlocal n_esteps
@@ -152,8 +157,11 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
         proposal = mstep(post, obs, theta).theta
         step_theta = proposal
         if over_relax and eta > 1.0 and theta.noise.fixed_q is None:
-            p_old, p_new = _pack(theta), _pack(proposal)
-            step_theta = _unpack(p_old + eta * (p_new - p_old), proposal)
+            if extrapolate is not None:
+                step_theta = extrapolate(theta, proposal, eta)
+            else:
+                p_old, p_new = _pack(theta), _pack(proposal)
+                step_theta = _unpack(p_old + eta * (p_new - p_old), proposal)
         new_post = try_e_step(step_theta)
         if step_theta is not proposal and (new_post is None
                                            or not (new_post.loglik >= post.loglik)):

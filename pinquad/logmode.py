@@ -45,10 +45,12 @@ SCHEMA = "pinquad.report/1"
 class LogRun:
     """One identification of a log, whatever path produced it.
 
-    sensor: source name (A/B/C) or the measured-log channel list; mstep: ``regressor``
-    or ``paper``; mass [kg]; inertia (3,) diagonal [kg m^2]; stderr (4,) standard errors
-    of [m, I_xx, I_yy, I_zz] reported as *the* standard error (NaN if not computed);
-    iterations; loglik (I,); converged; detail: extra report entries.
+    sensor: source name (A/B/C) or the measured-log channel list; mstep: ``regressor``,
+    ``paper`` or ``full``; mass [kg]; inertia (3,) diagonal [kg m^2]; stderr (4,)
+    standard errors of [m, I_xx, I_yy, I_zz] reported as *the* standard error (NaN if
+    not computed); iterations; loglik (I,); converged; detail: extra report entries;
+    com (3,) [m] and inertia_matrix (3, 3) [kg m^2] about the CoM: the ``full`` M-step's
+    (None otherwise).
     """
 
     sensor: str
@@ -60,6 +62,12 @@ class LogRun:
     loglik: Array
     converged: bool
     detail: dict
+    com: Array | None = None
+    inertia_matrix: Array | None = None
+
+    def inertia_tensor(self) -> Array:
+        """(3, 3) [kg m^2]: the full tensor if identified, else the diagonal."""
+        return self.inertia_matrix if self.inertia_matrix is not None else np.diag(self.inertia)
 
 
 @dataclass(frozen=True)
@@ -140,6 +148,10 @@ def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
     mass0, inertia0, guess = _guess(log)
     sensors = list(args.sensor) if args.sensor else [None]
     msteps = _msteps(args)
+    if "full" in msteps:
+        raise ValueError(f"{args.log}: --mstep full needs a CSV or Parquet log with thrust "
+                         "and torque columns; measured rotor-speed logs are identified with "
+                         "the regressor or paper M-step")
     runs: list[LogRun] = []
     first = None
     disc = (None, None, None)
@@ -211,6 +223,12 @@ def _simulated(log: FlightLog, args: argparse.Namespace) -> LogResult:
     for sensor in sensors:
         obs = observations(log, sensor)
         for mstep in _msteps(args):
+            if mstep == "full":
+                run, post, theta = _full(obs, sensor, mass0, inertia0, log.meta.gravity, args)
+                runs.append(run)
+                if first is None:
+                    first = (obs, post.mean, theta, post)
+                continue
             ident, post = identify(obs, mass0, inertia0, log.meta.gravity, args.estep, mstep,
                                    args.max_iterations, not args.no_information)
             runs.append(LogRun(sensor, mstep, ident.mass, np.diag(ident.inertia), ident.stderr,
@@ -229,6 +247,29 @@ def _simulated(log: FlightLog, args: argparse.Namespace) -> LogResult:
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
     return LogResult(tuple(runs), log, obs, smoothed, guess, excluded, tuple(log.meta.notes),
                      "simulated", {}, obs, theta, post)
+
+
+def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity: float,
+          args: argparse.Namespace):
+    """EM over all ten inertial parameters (``pinquad.full_inertia``) from the paper's
+    warm-up start: (LogRun, posterior, theta)."""
+    from estimators.rts import smooth
+    from pinquad.em import initial_theta
+    from pinquad.full_inertia import identify_full
+
+    res = identify_full(obs, initial_theta(obs, mass0, inertia0, gravity), smooth,
+                        max_iterations=args.max_iterations,
+                        information=not args.no_information)
+    stderr = np.concatenate([[res.stderr_mass], np.diag(res.stderr_inertia)])
+    run = LogRun(sensor, "full", res.mass, np.diag(res.inertia).copy(), stderr,
+                 int(res.loglik.size), res.loglik, res.converged,
+                 {"stderr_note": "observed information of the EKF likelihood over all ten "
+                                 "parameters (delta method to CoM and inertia)",
+                  "em_failure": res.failure, "e_steps": res.e_steps,
+                  "stderr_full": {"com": res.stderr_com.tolist(),
+                                  "inertia": res.stderr_inertia.tolist()}},
+                 com=res.com.copy(), inertia_matrix=res.inertia.copy())
+    return run, res.posterior, res.theta
 
 
 # ----------------------------------------------------------------------------- output
@@ -257,6 +298,19 @@ def _table(result: LogResult) -> str:
                          f"{100 * (r.mass / SCALE_MASS - 1):+.2f} %"
                          + ("" if not np.isfinite(r.stderr[0]) else
                             f" ({abs(r.mass - SCALE_MASS) / r.stderr[0]:.1f} standard errors)"))
+    for r in result.runs:
+        if r.com is not None and r.inertia_matrix is not None:
+            se = r.detail.get("stderr_full", {})
+            se_c = np.asarray(se.get("com", [np.nan] * 3), dtype=float)
+            se_i = np.asarray(se.get("inertia", np.full((3, 3), np.nan)), dtype=float)
+            lines.append(f"\n{r.sensor}, full M-step: centre of mass [mm] "
+                         + ", ".join(pm(r.com[i], se_c[i], 1e3, ".3f") for i in range(3)))
+            lines.append(f"{r.sensor}, full M-step: products of inertia [1e-6 kg m^2] "
+                         + ", ".join(f"I_{a}{b} " + pm(r.inertia_matrix[i, j], se_i[i, j], 1e6,
+                                                       ".2f")
+                                     for (i, a), (j, b) in (((0, "x"), (1, "y")),
+                                                            ((0, "x"), (2, "z")),
+                                                            ((1, "y"), (2, "z")))))
     return "\n".join(lines)
 
 
@@ -301,8 +355,9 @@ def _report(result: LogResult, args: argparse.Namespace, seconds: float) -> dict
         "source": {"kind": "log", "path": str(args.log), "sensor": main.sensor,
                    "estep": args.estep, "log_type": result.kind,
                    "vehicle": result.log.meta.vehicle, "mstep": main.mstep},
-        "estimates": {"mass": main.mass, "inertia": np.diag(main.inertia).tolist(),
-                      "com": None, "stderr": {"mass": se[0], "inertia_diag": se[1:].tolist()}},
+        "estimates": {"mass": main.mass, "inertia": main.inertia_tensor().tolist(),
+                      "com": None if main.com is None else main.com.tolist(),
+                      "stderr": {"mass": se[0], "inertia_diag": se[1:].tolist()}},
         "em": {"iterations": main.iterations, "loglik": main.loglik.tolist(),
                "converged": bool(main.converged)},
         "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
@@ -313,9 +368,10 @@ def _report(result: LogResult, args: argparse.Namespace, seconds: float) -> dict
                              "smoothed": "logs/flight-smoothed.npy"}},
         "initial_guess": result.guess,
         "runs": [{"sensor": r.sensor, "mstep": r.mstep,
-                  "estimates": {"mass": r.mass, "inertia": np.diag(r.inertia).tolist(),
-                                "com": None, "stderr": {"mass": r.stderr[0],
-                                                        "inertia_diag": r.stderr[1:].tolist()}},
+                  "estimates": {"mass": r.mass, "inertia": r.inertia_tensor().tolist(),
+                                "com": None if r.com is None else r.com.tolist(),
+                                "stderr": {"mass": r.stderr[0],
+                                           "inertia_diag": r.stderr[1:].tolist()}},
                   "em": {"iterations": r.iterations, "loglik": r.loglik.tolist(),
                          "converged": bool(r.converged)},
                   **r.detail} for r in result.runs],
@@ -433,7 +489,10 @@ def identify_log(args: argparse.Namespace) -> int:
         figs = writer.path("figures")
         figs.mkdir(exist_ok=True)
         discovery = None
-        if not args.no_discover:
+        if result.runs[0].mstep == "full" and not args.no_discover:
+            print("\neffect discovery: not run (it works on the diagonal model: run "
+                  "--mstep regressor for it)")
+        elif not args.no_discover:
             discovery = run_discovery(result, figs)
             print()
             print(discovery_summary(discovery))

@@ -40,8 +40,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "simulation; B-like full use of what a log contains for --log)")
     p.add_argument("--estep", choices=["rts", "gtsam"], default="rts",
                    help="E-step smoother: EKF + RTS, or the GTSAM factor-graph batch smoother")
-    p.add_argument("--mstep", choices=["regressor", "paper", "both"], default="both",
-                   help="M-step(s) to run on the same logs")
+    p.add_argument("--mstep", choices=["regressor", "paper", "both", "full"], default="both",
+                   help="M-step(s) to run on the same logs; full (with --log, CSV or "
+                        "Parquet logs with thrust and torques): all ten inertial parameters "
+                        "(mass, centre of mass, full inertia tensor) with standard errors, "
+                        "minutes per log")
     p.add_argument("--cycles", type=int, default=20, help="Monte Carlo cycles per sensor")
     p.add_argument("--seed", type=int, default=0, help="base seed of the Monte Carlo cycles")
     p.add_argument("--vehicle", choices=["paper", "crazyflie21"], default="paper",
@@ -185,6 +188,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.log is not None:
             return run_log(args)
+        if args.mstep == "full":
+            return _fail("--mstep full identifies one recorded log (--log PATH); the "
+                         "Monte Carlo experiment runs the regressor and paper M-steps")
         return run_simulation(args)
     except LogFormatError as exc:
         return _fail(str(exc))

@@ -61,12 +61,15 @@ class NoiseModel:
 
 @dataclass(frozen=True)
 class Theta:
-    """Parameters of the E-step model: mass [kg], inertia (3, 3) [kg m^2], noise."""
+    """Parameters of the E-step model: mass [kg], inertia (3, 3) about the centre of
+    mass [kg m^2], noise, gravity [m/s^2] and the centre of mass com (3,) in the body
+    frame [m] (zero except in ``pinquad.full_inertia``'s ten-parameter model)."""
 
     mass: float
     inertia: Array
     noise: NoiseModel
     gravity: float = 9.81
+    com: Array = field(default_factory=lambda: np.zeros(3))
 
     def body(self) -> RigidBodyParams:
         inertia = np.asarray(self.inertia, dtype=float)
