@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -30,3 +35,20 @@ def linear_case():
     ys[rng.random(ys.shape) < 0.2] = np.nan
     ys[5] = np.nan
     return model, ys
+
+
+def offline_on_csv(log, path: Path, out: Path, *options: str) -> subprocess.CompletedProcess:
+    """Write ``log`` to the CSV ``path`` with the paper's initial guess (m0 = 1 g, I0) in
+    its sidecar and run ``python -m pinquad.offline --log path --out out *options``."""
+    from pinquad.logs import write_log
+    from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
+
+    written = write_log(log, path)
+    sidecar_path = Path(f"{written}.json")
+    sidecar = json.loads(sidecar_path.read_text())
+    sidecar["mass_guess"] = PAPER_INITIAL_MASS
+    sidecar["inertia_guess"] = np.asarray(PAPER_INITIAL_INERTIA).tolist()
+    sidecar_path.write_text(json.dumps(sidecar))
+    return subprocess.run(
+        [sys.executable, "-m", "pinquad.offline", "--log", str(written), "--out", str(out),
+         *options], capture_output=True, text=True, timeout=900)

@@ -3,17 +3,20 @@ against Pinocchio, the log-Cholesky map, and the M-step on noise-free transition
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import offline_on_csv
 
 from estimators.protocol import Posterior
 from pinquad import full_inertia as fi
 from pinquad.identify import kinematic_floor
 from pinquad.model import forward_dynamics, inertial_regressor, inverse_dynamics_wrench, load_model
 from pinquad.params import PAPER_VEHICLE
+from pinquad.sim import SimConfig, flight_log, simulate
 from pinquad.ssm import NoiseModel, Observations, QuadSSM, Theta
 
 COM = np.array([0.004, -0.003, 0.002])
@@ -150,25 +153,13 @@ def test_offline_log_identifies_all_ten_parameters(tmp_path):
     slowly along it; after these 40 E-steps it was 0.36 +- 0.45 mm against the true
     2 mm (on the whole 37 s flight after 100 E-steps 1.16 +- 1.26 mm), so it is not
     held to the truth here."""
-    import json
-    import subprocess
-    import sys
 
-    from pinquad.logs import write_log
-    from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
-    from pinquad.sim import SimConfig, flight_log, simulate
+
 
     flight = simulate(SimConfig(vehicle=VEHICLE, sensor="B"), np.random.default_rng(5))
-    path = write_log(flight_log(flight).slice(0, 2000), tmp_path / "offset.csv")
-    sidecar = json.loads((tmp_path / "offset.csv.json").read_text())
-    sidecar["mass_guess"] = PAPER_INITIAL_MASS
-    sidecar["inertia_guess"] = np.asarray(PAPER_INITIAL_INERTIA).tolist()
-    (tmp_path / "offset.csv.json").write_text(json.dumps(sidecar))
     out = tmp_path / "run"
-    proc = subprocess.run(
-        [sys.executable, "-m", "pinquad.offline", "--log", str(path), "--sensor", "B",
-         "--mstep", "full", "--max-iterations", "40", "--out", str(out)],
-        capture_output=True, text=True, timeout=900)
+    proc = offline_on_csv(flight_log(flight).slice(0, 2000), tmp_path / "offset.csv", out,
+                          "--sensor", "B", "--mstep", "full", "--max-iterations", "40")
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "centre of mass [mm]" in proc.stdout
     report = json.loads((out / "report.json").read_text())

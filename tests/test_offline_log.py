@@ -5,14 +5,12 @@ complete."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from conftest import offline_on_csv
 
 from pinquad.experiment import identify
-from pinquad.logs import write_log
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.sim import SimConfig, flight_log, simulate
 from pinquad.sources import observations
@@ -25,16 +23,9 @@ def flight_b():
 
 
 def test_csv_log_through_the_command_line_equals_in_memory_identification(flight_b, tmp_path):
-    path = write_log(flight_b, tmp_path / "flight.csv")
-    sidecar = json.loads((tmp_path / "flight.csv.json").read_text())
-    sidecar["mass_guess"] = PAPER_INITIAL_MASS
-    sidecar["inertia_guess"] = np.asarray(PAPER_INITIAL_INERTIA).tolist()
-    (tmp_path / "flight.csv.json").write_text(json.dumps(sidecar))
     out = tmp_path / "run"
-    proc = subprocess.run(
-        [sys.executable, "-m", "pinquad.offline", "--log", str(path), "--sensor", "B",
-         "--mstep", "regressor", "--no-information", "--no-discover", "--out", str(out)],
-        capture_output=True, text=True, timeout=600)
+    proc = offline_on_csv(flight_b, tmp_path / "flight.csv", out, "--sensor", "B",
+                          "--mstep", "regressor", "--no-information", "--no-discover")
     assert proc.returncode == 0, proc.stderr[-2000:]
     report = json.loads((out / "report.json").read_text())
     assert report["source"]["sensor"] == "B" and report["source"]["mstep"] == "regressor"
