@@ -153,9 +153,6 @@ def test_offline_log_identifies_all_ten_parameters(tmp_path):
     slowly along it; after these 40 E-steps it was 0.36 +- 0.45 mm against the true
     2 mm (on the whole 37 s flight after 100 E-steps 1.16 +- 1.26 mm), so it is not
     held to the truth here."""
-
-
-
     flight = simulate(SimConfig(vehicle=VEHICLE, sensor="B"), np.random.default_rng(5))
     out = tmp_path / "run"
     proc = offline_on_csv(flight_log(flight).slice(0, 2000), tmp_path / "offset.csv", out,
