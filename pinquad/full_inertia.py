@@ -42,6 +42,7 @@ from scipy.optimize import minimize
 
 from estimators.protocol import Posterior
 from pinquad.conventions import rotation_from_euler, skew
+from pinquad.em import run_em
 from pinquad.identify import MStepResult, transition_mask, update_noise
 from pinquad.model import state_derivative_and_jacobian
 from pinquad.ssm import Observations, QuadSSM, Theta
@@ -221,7 +222,7 @@ class FullQuadSSM(QuadSSM):
 class FullStats:
     """Expected sufficient statistics of the wrench residuals, per row j: a (6, 10, 10),
     b (6, 10), c (6,) with E[sum_k rho_kj^2] = pi^T a_j pi - 2 b_j^T pi + c_j; n
-    transitions. Additive over transitions (so over blocks)."""
+    transitions."""
 
     a: Array
     b: Array
@@ -229,13 +230,14 @@ class FullStats:
     n: int
 
 
-def _transition_stats(post: Posterior, obs: Observations, gravity: float, idx: Array
-                      ) -> FullStats:
-    """FullStats over the transitions idx: the regressor at the smoothed means, plus
+def full_stats(post: Posterior, obs: Observations, gravity: float) -> FullStats:
+    """FullStats over every transition the M-step uses (``identify.transition_mask``):
+    the regressor at the smoothed means, plus
     the first-order term E[(Y - Y(mean)) pi]^2 ~ pi^T D Sigma D^T pi, with D = dY/dz by
     central differences over the 15 state coordinates z that Y depends on and Sigma
     their smoothed joint covariance (from the covariances and lag-one
     cross-covariances)."""
+    idx = np.flatnonzero(transition_mask(obs))
     dt = obs.dt
     x_now, x_next = post.mean[idx], post.mean[idx + 1]
     y = spatial_regressor(x_now, x_next, dt, gravity)
@@ -262,11 +264,6 @@ def _transition_stats(post: Posterior, obs: Observations, gravity: float, idx: A
     b = np.einsum("kjp,kj->jp", y, tau)
     c = np.einsum("kj,kj->j", tau, tau)
     return FullStats(a, b, c, int(idx.size))
-
-
-def full_stats(post: Posterior, obs: Observations, gravity: float) -> FullStats:
-    """FullStats over every transition the M-step uses (``identify.transition_mask``)."""
-    return _transition_stats(post, obs, gravity, np.flatnonzero(transition_mask(obs)))
 
 
 def _basis() -> Array:
@@ -403,23 +400,32 @@ def full_extrapolate(old: Theta, new: Theta, eta: float) -> Theta:
 
 @dataclass(frozen=True)
 class FullIdentification:
-    """EM over all ten parameters: mass [kg], com (3,) [m], inertia (3, 3) about the
-    CoM [kg m^2]; stderr_mass [kg], stderr_com (3,) [m], stderr_inertia (3, 3)
-    [kg m^2] (observed information, ``standard_errors``); theta (with the noise model);
-    posterior; loglik (I,); converged; e_steps; failure (``EMResult.failure``)."""
+    """EM over all ten parameters: theta (mass, com, inertia about the CoM, noise);
+    stderr_mass [kg], stderr_com (3,) [m], stderr_inertia (3, 3) [kg m^2] (observed
+    information, ``standard_errors``; NaN when not computed); posterior; loglik (I,);
+    converged; e_steps; failure (``EMResult.failure``)."""
 
-    mass: float
-    com: Array
-    inertia: Array
+    theta: Theta
     stderr_mass: float
     stderr_com: Array
     stderr_inertia: Array
-    theta: Theta
     posterior: Posterior
     loglik: Array
     converged: bool
     e_steps: int
     failure: str | None = None
+
+    @property
+    def mass(self) -> float:
+        return self.theta.mass
+
+    @property
+    def com(self) -> Array:
+        return np.asarray(self.theta.com)
+
+    @property
+    def inertia(self) -> Array:
+        return np.asarray(self.theta.inertia)
 
 
 def _derived(pi: Array) -> Array:
@@ -491,14 +497,10 @@ def identify_full(obs: Observations, start: Theta, smoother: Callable, max_itera
     paper's fixed Q0 the first E-step is the force-free warm-up), then the observed-
     information standard errors at the result (``standard_errors``; skipped without
     ``information``)."""
-    from pinquad.em import run_em
-
     res = run_em(obs, start, smoother, full_mstep, max_iterations=max_iterations, tol=tol,
                  model_factory=FullQuadSSM, distance=full_change,
                  extrapolate=full_extrapolate)
     se_m, se_c, se_i = (standard_errors(obs, res.theta)[:3] if information
                         else (math.nan, np.full(3, math.nan), np.full((3, 3), math.nan)))
-    th = res.theta
-    return FullIdentification(th.mass, np.asarray(th.com), np.asarray(th.inertia), se_m, se_c,
-                              se_i, th, res.posterior, res.loglik, res.converged, res.e_steps,
-                              res.failure)
+    return FullIdentification(res.theta, se_m, se_c, se_i, res.posterior, res.loglik,
+                              res.converged, res.e_steps, res.failure)

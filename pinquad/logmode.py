@@ -29,12 +29,16 @@ import argparse
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.logs import FlightLog, LogFormatError
 from pinquad.ssm import Observations
+
+if TYPE_CHECKING:
+    from pinquad.full_inertia import FullIdentification
 
 Array = NDArray[np.float64]
 
@@ -49,8 +53,8 @@ class LogRun:
     ``paper`` or ``full``; mass [kg]; inertia (3,) diagonal [kg m^2]; stderr (4,)
     standard errors of [m, I_xx, I_yy, I_zz] reported as *the* standard error (NaN if
     not computed); iterations; loglik (I,); converged; detail: extra report entries;
-    com (3,) [m] and inertia_matrix (3, 3) [kg m^2] about the CoM: the ``full`` M-step's
-    (None otherwise).
+    full: the ``full`` M-step's identification (CoM, full inertia tensor and their
+    standard errors; None otherwise).
     """
 
     sensor: str
@@ -62,12 +66,15 @@ class LogRun:
     loglik: Array
     converged: bool
     detail: dict
-    com: Array | None = None
-    inertia_matrix: Array | None = None
+    full: FullIdentification | None = None
 
     def inertia_tensor(self) -> Array:
         """(3, 3) [kg m^2]: the full tensor if identified, else the diagonal."""
-        return self.inertia_matrix if self.inertia_matrix is not None else np.diag(self.inertia)
+        return self.full.inertia if self.full is not None else np.diag(self.inertia)
+
+    def com(self) -> list[float] | None:
+        """The identified centre of mass (3,) [m] for report.json, None if not."""
+        return None if self.full is None else self.full.com.tolist()
 
 
 @dataclass(frozen=True)
@@ -268,7 +275,7 @@ def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity
                   "em_failure": res.failure, "e_steps": res.e_steps,
                   "stderr_full": {"com": res.stderr_com.tolist(),
                                   "inertia": res.stderr_inertia.tolist()}},
-                 com=res.com.copy(), inertia_matrix=res.inertia.copy())
+                 full=res)
     return run, res.posterior, res.theta
 
 
@@ -299,15 +306,14 @@ def _table(result: LogResult) -> str:
                          + ("" if not np.isfinite(r.stderr[0]) else
                             f" ({abs(r.mass - SCALE_MASS) / r.stderr[0]:.1f} standard errors)"))
     for r in result.runs:
-        if r.com is not None and r.inertia_matrix is not None:
-            se = r.detail.get("stderr_full", {})
-            se_c = np.asarray(se.get("com", [np.nan] * 3), dtype=float)
-            se_i = np.asarray(se.get("inertia", np.full((3, 3), np.nan)), dtype=float)
+        if r.full is not None:
+            full = r.full
             lines.append(f"\n{r.sensor}, full M-step: centre of mass [mm] "
-                         + ", ".join(pm(r.com[i], se_c[i], 1e3, ".3f") for i in range(3)))
+                         + ", ".join(pm(full.com[i], full.stderr_com[i], 1e3, ".3f")
+                                     for i in range(3)))
             lines.append(f"{r.sensor}, full M-step: products of inertia [1e-6 kg m^2] "
-                         + ", ".join(f"I_{a}{b} " + pm(r.inertia_matrix[i, j], se_i[i, j], 1e6,
-                                                       ".2f")
+                         + ", ".join(f"I_{a}{b} " + pm(full.inertia[i, j],
+                                                       full.stderr_inertia[i, j], 1e6, ".2f")
                                      for (i, a), (j, b) in (((0, "x"), (1, "y")),
                                                             ((0, "x"), (2, "z")),
                                                             ((1, "y"), (2, "z")))))
@@ -356,7 +362,7 @@ def _report(result: LogResult, args: argparse.Namespace, seconds: float) -> dict
                    "estep": args.estep, "log_type": result.kind,
                    "vehicle": result.log.meta.vehicle, "mstep": main.mstep},
         "estimates": {"mass": main.mass, "inertia": main.inertia_tensor().tolist(),
-                      "com": None if main.com is None else main.com.tolist(),
+                      "com": main.com(),
                       "stderr": {"mass": se[0], "inertia_diag": se[1:].tolist()}},
         "em": {"iterations": main.iterations, "loglik": main.loglik.tolist(),
                "converged": bool(main.converged)},
@@ -369,7 +375,7 @@ def _report(result: LogResult, args: argparse.Namespace, seconds: float) -> dict
         "initial_guess": result.guess,
         "runs": [{"sensor": r.sensor, "mstep": r.mstep,
                   "estimates": {"mass": r.mass, "inertia": r.inertia_tensor().tolist(),
-                                "com": None if r.com is None else r.com.tolist(),
+                                "com": r.com(),
                                 "stderr": {"mass": r.stderr[0],
                                            "inertia_diag": r.stderr[1:].tolist()}},
                   "em": {"iterations": r.iterations, "loglik": r.loglik.tolist(),
