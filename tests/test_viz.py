@@ -220,23 +220,26 @@ def test_viewer_renders_and_time_slider_moves_vehicle(viewer: Any, browser: Chro
     u0, v0 = vehicle_pixel()
     scene_area = (slice(0, HEIGHT), slice(0, PANEL_LEFT))
 
+    def red_rotor(img: np.ndarray) -> np.ndarray:
+        # The red front rotor of the URDF (shaded to salmon; the orange path differs by
+        # its low blue).
+        r, g, b = img[..., 0], img[..., 1], img[..., 2]
+        return (r > 190) & (r - g > 70) & (np.abs(g - b) < 40)
+
     def rendered() -> np.ndarray | None:
+        # the URDF's meshes arrive one by one: wait for the blue rotors and the red one
         img = browser.screenshot()
+        near = _box(img, u0, v0, 60)
         ok = (_non_background(img[scene_area]).mean() > 0.01
-              and _rotor_blue(_box(img, u0, v0, 60)).sum() > 150)
+              and _rotor_blue(near).sum() > 150 and red_rotor(near).sum() > 20)
         return img if ok else None
 
-    first = _wait(rendered, 40.0, "the 3D scene (vehicle rotors included) to render",
-                  interval=1.0)
+    first = _wait(rendered, 40.0, "the 3D scene (blue and red rotors where the vehicle "
+                  "projects) to render", interval=1.0)
     scene = first[scene_area].reshape(-1, 3)
     colours = np.unique(scene // 8, axis=0).shape[0]
     assert colours > 100, f"the canvas has only {colours} distinct colours: nothing rendered?"
-    # The red front rotor of the URDF is drawn where the vehicle projects (shaded to
-    # salmon; the orange path differs by its low blue).
     near = _box(first, u0, v0, 60)
-    r, g, b = near[..., 0], near[..., 1], near[..., 2]
-    red = (r > 190) & (r - g > 70) & (np.abs(g - b) < 40)
-    assert red.sum() > 20, "no red rotor pixels near the projected vehicle position"
     assert _rotor_blue(first[scene_area]).sum() < 1.5 * _rotor_blue(near).sum(), (
         "rotor-coloured pixels far from where the vehicle projects")
 
