@@ -114,14 +114,6 @@ def _inertia_map(w: Array) -> Array:
     return out
 
 
-def _skew(v: Array) -> Array:
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
 def spatial_regressor(x_now: Array, x_next: Array, dt: float, gravity: float) -> Array:
     """Y (K, 6, 10): body wrench about O = Y pi over transitions x_k -> x_{k+1} (K, 12)
     (module docstring), with v'_world = (v_{k+1} - v_k)/dt, omega' = (omega_{k+1} -
@@ -132,11 +124,11 @@ def spatial_regressor(x_now: Array, x_next: Array, dt: float, gravity: float) ->
     a_o = np.einsum("kji,kj->ki", rot, acc)
     w = x_now[:, 9:12]
     wd = (x_next[:, 9:12] - x_now[:, 9:12]) / dt
-    sw = _skew(w)
+    sw = skew(w)
     y = np.zeros((x_now.shape[0], 6, 10))
     y[:, 0:3, 0] = a_o
-    y[:, 0:3, 1:4] = _skew(wd) + sw @ sw
-    y[:, 3:6, 1:4] = -_skew(a_o)
+    y[:, 0:3, 1:4] = skew(wd) + sw @ sw
+    y[:, 3:6, 1:4] = -skew(a_o)
     y[:, 3:6, 4:10] = _inertia_map(wd) + sw @ _inertia_map(w)
     return y
 
