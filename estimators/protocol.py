@@ -84,7 +84,8 @@ class Posterior:
 
     mean (N, n); cov (N, n, n); cross_cov (N-1, n, n) = Cov(x_{k+1}, x_k | all y);
     loglik: log p(y | theta) of the model that produced it [nats] (for a MAP smoother,
-    the value of the filter run at the same parameters); method: "rts" or "gtsam";
+    the value of the filter run at the same parameters); method: "rts", "ieks" (iterated
+    EKF + RTS) or "gtsam";
     rejected (N, m): measurement rows excluded as outliers.
     """
 

@@ -27,17 +27,24 @@ Array = NDArray[np.float64]
 
 MSTEPS = {"regressor": regressor_mstep, "paper": paper_mstep}
 SENSOR_INDEX = {"A": 0, "B": 1, "C": 2}
+ESTEPS = ("rts", "ieks", "gtsam")
+"""E-step smoothers by name (:func:`get_smoother`)."""
 
 
 def get_smoother(estep: str) -> Smoother:
-    """The E-step smoother by name: ``rts`` (compiled fast path when available) or
-    ``gtsam`` (factor-graph batch smoother)."""
+    """The E-step smoother by name: ``rts`` (compiled fast path when available),
+    ``ieks`` (EKF + RTS iterated to the MAP trajectory, ``estimators.iterated``) or
+    ``gtsam`` (factor-graph batch smoother, the same MAP by GTSAM)."""
     if estep == "gtsam":
         from estimators.factor_graph import smooth as gtsam_smooth
 
         return gtsam_smooth
+    if estep == "ieks":
+        from estimators.iterated import smooth as iterated_smooth
+
+        return iterated_smooth
     if estep != "rts":
-        raise ValueError(f"unknown E-step {estep!r}; expected rts or gtsam")
+        raise ValueError(f"unknown E-step {estep!r}; expected {', '.join(ESTEPS)}")
     try:
         from pinquad.fast_smoother import smooth_quad
 

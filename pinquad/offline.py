@@ -38,8 +38,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sensor", choices=["A", "B", "C"], action="append",
                    help="observation source(s); repeat for several (default: A, B and C for "
                         "simulation; B-like full use of what a log contains for --log)")
-    p.add_argument("--estep", choices=["rts", "gtsam"], default="rts",
-                   help="E-step smoother: EKF + RTS, or the GTSAM factor-graph batch smoother")
+    p.add_argument("--estep", choices=["rts", "ieks", "gtsam"], default="rts",
+                   help="E-step smoother: EKF + RTS (compiled); ieks, EKF + RTS iterated to "
+                        "the MAP trajectory (generic Python, ~8x slower); or gtsam, the GTSAM "
+                        "factor-graph batch smoother (the same MAP)")
     p.add_argument("--mstep", choices=["regressor", "paper", "both", "full"], default="both",
                    help="M-step(s) to run on the same logs; full (with --log, CSV or "
                         "Parquet logs with thrust and torques): all ten inertial parameters "

@@ -35,6 +35,10 @@ What holds, and what does not:
   curved. The strict test is therefore an expected failure for A and C (strict, and
   only on an AssertionError, so it reports if that changes); the linearisation test
   above is what shows that the difference is the EKF's and not a bug.
+* Iterating the RTS smoother (``estimators.iterated``: EKF + RTS on the model
+  linearised about the last smoothed trajectory, a Gauss-Newton step per pass) moves
+  the linearisation points to the MAP; it then meets the 0.1 std / 10 % criterion for
+  every sensor, A and C included (a few 1e-4 std apart when this was written).
 
 EM with the GTSAM E-step and with the compiled RTS E-step reach the same mass and
 inertia (sensor B) to a small fraction of a standard error, and the command line runs
@@ -55,9 +59,10 @@ import numpy as np
 import pytest
 
 from estimators import factor_graph as fg
-from estimators import rts
+from estimators import iterated, rts
 from estimators.factor_graph import SolveInfo
-from estimators.protocol import Array, Posterior, StateSpaceModel
+from estimators.iterated import LinearisedAbout
+from estimators.protocol import Array, Posterior
 from pinquad import em, fisher, identify, sim, sources
 from pinquad.conventions import wrap_angle
 from pinquad.fast_smoother import smooth_quad
@@ -129,42 +134,6 @@ def _mean_difference(a: Array, b: Array) -> Array:
     return d
 
 
-class _LinearisedAbout:
-    """``model`` linearised about a trajectory (N, 12): f_k(x) = f_k(xbar_k) + F_k
-    (x - xbar_k), Q_k = Q_k(xbar_k), h_k likewise; the same measurements, covariances
-    and angle wrapping. Its exact (RTS) posterior is the target of a Gauss-Newton step
-    of the factor graph taken at xbar."""
-
-    def __init__(self, model: StateSpaceModel, trajectory: Array) -> None:
-        self.model = model
-        self.trajectory = np.asarray(trajectory, dtype=float)
-        self.state_dim = model.state_dim
-        self.meas_dim = model.meas_dim
-        steps = range(self.trajectory.shape[0] - 1)
-        self._f = [model.transition(self.trajectory[k], k) for k in steps]
-        self._q = [model.process_cov(self.trajectory[k], k) for k in steps]
-
-    def initial(self) -> tuple[Array, Array]:
-        return self.model.initial()
-
-    def transition(self, x: Array, k: int) -> tuple[Array, Array]:
-        value, jac = self._f[k]
-        return value + jac @ (x - self.trajectory[k]), jac
-
-    def process_cov(self, x: Array, k: int) -> Array:
-        return self._q[k]
-
-    def measure(self, x: Array, k: int) -> tuple[Array, Array]:
-        value, jac = self.model.measure(self.trajectory[k], k)
-        return value + jac @ (x - self.trajectory[k]), jac
-
-    def meas_cov(self, k: int) -> Array:
-        return self.model.meas_cov(k)
-
-    def residual(self, y: Array, y_pred: Array) -> Array:
-        return self.model.residual(y, y_pred)
-
-
 def _parameters(theta: Theta) -> Array:
     """[m, I_xx, I_yy, I_zz]."""
     return np.concatenate([[theta.mass], np.diag(theta.inertia)])
@@ -204,7 +173,7 @@ def test_rts_of_the_map_linearisation_is_gtsam(sensor):
     case = _case(sensor)
     assert case.info.decrement < 1e-5, case.info.reason
     post = case.gtsam
-    lin = rts.smooth(_LinearisedAbout(case.model, post.mean), case.obs.ys)
+    lin = rts.smooth(LinearisedAbout(case.model, post.mean), case.obs.ys)
     bound = math.sqrt(2.0 * case.info.decrement)
     assert np.all(np.abs(_mean_difference(lin.mean, post.mean))
                   <= (bound * (1.0 + 1e-6) + 1e-9) * post.std)
@@ -232,14 +201,40 @@ def test_gtsam_and_ekf_rts_agree_within_a_tenth_of_a_std(sensor):
     assert rel.max() <= 0.1, f"step {worst[0]}, state {worst[1]}: {rel.max():.3f}"
 
 
+@pytest.mark.parametrize("sensor", ["A", "B", "C"])
+def test_gtsam_and_iterated_rts_agree_within_a_tenth_of_a_std(sensor):
+    """The issue's criterion with the RTS smoother iterated (``estimators.iterated``: EKF
+    + RTS re-run on the model linearised about the last smoothed trajectory, stopping at
+    a step of 1e-3 std): at every step, every state, |mean_gtsam - mean_ieks| <= 0.1
+    posterior std and marginal variances within 10 %, for every sensor; the lag-one
+    cross-covariances too. Two independent solvers of the same MAP problem agree; on A
+    and C they agree to a few 1e-4 std."""
+    case = _case(sensor)
+    post, info = iterated.smooth_with_info(case.model, case.obs.ys)
+    assert info.converged, info.reason
+    assert info.cost_history[-1] <= info.cost_history[0]
+    z = np.abs(_mean_difference(case.gtsam.mean, post.mean)) / post.std
+    worst = np.unravel_index(np.argmax(z), z.shape)
+    assert z.max() <= 0.1, f"step {worst[0]}, state {worst[1]}: {z.max():.3f} std"
+    var_g, var_i = case.gtsam.std ** 2, post.std ** 2
+    assert np.max(np.abs(var_g - var_i) / var_i) <= 0.1
+    cross_scale = post.std[1:, :, None] * post.std[:-1, None, :]
+    assert np.max(np.abs(post.cross_cov - case.gtsam.cross_cov) / cross_scale) <= 0.1
+    j_ieks = fg.negative_log_posterior(case.model, case.obs.ys, post.mean)
+    assert j_ieks == pytest.approx(case.info.cost_history[-1], abs=1e-3)
+
+
 # ----------------------------------------------------------------------------- EM
 
 
-def test_em_with_the_gtsam_and_the_rts_e_step_agree():
-    """Sensor B, 10 s of flight, from 0.8 m and 0.7 I: the same EM settings with either
-    E-step reach the same (m, I) to 0.5 standard error (observed information at the RTS
-    estimate), at every iteration."""
-    obs = _observations("B", N_EM)
+@pytest.mark.parametrize("sensor", ["A", "B", "C"])
+def test_em_with_the_gtsam_and_the_rts_e_step_agree(sensor):
+    """10 s of flight, from 0.8 m and 0.7 I: the same EM settings with either E-step
+    (GTSAM's MAP smoother and the single-pass compiled EKF + RTS) reach the same (m, I)
+    to 0.5 standard error (observed information at the RTS estimate), at every
+    iteration; for A and C too, where the two smoothers' state means differ by up to
+    1.1 and 3.3 std (measured: within 0.007 standard error)."""
+    obs = _observations(sensor, N_EM)
     theta0 = em.initial_theta(obs, 0.8 * TRUE_MASS, 0.7 * TRUE_INERTIA, GRAVITY)
     runs = {name: em.run_em(obs, theta0, smoother, identify.regressor_mstep,
                             max_iterations=EM_ITERATIONS)
@@ -262,14 +257,15 @@ def test_em_with_the_gtsam_and_the_rts_e_step_agree():
 # ----------------------------------------------------------------------------- command
 
 
-def test_offline_command_with_the_gtsam_e_step(tmp_path):
+@pytest.mark.parametrize("estep", ["gtsam", "ieks"])
+def test_offline_command_with_the_map_e_steps(tmp_path, estep):
     out = tmp_path / "run"
     proc = subprocess.run(
-        [sys.executable, "-m", "pinquad.offline", "--estep", "gtsam", "--cycles", "1",
+        [sys.executable, "-m", "pinquad.offline", "--estep", estep, "--cycles", "1",
          "--sensor", "B", "--mstep", "regressor", "--no-information",
          "--max-iterations", str(CLI_ITERATIONS), "--jobs", "1", "--out", str(out)],
         capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     report = json.loads((out / "report.json").read_text())
-    assert report["source"]["estep"] == "gtsam"
+    assert report["source"]["estep"] == estep
     assert report["em"]["iterations"] >= 1
