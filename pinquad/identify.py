@@ -27,7 +27,7 @@ I_xx, I_yy, I_zz per axis, point estimates only).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -294,9 +294,75 @@ def _d_from_inertia(i_diag: Array) -> Array:
     return np.maximum(d, 1e-6 * half)
 
 
-def regressor_mstep(post: Posterior, obs: Observations, theta: Theta) -> MStepResult:
-    """Joint ML update of mass, diagonal inertia and all noise variances (see module)."""
+@dataclass(frozen=True)
+class QuadraticSums:
+    """Sums over transitions of the M-step's expected quadratic forms (the a, b, c of
+    ``regressor_stats``: a (6, 4, 4), b (6, 4), c (6,)) and the number of transitions n
+    they cover (a float once down-weighted): the complete-data sufficient statistics of
+    mass and inertia, which add over disjoint sets of transitions."""
+
+    a: Array
+    b: Array
+    c: Array
+    n: float
+
+    @classmethod
+    def of(cls, stats) -> QuadraticSums:
+        return cls(np.asarray(stats.a), np.asarray(stats.b), np.asarray(stats.c),
+                   float(stats.n))
+
+    def plus(self, other) -> QuadraticSums:
+        return QuadraticSums(self.a + other.a, self.b + other.b, self.c + other.c,
+                             self.n + float(other.n))
+
+    def scaled(self, weight: float) -> QuadraticSums:
+        return QuadraticSums(weight * self.a, weight * self.b, weight * self.c,
+                             weight * self.n)
+
+
+def remember_leaving(earlier: QuadraticSums | None, post: Posterior, obs: Observations,
+                     n_left: int, gravity: float, memory_s: float) -> QuadraticSums | None:
+    """The online estimator's memory after its window slid by ``n_left`` samples:
+
+        S <- exp(-n_left dt / memory_s) S + (sums over transitions 0 .. n_left-1 of
+                                              ``obs``, with ``post``'s moments)
+
+    ``post``, ``obs``: the previous window's posterior and observations (the last ones
+    in which the leaving samples were smoothed); memory_s [s]: time constant of the
+    forgetting (inf: keep every transition, incremental EM in the sense of Neal and
+    Hinton 1998). Transitions excluded in ``obs`` stay excluded."""
+    n_left = min(n_left, obs.n - 1)
+    if n_left <= 0:
+        return earlier
+    leaving = np.ones(obs.n, dtype=bool)
+    leaving[:n_left] = False
+    left = QuadraticSums.of(expected_quadratics(
+        post, replace(obs, exclude=(obs.exclude if obs.exclude.size else False) | leaving),
+        gravity))
+    if earlier is None:
+        return left
+    return earlier.scaled(math.exp(-n_left * obs.dt / memory_s)).plus(left)
+
+
+def memory_label(memory_s: float | None) -> str:
+    """How the online M-step remembers samples that left the window, in words."""
+    if memory_s is None:
+        return "window only"
+    if math.isinf(memory_s):
+        return "every airborne sample (incremental EM)"
+    return f"forgotten with time constant {memory_s:g} s"
+
+
+def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
+                    earlier: QuadraticSums | None = None) -> MStepResult:
+    """Joint ML update of mass, diagonal inertia and all noise variances (see module).
+
+    ``earlier``: statistics of transitions no longer in ``obs`` (the online estimator's
+    memory of samples that left its window), added to this posterior's for mass and
+    inertia and the wrench noise; the measurement variances stay this posterior's own."""
     stats = expected_quadratics(post, obs, theta.gravity)
+    if earlier is not None:
+        stats = QuadraticSums.of(stats).plus(earlier)
     n = stats.n
     # Mass: force rows x, y cancel against two of the three log m terms; the z row
     # gives m = c_z / b_z (sum F^2 / sum E[a_z] F).

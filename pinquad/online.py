@@ -18,12 +18,24 @@ Each update warm-starts from the previous one (parameters and noise covariances,
 the window's prior from the previous posterior) and runs ``iterations`` EM iterations
 (one E-step and one M-step each; the first update starts with the force-free warm-up
 E-step), so convergence is spread over updates rather than repeated at each.
+
+Memory (``memory_s``, ``--memory``): the E-step sees only the window, but a sample that
+leaves it leaves its M-step statistics behind (``identify.remember_leaving``: the
+expected quadratic forms of its transition, from the last posterior that smoothed it),
+and every M-step adds them to the window's, forgotten with time constant ``memory_s``.
+With the default (inf) the M-step uses every airborne transition so far, each with its
+last smoothed moments: incremental EM (Neal and Hinton 1998), whose estimate at the end
+of the flight draws on as much data as the offline one. A finite time constant tracks
+parameters that change; ``--memory none`` is the paper's window-only scheme, whose
+converged estimate rests on the last 8 s (its I_zz spread for sensor A was 9.9x the
+offline one).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -38,7 +50,7 @@ from estimators.protocol import Posterior
 from pinquad.cli import HelpFormatter
 from pinquad.em import initial_theta
 from pinquad.experiment import SENSOR_INDEX, get_smoother
-from pinquad.identify import regressor_mstep
+from pinquad.identify import QuadraticSums, memory_label, regressor_mstep, remember_leaving
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.sim import ControllerUpdate, FlightSoFar, SimConfig, flight_log, simulate
 from pinquad.sources import SOURCE_CHANNELS
@@ -52,7 +64,10 @@ class OnlineConfig:
     """window: EM window [samples]; every: control steps between updates; iterations:
     EM iterations per update; min_samples: airborne samples before the first update;
     ramp_rate: take-off thrust ramp [fraction of maximum thrust per second];
-    liftoff_height [m]: estimated height that means airborne; thrust_max [N]."""
+    liftoff_height [m]: estimated height that means airborne; thrust_max [N];
+    memory_s [s]: time constant with which the M-step forgets the statistics of samples
+    that have left the window (inf: keeps them all; None: the window alone, as the
+    paper)."""
 
     window: int = 800
     every: int = 4
@@ -61,6 +76,7 @@ class OnlineConfig:
     ramp_rate: float = 0.2
     liftoff_height: float = 0.03
     thrust_max: float = 2.5 * PAPER_VEHICLE.mass * PAPER_VEHICLE.gravity
+    memory_s: float | None = math.inf
     mass0: float = PAPER_INITIAL_MASS
     inertia0: Array = field(default_factory=lambda: PAPER_INITIAL_INERTIA.copy())
     gravity: float = PAPER_VEHICLE.gravity
@@ -88,6 +104,8 @@ class OnlineEstimator:
     history: list[list[float]] = field(default_factory=list)
     latencies: list[float] = field(default_factory=list)
     previous: tuple[int, Posterior] | None = None
+    previous_obs: Observations | None = None
+    earlier: QuadraticSums | None = None
     mass: float = 0.0
     inertia: Array = field(default_factory=lambda: np.eye(3))
     _smoother: object = field(default=None, init=False, repr=False)
@@ -152,13 +170,18 @@ class OnlineEstimator:
             warm_up = theta is None
             if warm_up:
                 theta = initial_theta(obs, self.mass, self.inertia, cfg.gravity)
+            if cfg.memory_s is not None and self.previous is not None:
+                prev_start, prev_post = self.previous
+                self.earlier = remember_leaving(self.earlier, prev_post, self.previous_obs,
+                                                start - prev_start, cfg.gravity, cfg.memory_s)
             post = None
             for it in range(cfg.iterations + (1 if warm_up else 0)):
                 model = (KinematicSSM if warm_up and it == 0 else QuadSSM)(obs, theta)
                 post = self._smooth(model, obs.ys)
-                theta = regressor_mstep(post, obs, theta).theta
+                theta = regressor_mstep(post, obs, theta, self.earlier).theta
             self.theta = _match_meas(theta, obs)
             self.previous = (start, post)
+            self.previous_obs = obs
             self._turn = 1 - self._turn
             self.mass, self.inertia = theta.mass, np.asarray(theta.inertia)
             elapsed = time.perf_counter() - t0
@@ -194,10 +217,11 @@ class OnlineCycle:
     log: object | None = None
 
 
-def run_online_cycle(job: tuple[str, int, int]) -> OnlineCycle:
-    sensor, cycle, seed = job
+def run_online_cycle(job: tuple[str, int, int, float | None]) -> OnlineCycle:
+    """One closed-loop flight; job = (sensor, cycle, base seed, memory_s)."""
+    sensor, cycle, seed, memory_s = job
     flight_seed = seed * 100_000 + SENSOR_INDEX[sensor] * 1000 + cycle
-    cfg = OnlineConfig()
+    cfg = OnlineConfig(memory_s=memory_s)
     sim = SimConfig(sensor=sensor, controller_mass=cfg.mass0,
                     controller_inertia=cfg.inertia0, settle_time=6.0)
     est = OnlineEstimator(cfg, sensor, sim.scenario.dt)
@@ -229,6 +253,20 @@ def measure_update_latency(n_updates: int = 200, window: int = 800) -> Array:
     return np.asarray(est.latencies[5:])
 
 
+def _memory_arg(text: str) -> float | None:
+    """--memory: a positive number of seconds, inf, or none."""
+    if text.strip().lower() == "none":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected seconds (> 0), inf or none, got {text!r}") from None
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f"expected seconds (> 0), inf or none, got {text!r}")
+    return value
+
+
 def main(argv: list[str] | None = None) -> int:
     from pinquad import paper_results as paper
 
@@ -247,6 +285,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--offline-report", type=Path,
                    help="an offline report.json whose ranges the online ranges are compared with "
                    "(default: the newest runs/offline-*/report.json, if any)")
+    p.add_argument("--memory", type=_memory_arg, default=math.inf, metavar="SECONDS",
+                   help="time constant [s] with which the M-step forgets samples that left "
+                        "the window; inf keeps them all (incremental EM), none uses the "
+                        "window alone (the paper's scheme)")
     p.add_argument("--view", action="store_true", help="open the browser view of the run")
     args = p.parse_args(argv)
     if args.log is not None:
@@ -269,7 +311,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 2
     sensors = args.sensor or ["A", "B", "C"]
-    jobs = [(s, i, args.seed) for s in sensors for i in range(args.cycles)]
+    jobs = [(s, i, args.seed, args.memory) for s in sensors for i in range(args.cycles)]
     out_dir = args.out or new_run_dir("online")
     writer = RunWriter(out_dir)
     t0 = time.perf_counter()
@@ -285,7 +327,8 @@ def main(argv: list[str] | None = None) -> int:
                  "or pass --offline-report)")
         print(text)
         print(f"\n{len(results)} closed-loop flights, seeds "
-              f"{min(r.seed for r in results)}..{max(r.seed for r in results)}; {elapsed:.1f} s")
+              f"{min(r.seed for r in results)}..{max(r.seed for r in results)}; {elapsed:.1f} s; "
+              f"M-step memory: {memory_label(args.memory)}")
         report = online_report(results, truth, stats, args, elapsed)
         atomic_write_json(writer.path("report.json"), report)
         writer.path("report.md").write_text("# pinquad online experiment\n\n" + text + "\n")
@@ -445,7 +488,8 @@ def online_report(results: list[OnlineCycle], truth: Array, stats: dict,
         "schema": "pinquad.report/1",
         "source": {"kind": "simulation", "path": None, "sensor": "".join(sorted(stats)),
                    "estep": "rts", "mode": "online", "vehicle": "paper",
-                   "window": OnlineConfig().window, "every": OnlineConfig().every},
+                   "window": OnlineConfig().window, "every": OnlineConfig().every,
+                   "memory": memory_label(args.memory)},
         "estimates": first["estimates"], "truth": first["truth"],
         "em": {"iterations": OnlineConfig().iterations, "loglik": [], "converged": True},
         "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},

@@ -6,6 +6,7 @@ estimator as a stream (no controller feedback): every ``every`` samples, EM
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from dataclasses import replace
@@ -15,7 +16,7 @@ from numpy.typing import NDArray
 
 from pinquad.em import initial_theta
 from pinquad.experiment import get_smoother
-from pinquad.identify import regressor_mstep
+from pinquad.identify import memory_label, regressor_mstep, remember_leaving
 from pinquad.logs import LogFormatError
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
 from pinquad.ssm import KinematicSSM, Observations, QuadSSM
@@ -32,21 +33,28 @@ def window_of(obs: Observations, start: int, stop: int, x0: Array, p0: Array) ->
 
 def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
               window: int = 800, every: int = 4, min_samples: int = 50,
-              iterations: int = 1) -> tuple[Array, Array]:
-    """History (U, 6) [k, t, m, Ixx, Iyy, Izz] and latencies (U,) [s] of the stream."""
+              iterations: int = 1, memory_s: float | None = math.inf
+              ) -> tuple[Array, Array]:
+    """History (U, 6) [k, t, m, Ixx, Iyy, Izz] and latencies (U,) [s] of the stream;
+    memory_s as ``online.OnlineConfig.memory_s``."""
     smoother = get_smoother("rts")
     theta = None
     previous = None
+    earlier = None
     rows, lat = [], []
     for k in range(min_samples - 1, obs.n, every):
         t0 = time.perf_counter()
         start = max(0, k + 1 - window)
         x0, p0 = obs.x0, obs.p0
         if previous is not None:
-            prev_start, post = previous
+            prev_start, post, _ = previous
             j = start - prev_start
             if 0 <= j < post.mean.shape[0]:
                 x0, p0 = post.mean[j], np.maximum(np.diag(post.cov[j]), 1e-10)
+        if memory_s is not None and previous is not None:
+            prev_start, prev_post, prev_win = previous
+            earlier = remember_leaving(earlier, prev_post, prev_win, start - prev_start,
+                                       gravity, memory_s)
         win = window_of(obs, start, k + 1, x0, p0)
         warm_up = theta is None
         if warm_up:
@@ -54,8 +62,8 @@ def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
         for it in range(iterations + (1 if warm_up else 0)):
             model = (KinematicSSM if warm_up and it == 0 else QuadSSM)(win, theta)
             post = smoother(model, win.ys)
-            theta = regressor_mstep(post, win, theta).theta
-        previous = (start, post)
+            theta = regressor_mstep(post, win, theta, earlier).theta
+        previous = (start, post, win)
         lat.append(time.perf_counter() - t0)
         rows.append([k, obs.t[k], theta.mass, *np.diag(theta.inertia)])
     return np.asarray(rows), np.asarray(lat)
@@ -87,13 +95,13 @@ def replay(args: argparse.Namespace) -> int:
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    hist, lat = stream_em(obs, mass0, inertia0, gravity)
+    hist, lat = stream_em(obs, mass0, inertia0, gravity, memory_s=args.memory)
     if hist.size == 0:
         print(f"error: {args.log}: too short to replay (fewer than 50 samples)", file=sys.stderr)
         return 2
     print(f"replayed {obs.n} samples of {args.log} in {hist.shape[0]} updates "
-          f"(window 800, every 4); update p50 {1e3 * np.median(lat):.1f} ms, "
-          f"p99 {1e3 * np.percentile(lat, 99):.1f} ms")
+          f"(window 800, every 4, M-step memory: {memory_label(args.memory)}); "
+          f"update p50 {1e3 * np.median(lat):.1f} ms, p99 {1e3 * np.percentile(lat, 99):.1f} ms")
     print("| t [s] | mass [kg] | I_xx | I_yy | I_zz |\n|---|---|---|---|---|")
     for i in np.unique(np.linspace(0, hist.shape[0] - 1, 12).astype(int)):
         r = hist[i]
@@ -106,7 +114,7 @@ def replay(args: argparse.Namespace) -> int:
             atomic_write_json(writer.path("report.json"), {
                 "schema": "pinquad.report/1",
                 "source": {"kind": "log", "path": str(args.log), "mode": "online-replay",
-                           "estep": "rts"},
+                           "estep": "rts", "memory": memory_label(args.memory)},
                 "estimates": {"mass": float(hist[-1, 2]), "inertia": np.diag(hist[-1, 3:6]).tolist(),
                               "com": None},
                 "em": {"iterations": int(hist.shape[0]), "loglik": [], "converged": False},

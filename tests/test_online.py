@@ -1,0 +1,117 @@
+"""The online estimator (issue 5): the memory of samples that left the window adds up,
+one closed-loop flight from the paper's start lifts off, passes its waypoints and
+converges, and the command line (closed loop and ``--log`` replay) writes its report.
+
+The statistics over 20 seeded cycles per source are the command's
+(``python -m pinquad.online``), not a test's."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pinquad import online
+from pinquad.fast_smoother import smooth_quad
+from pinquad.identify import QuadraticSums, expected_quadratics, remember_leaving
+from pinquad.logs import write_log
+from pinquad.params import PAPER_VEHICLE
+from pinquad.sim import SimConfig, flight_log, simulate
+from pinquad.sources import observations
+from pinquad.ssm import NoiseModel, QuadSSM, Theta
+
+ROOT = Path(__file__).resolve().parents[1]
+TRUTH = np.array([PAPER_VEHICLE.mass, *PAPER_VEHICLE.inertia_diag])
+
+
+def _posterior_of_a_flight():
+    log = flight_log(simulate(SimConfig(sensor="B"), np.random.default_rng(5))).slice(100, 500)
+    obs = observations(log, "B")
+    noise = NoiseModel(wrench=np.array([1e-8, 1e-8, 4e-6, 4e-10, 4e-10, 4e-10]),
+                       q_kin=np.full(6, 1e-12), meas=np.full(12, 1e-4))
+    theta = Theta(PAPER_VEHICLE.mass, np.diag(PAPER_VEHICLE.inertia_diag), noise,
+                  PAPER_VEHICLE.gravity)
+    return obs, smooth_quad(QuadSSM(obs, theta), obs.ys)
+
+
+def test_remembered_statistics_add_up_to_the_whole_window():
+    """Folding in the first n transitions and then the next n' (no forgetting) gives the
+    statistics of those n + n' transitions, and forgetting scales what was remembered by
+    exp(-n dt / memory_s)."""
+    obs, post = _posterior_of_a_flight()
+    g = PAPER_VEHICLE.gravity
+    first = remember_leaving(None, post, obs, 150, g, math.inf)
+    assert first is not None and first.n == 150
+    shifted = replace(obs, exclude=np.r_[np.ones(150, bool), np.zeros(obs.n - 150, bool)])
+    both = first.plus(QuadraticSums.of(expected_quadratics(post, shifted, g)))
+    whole = QuadraticSums.of(expected_quadratics(post, obs, g))
+    assert both.n == whole.n == obs.n - 1
+    for name in ("a", "b", "c"):
+        np.testing.assert_allclose(getattr(both, name), getattr(whole, name), rtol=1e-10,
+                                   atol=1e-14 * float(np.abs(getattr(whole, name)).max()))
+    again = remember_leaving(first, post, obs, 100, g, memory_s=2.0)
+    decay = math.exp(-100 * obs.dt / 2.0)
+    assert again.n == pytest.approx(decay * 150 + 100)
+    fresh = remember_leaving(None, post, obs, 100, g, math.inf)
+    np.testing.assert_allclose(again.c, decay * first.c + fresh.c, rtol=1e-12)
+    assert remember_leaving(first, post, obs, 0, g, math.inf) is first
+
+
+@pytest.mark.parametrize("memory_s", [math.inf, None])
+def test_one_closed_loop_flight_from_the_papers_start(memory_s):
+    """Sensor A, the source whose window-only I_zz was the widest: from m0 = 1 g and the
+    paper's I0 the vehicle lifts off, passes every waypoint within 0.15 m and does not
+    crash. With the default memory the converged estimate (median of the last 10 % of
+    updates) is within 0.5 % (mass) and 5 % (inertia) of the truth; window-only (the
+    paper's scheme) only the mass bound is asserted: this seed's I_zz is 11 % off."""
+    cycle = online.run_online_cycle(("A", 1, 0, memory_s))
+    assert cycle.lifted_off and not cycle.crashed
+    assert cycle.miss.max() <= 0.15
+    conv = online.converged_estimate(cycle.history)
+    error = np.abs(conv - TRUTH) / TRUTH
+    assert error[0] <= 0.005
+    if memory_s is not None:
+        assert np.all(error[1:] <= 0.05), error
+
+
+def test_online_command_and_replay(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "pinquad.online", "--sensor", "C", "--cycles", "1", "--jobs",
+         "1", "--memory", "30", "--out", str(out)],
+        capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "M-step memory: forgotten with time constant 30 s" in proc.stdout
+    report = json.loads((out / "report.json").read_text())
+    assert report["source"]["mode"] == "online"
+    assert report["source"]["memory"] == "forgotten with time constant 30 s"
+    (cyc,) = report["cycles"]
+    assert cyc["sensor"] == "C" and len(cyc["history"]["mass"]) > 100
+    assert abs(cyc["estimates"]["mass"] - TRUTH[0]) <= 0.005 * TRUTH[0]
+
+    log = flight_log(simulate(SimConfig(sensor="B"), np.random.default_rng(8)))
+    path = write_log(log, tmp_path / "flight.csv")
+    replay = subprocess.run(
+        [sys.executable, "-m", "pinquad.online", "--log", str(path), "--out",
+         str(tmp_path / "replay")],
+        capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert replay.returncode == 0, replay.stdout + replay.stderr
+    assert "M-step memory: every airborne sample (incremental EM)" in replay.stdout
+    rep = json.loads((tmp_path / "replay" / "report.json").read_text())
+    assert rep["source"]["mode"] == "online-replay"
+    assert abs(rep["estimates"]["mass"] - TRUTH[0]) <= 0.005 * TRUTH[0]
+
+
+@pytest.mark.parametrize("value", ["0", "-3", "soon"])
+def test_bad_memory_is_a_clear_error(value):
+    proc = subprocess.run([sys.executable, "-m", "pinquad.online", "--memory", value],
+                          capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert proc.returncode == 2
+    assert "expected seconds (> 0), inf or none" in proc.stderr
+    assert "Traceback" not in proc.stderr
