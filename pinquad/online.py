@@ -549,6 +549,27 @@ def _online_figures(results: list[OnlineCycle], truth: Array, figs: Path) -> Non
     fig.savefig(figs / "online_history.png", dpi=90)
     plt.close(fig)
 
+    # The same histories as errors, zoomed to the acceptance bands: the start (m0 = 1 g,
+    # 99 % off) would otherwise hide the converged part.
+    bands = [0.5, 5.0, 5.0, 5.0]
+    fig, axes = plt.subplots(len(sensors), 4, figsize=(16, 3.2 * len(sensors)), squeeze=False)
+    for i, s in enumerate(sensors):
+        for r in (r for r in results if r.sensor == s):
+            err = 100.0 * (r.history[:, 2:6] / truth - 1.0)
+            for j in range(4):
+                axes[i, j].plot(np.arange(err.shape[0]), err[:, j], lw=0.7, alpha=0.7)
+        for j in range(4):
+            ax = axes[i, j]
+            ax.axhline(0.0, color="red", lw=1.5)
+            for sign in (-1.0, 1.0):
+                ax.axhline(sign * bands[j], color="black", ls=":", lw=1.0)
+            ax.set_ylim(-2.0 * bands[j], 2.0 * bands[j])
+            ax.set_title(f"sensor {s}: {names[j].split(' [')[0]} error [%] (band +-{bands[j]:g})")
+            ax.set_xlabel("online update")
+    fig.tight_layout()
+    fig.savefig(figs / "online_error.png", dpi=90)
+    plt.close(fig)
+
 
 if __name__ == "__main__":
     raise SystemExit(main())
