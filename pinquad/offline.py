@@ -40,8 +40,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "simulation; B-like full use of what a log contains for --log)")
     p.add_argument("--estep", choices=["rts", "ieks", "gtsam"], default="rts",
                    help="E-step smoother: EKF + RTS (compiled); ieks, EKF + RTS iterated to "
-                        "the MAP trajectory (generic Python, ~8x slower); or gtsam, the GTSAM "
-                        "factor-graph batch smoother (the same MAP)")
+                        "the MAP trajectory (generic Python: 10 minutes for one sensor-A EM run); or "
+                        "gtsam, the GTSAM factor-graph batch smoother (the same MAP; 80 s for "
+                        "one sensor-B EM run)")
     p.add_argument("--mstep", choices=["regressor", "paper", "both", "full"], default="both",
                    help="M-step(s) to run on the same logs; full (with --log, CSV or "
                         "Parquet logs with thrust and torques): all ten inertial parameters "
