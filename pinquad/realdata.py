@@ -1044,7 +1044,8 @@ class RealIdentification:
     exclusion notes; notes: other notes; seconds: wall time; band: the torque band [Hz];
     rotor_inertia: J_r [kg m^2] used (fitted or fixed; NaN: none); band_stats: the
     band-passed regression at the final posterior (``keep_band_stats``); rotor_source:
-    how J_r was obtained, in words (set by the table).
+    how J_r was obtained, in words (set by the table); quasi_static_mass [kg]: the
+    model-free check :func:`quasi_static_mass` on the same transitions.
     """
 
     name: str
@@ -1070,6 +1071,7 @@ class RealIdentification:
     rotor_inertia: float = float("nan")
     band_stats: BandStats | None = None
     rotor_source: str = ""
+    quasi_static_mass: float = float("nan")
 
     @property
     def params(self) -> Array:
@@ -1080,6 +1082,34 @@ class RealIdentification:
     def mass_rel_error(self) -> float:
         """m / 34.7 g - 1."""
         return self.mass / SCALE_MASS - 1.0
+
+
+def quasi_static_mass(real: RealObservations) -> float:
+    """The mass [kg] that balances the flight's mean vertical force, with no estimator:
+
+        m_qs = sum_k F_k R_k,zz / sum_k (g + a_z,k)
+
+    over the used transitions k, with F_k = kf sum_i omega_i^2 the thrust [N], R_k,zz the
+    vertical component of the body z axis (motion-capture attitude) and
+    a_z,k = (v_z,k+1 - v_z,k) / dt [m/s^2] from the logged vertical velocity (rows without
+    it skipped; R_k,zz interpolated in time where the pose is missing). Over a flight
+    these differences telescope to (end - start) velocity, so
+    m_qs says what the rotor speeds and kf imply for the mass whatever the dynamic model
+    (any net vertical force that is not kf omega^2, such as ground effect, shifts it)."""
+    from pinquad.conventions import rotation_from_euler
+
+    obs, log = real.obs, real.log
+    use = np.flatnonzero(~obs.exclude[: obs.n - 1])
+    rzz = rotation_from_euler(log.euler[use])[:, 2, 2]
+    seen = np.isfinite(rzz)
+    if seen.any() and not seen.all():
+        rzz = np.interp(obs.t[use], obs.t[use][seen], rzz[seen])
+    az = (log.velocity[use + 1, 2] - log.velocity[use, 2]) / obs.dt
+    ok = np.isfinite(rzz) & np.isfinite(az) & np.isfinite(obs.inputs[use, 0])
+    if not ok.any():
+        return float("nan")
+    return float(np.sum(obs.inputs[use, 0][ok] * rzz[ok])
+                 / np.sum(log.meta.gravity + az[ok]))
 
 
 def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
@@ -1151,7 +1181,8 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         seconds=time.perf_counter() - t0, band=band,
         rotor_inertia=float(getattr(theta, "rotor_inertia", None) or real.options.rotor_inertia
                             or float("nan")),
-        band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None)
+        band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None,
+        quasi_static_mass=quasi_static_mass(real))
     return out, res.posterior, theta
 
 
@@ -1386,6 +1417,14 @@ def format_table(results: Sequence[RealIdentification],
               f"over {masses.size} logs; |error| <= 1.5 % in {int(np.sum(np.abs(rel) <= 0.015))} "
               f"of {masses.size}; worst {100 * rel[np.argmax(np.abs(rel))]:+.2f} % "
               f"({results[int(np.argmax(np.abs(rel)))].name})"]
+    qs = np.array([r.quasi_static_mass for r in results])
+    if np.isfinite(qs).any():
+        lines.append(
+            "model-free check, mass that balances the mean vertical thrust (kf sum omega^2 "
+            "along the vertical over g + the mean vertical acceleration, the same "
+            "transitions, no EM): " + ", ".join(
+                f"{r.name} {1e3 * q:.2f} g ({100 * (q / SCALE_MASS - 1.0):+.1f} %)"
+                for r, q in zip(results, qs, strict=True) if np.isfinite(q)))
     yaw = [r for r in results if r.name in YAW_FLIGHTS]
     if len(yaw) >= 2:
         izz = np.array([r.inertia[2] for r in yaw])

@@ -28,6 +28,7 @@ from pinquad.realdata import (
     default_guess,
     identify_real,
     load_real,
+    quasi_static_mass,
     thrust_coefficient,
 )
 
@@ -112,11 +113,21 @@ def test_resampling_to_100hz_and_ground_contact():
     assert obs.exclude[:100].all()
     assert not obs.exclude[140:].any()
     assert any("ground contact" in line for line in real.excluded)
+    # the model-free mass check: the used transitions start in the 0.5 m/s climb and end
+    # in the hover, a mean vertical acceleration of -0.5 m/s over their duration; the
+    # thrust is constant after t = 1 s (M1's +-100 rpm sine averages out)
+    used = ~obs.exclude[: obs.n - 1]
+    assert 1.0 < obs.t[np.argmax(used)] < 1.98  # the span starts in the climb
+    mean_acc = -0.5 / (used.sum() * obs.dt)
+    expected = thrust[raw.log.t > 1.0].mean() / (9.81 + mean_acc)
+    assert quasi_static_mass(real) == pytest.approx(expected, rel=2e-3)
 
 
 def test_clean_log_mass_within_1p5_percent_of_the_scale():
     ident = identified("jana00")
     assert abs(ident.mass / SCALE_MASS - 1.0) < 0.015, ident.mass
+    # the model-free check agrees: the rotor speeds and kf alone imply the scale's mass
+    assert abs(ident.quasi_static_mass / SCALE_MASS - 1.0) < 0.015, ident.quasi_static_mass
     # The scale is inside two total standard errors, which carry kf's ~5 %.
     assert abs(ident.mass - SCALE_MASS) < 2.0 * ident.se_total[0]
     assert ident.se_total[0] > 0.04 * ident.mass > 10 * ident.se_jack[0]
