@@ -14,12 +14,13 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from estimators.protocol import Posterior
 from pinquad.em import initial_theta
 from pinquad.experiment import get_smoother
 from pinquad.identify import memory_label, regressor_mstep, remember_leaving
 from pinquad.logs import LogFormatError
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
-from pinquad.ssm import KinematicSSM, Observations, QuadSSM
+from pinquad.ssm import KinematicSSM, Observations, QuadSSM, Theta
 
 Array = NDArray[np.float64]
 
@@ -28,15 +29,41 @@ def window_of(obs: Observations, start: int, stop: int, x0: Array, p0: Array) ->
     """Rows start..stop-1 of the observations with a given prior."""
     return replace(obs, t=obs.t[start:stop], inputs=obs.inputs[start:stop],
                    ys=obs.ys[start:stop], x0=x0, p0=p0,
-                   exclude=obs.exclude[start:stop] if obs.exclude.size else obs.exclude)
+                   exclude=obs.exclude[start:stop] if obs.exclude.size else obs.exclude,
+                   resets=obs.resets[start:stop] if obs.resets.size else obs.resets)
+
+
+def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] | None,
+                    start: int, win: Observations, rotor_acc: Array) -> Theta:
+    """A measured flight's parameters moved onto the next window: the nuisance moment
+    tau_off = z moment_coef^T + [0, 0, J_r rotor_acc] (``realdata.RealMStep``) evaluated
+    on the new window's rows, with the features z from the previous posterior's means
+    (its last row repeated for the rows it has not seen yet)."""
+    from pinquad.realdata import RealTheta, torque_features
+
+    if not isinstance(theta, RealTheta) or theta.moment_coef is None or previous is None:
+        return theta
+    prev_start, post, _ = previous
+    guess = post.mean[start - prev_start:]
+    guess = np.vstack([guess, np.repeat(guess[-1:], win.n - guess.shape[0], axis=0)])
+    offset = torque_features(guess, win.inputs[:, 0]) @ theta.moment_coef.T
+    if theta.rotor_inertia is not None:
+        offset[:, 2] += theta.rotor_inertia * rotor_acc
+    return replace(theta, torque_offset=offset)
 
 
 def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
               window: int = 800, every: int = 4, min_samples: int = 50,
-              iterations: int = 1, memory_s: float | None = math.inf
-              ) -> tuple[Array, Array]:
+              iterations: int = 1, memory_s: float | None = math.inf,
+              rotor_acc: Array | None = None) -> tuple[Array, Array]:
     """History (U, 6) [k, t, m, Ixx, Iyy, Izz] and latencies (U,) [s] of the stream;
-    memory_s as ``online.OnlineConfig.memory_s``."""
+    memory_s as ``online.OnlineConfig.memory_s``.
+
+    rotor_acc (N,) [rad/s^2]: given for a measured flight (``RealObservations``): each
+    window then gets the measured-flight M-step (``realdata.RealMStep``: band-passed
+    inertia, nuisance body moment and rotor inertia, fed back into the next window's
+    E-step as a torque offset), and the memory applies to the mass only (the inertia's
+    band-passed sums do not add across windows)."""
     smoother = get_smoother("rts")
     theta = None
     previous = None
@@ -59,10 +86,19 @@ def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
         warm_up = theta is None
         if warm_up:
             theta = initial_theta(win, mass0, inertia0, gravity)
+        mstep = regressor_mstep
+        if rotor_acc is not None:
+            from pinquad.realdata import RealMStep, corrected
+
+            theta = _measured_theta(theta, previous, start, win, rotor_acc[start:k + 1])
+            mstep = RealMStep(rotor_acc=rotor_acc[start:k + 1])
         for it in range(iterations + (1 if warm_up else 0)):
-            model = (KinematicSSM if warm_up and it == 0 else QuadSSM)(win, theta)
+            if warm_up and it == 0:
+                model = KinematicSSM(win, theta)
+            else:
+                model = QuadSSM(win if rotor_acc is None else corrected(win, theta), theta)
             post = smoother(model, win.ys)
-            theta = regressor_mstep(post, win, theta, earlier).theta
+            theta = mstep(post, win, theta, earlier).theta
         previous = (start, post, win)
         lat.append(time.perf_counter() - t0)
         rows.append([k, obs.t[k], theta.mass, *np.diag(theta.inertia)])
@@ -82,9 +118,10 @@ def replay(args: argparse.Namespace) -> int:
             from pinquad.sdlog import read_sdflight
 
             real = build_observations(raw_from_sdflight(read_sdflight(path)))
-            obs, gravity = real.obs, 9.81
+            obs, gravity, rotor_acc = real.obs, real.log.meta.gravity, real.rotor_acc
             mass0, inertia0, _ = default_guess("crazyflie21")
         else:
+            rotor_acc = None
             log = read_log(path)
             sensor = (args.sensor or ["B" if not np.isnan(log.euler).all() else "C"])[0]
             obs = observations(log, sensor)
@@ -95,12 +132,19 @@ def replay(args: argparse.Namespace) -> int:
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    hist, lat = stream_em(obs, mass0, inertia0, gravity, memory_s=args.memory)
+    hist, lat = stream_em(obs, mass0, inertia0, gravity, memory_s=args.memory,
+                          rotor_acc=rotor_acc)
     if hist.size == 0:
         print(f"error: {args.log}: too short to replay (fewer than 50 samples)", file=sys.stderr)
         return 2
+    memory = memory_label(args.memory)
+    mstep = "regressor"
+    if rotor_acc is not None:
+        mstep = "measured-flight (realdata.RealMStep)"
+        if args.memory is not None:
+            memory = f"mass: {memory}; inertia: each window's band-passed fit alone"
     print(f"replayed {obs.n} samples of {args.log} in {hist.shape[0]} updates "
-          f"(window 800, every 4, M-step memory: {memory_label(args.memory)}); "
+          f"(window 800, every 4, {mstep} M-step, memory: {memory}); "
           f"update p50 {1e3 * np.median(lat):.1f} ms, p99 {1e3 * np.percentile(lat, 99):.1f} ms")
     print("| t [s] | mass [kg] | I_xx | I_yy | I_zz |\n|---|---|---|---|---|")
     for i in np.unique(np.linspace(0, hist.shape[0] - 1, 12).astype(int)):
@@ -114,13 +158,13 @@ def replay(args: argparse.Namespace) -> int:
             atomic_write_json(writer.path("report.json"), {
                 "schema": "pinquad.report/1",
                 "source": {"kind": "log", "path": str(args.log), "mode": "online-replay",
-                           "estep": "rts", "memory": memory_label(args.memory)},
+                           "estep": "rts", "mstep": mstep, "memory": memory},
                 "estimates": {"mass": float(hist[-1, 2]), "inertia": np.diag(hist[-1, 3:6]).tolist(),
                               "com": None},
                 "em": {"iterations": int(hist.shape[0]), "loglik": [], "converged": False},
                 "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
                               "validation": "not run in replay"},
-                "cycles": [{"sensor": "log", "mstep": "regressor", "seed": None,
+                "cycles": [{"sensor": "log", "mstep": mstep, "seed": None,
                             "estimates": {"mass": float(hist[-1, 2]),
                                           "inertia": np.diag(hist[-1, 3:6]).tolist()},
                             "history": {"t": hist[:, 1].tolist(), "mass": hist[:, 2].tolist(),

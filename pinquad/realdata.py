@@ -963,12 +963,16 @@ class RealMStep:
         return BandStats(x=bp(y.reshape(n_tr, 9)).reshape(n_tr, 3, 3)[rows],
                          t=bp(tau)[rows], z=bp(z)[rows], rows=rows, e=e)
 
-    def __call__(self, post, obs: Observations, theta: Theta):
-        from pinquad.identify import MStepResult, regressor_stats, update_noise
+    def __call__(self, post, obs: Observations, theta: Theta, earlier=None):
+        """The update; ``earlier`` (``identify.QuadraticSums``): statistics of transitions
+        no longer in ``obs`` (the online stream's memory), added to the mass row's."""
+        from pinquad.identify import MStepResult, QuadraticSums, regressor_stats, update_noise
 
         g = theta.gravity
         stats = regressor_stats(post, obs, g)
-        mass = float(stats.c[2] / stats.b[2, 0]) if stats.b[2, 0] > 0 else theta.mass
+        mass_stats = stats if earlier is None else QuadraticSums.of(stats).plus(earlier)
+        mass = (float(mass_stats.c[2] / mass_stats.b[2, 0]) if mass_stats.b[2, 0] > 0
+                else theta.mass)
         band = self.band_stats(post, obs, g)
         a, b, c = band.quadratic()
         inertia, objective = _profiled_inertia(a, b, c, np.diag(theta.inertia))

@@ -102,7 +102,7 @@ def test_online_command_and_replay(tmp_path):
          str(tmp_path / "replay")],
         capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert replay.returncode == 0, replay.stdout + replay.stderr
-    assert "M-step memory: every airborne sample (incremental EM)" in replay.stdout
+    assert "regressor M-step, memory: every airborne sample (incremental EM)" in replay.stdout
     rep = json.loads((tmp_path / "replay" / "report.json").read_text())
     assert rep["source"]["mode"] == "online-replay"
     assert abs(rep["estimates"]["mass"] - TRUTH[0]) <= 0.005 * TRUTH[0]
@@ -115,3 +115,23 @@ def test_bad_memory_is_a_clear_error(value):
     assert proc.returncode == 2
     assert "expected seconds (> 0), inf or none" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_replay_of_a_measured_flight_converges_to_the_offline_answer():
+    """jana02 (7.7 s figure-8, ``../shared/data``; fails if the data are missing) streamed
+    through the online estimator with the measured-flight M-step: the last update's mass
+    is within 1.5 % of the scale and its roll / pitch inertia within 10 % of the offline
+    identification of the same log (``python -m pinquad.realdata``: 18.7, 16.9 e-6)."""
+    from pinquad.online_replay import stream_em
+    from pinquad.realdata import SCALE_MASS, default_guess, identify_real, load_real
+
+    flight = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushed" / "jana02"
+    assert flight.is_file(), f"the Crazyflie data are missing: expected {flight}"
+    real = load_real(flight)
+    mass0, inertia0, _ = default_guess("crazyflie21")
+    hist, lat = stream_em(real.obs, mass0, inertia0, real.log.meta.gravity,
+                          rotor_acc=real.rotor_acc)
+    assert hist.shape[0] > 150 and np.all(lat < 1.0)
+    assert abs(hist[-1, 2] / SCALE_MASS - 1.0) < 0.015
+    offline, _, _ = identify_real(real, mass0, inertia0, information=False)
+    np.testing.assert_allclose(hist[-1, 3:5], offline.inertia[:2], rtol=0.10)
