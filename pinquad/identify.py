@@ -344,15 +344,6 @@ def remember_leaving(earlier: QuadraticSums | None, post: Posterior, obs: Observ
     return earlier.scaled(math.exp(-n_left * obs.dt / memory_s)).plus(left)
 
 
-def memory_label(memory_s: float | None) -> str:
-    """How the online M-step remembers samples that left the window, in words."""
-    if memory_s is None:
-        return "window only"
-    if math.isinf(memory_s):
-        return "every airborne sample (incremental EM)"
-    return f"forgotten with time constant {memory_s:g} s"
-
-
 def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
                     earlier: QuadraticSums | None = None) -> MStepResult:
     """Joint ML update of mass, diagonal inertia and all noise variances (see module).

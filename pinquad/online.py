@@ -47,10 +47,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.cli import HelpFormatter
+from pinquad.cli import HelpFormatter, memory_arg, memory_label
 from pinquad.em import initial_theta
 from pinquad.experiment import SENSOR_INDEX, get_smoother
-from pinquad.identify import QuadraticSums, memory_label, regressor_mstep, remember_leaving
+from pinquad.identify import QuadraticSums, regressor_mstep, remember_leaving
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.sim import ControllerUpdate, FlightSoFar, SimConfig, flight_log, simulate
 from pinquad.sources import SOURCE_CHANNELS
@@ -103,8 +103,7 @@ class OnlineEstimator:
     on_ground_since: int = 0
     history: list[list[float]] = field(default_factory=list)
     latencies: list[float] = field(default_factory=list)
-    previous: tuple[int, Posterior] | None = None
-    previous_obs: Observations | None = None
+    previous: tuple[int, Posterior, Observations] | None = None
     earlier: QuadraticSums | None = None
     mass: float = 0.0
     inertia: Array = field(default_factory=lambda: np.eye(3))
@@ -142,7 +141,7 @@ class OnlineEstimator:
         x0 = buf.nav_state[start].copy()
         p0 = np.full(12, 0.05**2)
         if self.previous is not None:
-            prev_start, post = self.previous
+            prev_start, post, _ = self.previous
             j = start - prev_start
             if 0 <= j < post.mean.shape[0]:
                 x0 = post.mean[j].copy()
@@ -171,8 +170,8 @@ class OnlineEstimator:
             if warm_up:
                 theta = initial_theta(obs, self.mass, self.inertia, cfg.gravity)
             if cfg.memory_s is not None and self.previous is not None:
-                prev_start, prev_post = self.previous
-                self.earlier = remember_leaving(self.earlier, prev_post, self.previous_obs,
+                prev_start, prev_post, prev_obs = self.previous
+                self.earlier = remember_leaving(self.earlier, prev_post, prev_obs,
                                                 start - prev_start, cfg.gravity, cfg.memory_s)
             post = None
             for it in range(cfg.iterations + (1 if warm_up else 0)):
@@ -180,8 +179,7 @@ class OnlineEstimator:
                 post = self._smooth(model, obs.ys)
                 theta = regressor_mstep(post, obs, theta, self.earlier).theta
             self.theta = _match_meas(theta, obs)
-            self.previous = (start, post)
-            self.previous_obs = obs
+            self.previous = (start, post, obs)
             self._turn = 1 - self._turn
             self.mass, self.inertia = theta.mass, np.asarray(theta.inertia)
             elapsed = time.perf_counter() - t0
@@ -253,20 +251,6 @@ def measure_update_latency(n_updates: int = 200, window: int = 800) -> Array:
     return np.asarray(est.latencies[5:])
 
 
-def _memory_arg(text: str) -> float | None:
-    """--memory: a positive number of seconds, inf, or none."""
-    if text.strip().lower() == "none":
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected seconds (> 0), inf or none, got {text!r}") from None
-    if not value > 0.0:
-        raise argparse.ArgumentTypeError(f"expected seconds (> 0), inf or none, got {text!r}")
-    return value
-
-
 def main(argv: list[str] | None = None) -> int:
     from pinquad import paper_results as paper
 
@@ -285,7 +269,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--offline-report", type=Path,
                    help="an offline report.json whose ranges the online ranges are compared with "
                    "(default: the newest runs/offline-*/report.json, if any)")
-    p.add_argument("--memory", type=_memory_arg, default=math.inf, metavar="SECONDS",
+    p.add_argument("--memory", type=memory_arg, default=math.inf, metavar="SECONDS",
                    help="time constant [s] with which the M-step forgets samples that left "
                         "the window; inf keeps them all (incremental EM), none uses the "
                         "window alone (the paper's scheme)")

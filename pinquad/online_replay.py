@@ -15,9 +15,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.cli import memory_label
 from pinquad.em import initial_theta
 from pinquad.experiment import get_smoother
-from pinquad.identify import memory_label, regressor_mstep, remember_leaving
+from pinquad.identify import regressor_mstep, remember_leaving
 from pinquad.logs import LogFormatError
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
 from pinquad.ssm import KinematicSSM, Observations, QuadSSM, Theta
