@@ -54,7 +54,8 @@ from pinquad.identify import QuadraticSums, regressor_mstep, remember_leaving
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.sim import ControllerUpdate, FlightSoFar, SimConfig, flight_log, simulate
 from pinquad.sources import SOURCE_CHANNELS
-from pinquad.ssm import KinematicSSM, Observations, QuadSSM, Theta
+from pinquad.ssm import Observations, QuadSSM, Theta
+from pinquad.window import window_em, window_prior
 
 Array = NDArray[np.float64]
 
@@ -138,14 +139,8 @@ class OnlineEstimator:
                       "gyro": buf.gyro}
             ys = np.column_stack([blocks[c][start:stop] for c in channels])
         inputs = np.column_stack([buf.thrust[start:stop], buf.torque[start:stop]])
-        x0 = buf.nav_state[start].copy()
-        p0 = np.full(12, 0.05**2)
-        if self.previous is not None:
-            prev_start, post, _ = self.previous
-            j = start - prev_start
-            if 0 <= j < post.mean.shape[0]:
-                x0 = post.mean[j].copy()
-                p0 = np.maximum(np.diag(post.cov[j]), 1e-10)
+        x0, p0 = window_prior(self.previous, start, buf.nav_state[start].copy(),
+                              np.full(12, 0.05**2))
         return Observations(t=buf.t[start:stop], dt=self.dt, inputs=inputs, channels=channels,
                             ys=ys, x0=x0, p0=p0, exclude=np.zeros(stop - start, dtype=bool))
 
@@ -173,11 +168,8 @@ class OnlineEstimator:
                 prev_start, prev_post, prev_obs = self.previous
                 self.earlier = remember_leaving(self.earlier, prev_post, prev_obs,
                                                 start - prev_start, cfg.gravity, cfg.memory_s)
-            post = None
-            for it in range(cfg.iterations + (1 if warm_up else 0)):
-                model = (KinematicSSM if warm_up and it == 0 else QuadSSM)(obs, theta)
-                post = self._smooth(model, obs.ys)
-                theta = regressor_mstep(post, obs, theta, self.earlier).theta
+            theta, post = window_em(obs, theta, warm_up, cfg.iterations, self._smooth,
+                                    regressor_mstep, self.earlier)
             self.theta = _match_meas(theta, obs)
             self.previous = (start, post, obs)
             self._turn = 1 - self._turn

@@ -21,7 +21,8 @@ from pinquad.experiment import get_smoother
 from pinquad.identify import regressor_mstep, remember_leaving
 from pinquad.logs import LogFormatError
 from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
-from pinquad.ssm import KinematicSSM, Observations, QuadSSM, Theta
+from pinquad.ssm import Observations, QuadSSM, Theta
+from pinquad.window import window_em, window_prior
 
 Array = NDArray[np.float64]
 
@@ -53,6 +54,14 @@ def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] 
     return replace(theta, torque_offset=offset)
 
 
+def _measured_model(win: Observations, theta: Theta) -> QuadSSM:
+    """The E-step model of a measured flight's window: the quadcopter with the nuisance
+    moment of ``theta`` added to the rotor torques (``realdata.corrected``)."""
+    from pinquad.realdata import corrected
+
+    return QuadSSM(corrected(win, theta), theta)
+
+
 def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
               window: int = 800, every: int = 4, min_samples: int = 50,
               iterations: int = 1, memory_s: float | None = math.inf,
@@ -73,12 +82,7 @@ def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
     for k in range(min_samples - 1, obs.n, every):
         t0 = time.perf_counter()
         start = max(0, k + 1 - window)
-        x0, p0 = obs.x0, obs.p0
-        if previous is not None:
-            prev_start, post, _ = previous
-            j = start - prev_start
-            if 0 <= j < post.mean.shape[0]:
-                x0, p0 = post.mean[j], np.maximum(np.diag(post.cov[j]), 1e-10)
+        x0, p0 = window_prior(previous, start, obs.x0, obs.p0)
         if memory_s is not None and previous is not None:
             prev_start, prev_post, prev_win = previous
             earlier = remember_leaving(earlier, prev_post, prev_win, start - prev_start,
@@ -87,19 +91,14 @@ def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
         warm_up = theta is None
         if warm_up:
             theta = initial_theta(win, mass0, inertia0, gravity)
-        mstep = regressor_mstep
+        mstep, model_of = regressor_mstep, QuadSSM
         if rotor_acc is not None:
-            from pinquad.realdata import RealMStep, corrected
+            from pinquad.realdata import RealMStep
 
             theta = _measured_theta(theta, previous, start, win, rotor_acc[start:k + 1])
-            mstep = RealMStep(rotor_acc=rotor_acc[start:k + 1])
-        for it in range(iterations + (1 if warm_up else 0)):
-            if warm_up and it == 0:
-                model = KinematicSSM(win, theta)
-            else:
-                model = QuadSSM(win if rotor_acc is None else corrected(win, theta), theta)
-            post = smoother(model, win.ys)
-            theta = mstep(post, win, theta, earlier).theta
+            mstep, model_of = RealMStep(rotor_acc=rotor_acc[start:k + 1]), _measured_model
+        theta, post = window_em(win, theta, warm_up, iterations, smoother, mstep, earlier,
+                                model_of)
         previous = (start, post, win)
         lat.append(time.perf_counter() - t0)
         rows.append([k, obs.t[k], theta.mass, *np.diag(theta.inertia)])
