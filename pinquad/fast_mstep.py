@@ -23,7 +23,6 @@ relative).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -31,25 +30,12 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.fast_smoother import _wrap
+from pinquad.identify import QuadraticSums, transition_mask
 from pinquad.ssm import Observations
 
 Array = NDArray[np.float64]
 
 _H = 1e-6  # central-difference step of dR/dTheta, as identify._rotation_derivatives
-
-
-@dataclass(frozen=True)
-class RegressorQuadratics:
-    """E[sum_k rho_kj^2] = pi^T a_j pi - 2 b_j^T pi + c_j for the 6 wrench rows j.
-
-    a (6, 4, 4) [kg^2 m^2/s^4 and the like, per parameter pair], b (6, 4), c (6,)
-    [N^2 or (N m)^2]; n: number of transitions summed.
-    """
-
-    a: Array
-    b: Array
-    c: Array
-    n: int
 
 
 @njit(cache=True)
@@ -199,18 +185,16 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
 
 
 def regressor_quadratics(post: Posterior, obs: Observations, gravity: float
-                         ) -> RegressorQuadratics:
+                         ) -> QuadraticSums:
     """The regressor M-step's expected quadratic forms over the used transitions
     (``identify.transition_mask``), compiled (module docstring)."""
-    from pinquad.identify import transition_mask
-
     idx = np.flatnonzero(transition_mask(obs)).astype(np.int64)
     a, b, c = _quadratics(np.ascontiguousarray(post.mean, dtype=float),
                           np.ascontiguousarray(post.cov, dtype=float),
                           np.ascontiguousarray(post.cross_cov, dtype=float),
                           np.ascontiguousarray(obs.inputs, dtype=float), idx, float(obs.dt),
                           float(gravity))
-    return RegressorQuadratics(a, b, c, int(idx.size))
+    return QuadraticSums(a, b, c, float(idx.size))
 
 
 @njit(cache=True)

@@ -299,7 +299,8 @@ class QuadraticSums:
     """Sums over transitions of the M-step's expected quadratic forms (the a, b, c of
     ``regressor_stats``: a (6, 4, 4), b (6, 4), c (6,)) and the number of transitions n
     they cover (a float once down-weighted): the complete-data sufficient statistics of
-    mass and inertia, which add over disjoint sets of transitions."""
+    mass and inertia, which add over disjoint sets of transitions. The compiled
+    ``fast_mstep.regressor_quadratics`` returns this type."""
 
     a: Array
     b: Array
@@ -344,6 +345,16 @@ def remember_leaving(earlier: QuadraticSums | None, post: Posterior, obs: Observ
     return earlier.scaled(math.exp(-n_left * obs.dt / memory_s)).plus(left)
 
 
+def closed_form_mass(stats, fallback: float) -> float:
+    """The M-step's mass [kg] from the body-z force row of ``stats`` (a, b, c sums):
+    the x and y rows cancel against two of the three log m terms, the z row gives
+
+        m = c_z / b_z = sum F^2 / sum E[a_z] F
+
+    (``fallback`` when b_z <= 0, e.g. no used transition)."""
+    return float(stats.c[2] / stats.b[2, 0]) if stats.b[2, 0] > 0 else fallback
+
+
 def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
                     earlier: QuadraticSums | None = None) -> MStepResult:
     """Joint ML update of mass, diagonal inertia and all noise variances (see module).
@@ -355,9 +366,7 @@ def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
     if earlier is not None:
         stats = QuadraticSums.of(stats).plus(earlier)
     n = stats.n
-    # Mass: force rows x, y cancel against two of the three log m terms; the z row
-    # gives m = c_z / b_z (sum F^2 / sum E[a_z] F).
-    mass = float(stats.c[2] / stats.b[2, 0]) if stats.b[2, 0] > 0 else theta.mass
+    mass = closed_form_mass(stats, theta.mass)
 
     a_t, b_t, c_t = stats.a[3:6], stats.b[3:6], stats.c[3:6]
     inertia = inertia_newton(mass, a_t, b_t, c_t, np.diag(theta.inertia))

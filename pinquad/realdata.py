@@ -966,13 +966,18 @@ class RealMStep:
     def __call__(self, post, obs: Observations, theta: Theta, earlier=None):
         """The update; ``earlier`` (``identify.QuadraticSums``): statistics of transitions
         no longer in ``obs`` (the online stream's memory), added to the mass row's."""
-        from pinquad.identify import MStepResult, QuadraticSums, regressor_stats, update_noise
+        from pinquad.identify import (
+            MStepResult,
+            QuadraticSums,
+            closed_form_mass,
+            regressor_stats,
+            update_noise,
+        )
 
         g = theta.gravity
         stats = regressor_stats(post, obs, g)
-        mass_stats = stats if earlier is None else QuadraticSums.of(stats).plus(earlier)
-        mass = (float(mass_stats.c[2] / mass_stats.b[2, 0]) if mass_stats.b[2, 0] > 0
-                else theta.mass)
+        mass = closed_form_mass(stats if earlier is None
+                                else QuadraticSums.of(stats).plus(earlier), theta.mass)
         band = self.band_stats(post, obs, g)
         a, b, c = band.quadratic()
         inertia, objective = _profiled_inertia(a, b, c, np.diag(theta.inertia))
