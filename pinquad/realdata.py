@@ -1054,7 +1054,8 @@ class RealIdentification:
     rotor_inertia: J_r [kg m^2] used (fitted or fixed; NaN: none); band_stats: the
     band-passed regression at the final posterior (``keep_band_stats``); rotor_source:
     how J_r was obtained, in words (set by the table); quasi_static_mass [kg]: the
-    model-free check :func:`quasi_static_mass` on the same transitions.
+    model-free check :func:`quasi_static_mass` on the same transitions; motor_split: that
+    check split by motor (:func:`motor_split`).
     """
 
     name: str
@@ -1081,6 +1082,7 @@ class RealIdentification:
     band_stats: BandStats | None = None
     rotor_source: str = ""
     quasi_static_mass: float = float("nan")
+    motor_split: MotorSplit | None = None
 
     @property
     def params(self) -> Array:
@@ -1091,6 +1093,23 @@ class RealIdentification:
     def mass_rel_error(self) -> float:
         """m / 34.7 g - 1."""
         return self.mass / SCALE_MASS - 1.0
+
+
+def _vertical_balance(real: RealObservations) -> tuple[NDArray[np.int64], Array, Array]:
+    """The transitions of :func:`quasi_static_mass`: (rows k (K,), R_k,zz (K,),
+    g + a_z,k (K,) [m/s^2]) over the used transitions with a finite vertical
+    acceleration, attitude and thrust."""
+    from pinquad.conventions import rotation_from_euler
+
+    obs, log = real.obs, real.log
+    use = np.flatnonzero(~obs.exclude[: obs.n - 1])
+    rzz = rotation_from_euler(log.euler[use])[:, 2, 2]
+    seen = np.isfinite(rzz)
+    if seen.any() and not seen.all():
+        rzz = np.interp(obs.t[use], obs.t[use][seen], rzz[seen])
+    az = (log.velocity[use + 1, 2] - log.velocity[use, 2]) / obs.dt
+    ok = np.isfinite(rzz) & np.isfinite(az) & np.isfinite(obs.inputs[use, 0])
+    return use[ok], rzz[ok], log.meta.gravity + az[ok]
 
 
 def quasi_static_mass(real: RealObservations) -> float:
@@ -1105,20 +1124,50 @@ def quasi_static_mass(real: RealObservations) -> float:
     these differences telescope to (end - start) velocity, so
     m_qs says what the rotor speeds and kf imply for the mass whatever the dynamic model
     (any net vertical force that is not kf omega^2, such as ground effect, shifts it)."""
-    from pinquad.conventions import rotation_from_euler
-
-    obs, log = real.obs, real.log
-    use = np.flatnonzero(~obs.exclude[: obs.n - 1])
-    rzz = rotation_from_euler(log.euler[use])[:, 2, 2]
-    seen = np.isfinite(rzz)
-    if seen.any() and not seen.all():
-        rzz = np.interp(obs.t[use], obs.t[use][seen], rzz[seen])
-    az = (log.velocity[use + 1, 2] - log.velocity[use, 2]) / obs.dt
-    ok = np.isfinite(rzz) & np.isfinite(az) & np.isfinite(obs.inputs[use, 0])
-    if not ok.any():
+    rows, rzz, lift = _vertical_balance(real)
+    if not rows.size:
         return float("nan")
-    return float(np.sum(obs.inputs[use, 0][ok] * rzz[ok])
-                 / np.sum(log.meta.gravity + az[ok]))
+    return float(np.sum(real.obs.inputs[rows, 0] * rzz) / np.sum(lift))
+
+
+@dataclass(frozen=True)
+class MotorSplit:
+    """:func:`quasi_static_mass` split by motor.
+
+    share (4,) [-]: each motor's part of the vertical thrust over the used transitions
+    relative to the four-motor mean, s_i = 4 sum_k F_k R_k,zz w_ik / sum_k F_k R_k,zz with
+    w_ik = omega_ik^2 / sum_j omega_jk^2 (1 for all four when they carry equal thrust);
+    measured_mass [kg]:
+    the part of m_qs the motors whose speeds were measured carry,
+    m_meas = sum_k F_k R_k,zz sum_(i measured) w_ik / sum_k (g + a_z,k); rebuilt: the
+    motors (0-based) whose speeds were rebuilt from PWM.
+    """
+
+    share: Array
+    measured_mass: float
+    rebuilt: tuple[int, ...]
+
+    def mass_if(self, share: float) -> float:
+        """The model-free mass [kg] if the rebuilt motors carried ``share`` each (of the
+        four-motor mean): m_meas / (1 - n_rebuilt share / 4)."""
+        return self.measured_mass / (1.0 - len(self.rebuilt) * share / 4.0)
+
+    def share_for(self, mass: float) -> float:
+        """The share each rebuilt motor would carry if the mass were ``mass`` [kg]."""
+        return 4.0 * (1.0 - self.measured_mass / mass) / max(len(self.rebuilt), 1)
+
+
+def motor_split(real: RealObservations) -> MotorSplit:
+    """:class:`MotorSplit` of a measured flight (the rows of :func:`quasi_static_mass`;
+    each bin's thrust divided between the motors by their bin-mean speeds squared)."""
+    rows, rzz, lift = _vertical_balance(real)
+    omega2 = np.asarray(real.log.rpm, dtype=float)[rows] ** 2
+    weight = omega2 / omega2.sum(axis=1, keepdims=True)
+    vertical = real.obs.inputs[rows, 0] * rzz
+    share = 4.0 * (vertical @ weight) / vertical.sum()
+    measured = [i for i in range(4) if i not in real.repaired]
+    mass = float(np.sum(vertical * weight[:, measured].sum(axis=1)) / np.sum(lift))
+    return MotorSplit(share=share, measured_mass=mass, rebuilt=tuple(real.repaired))
 
 
 def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
@@ -1191,7 +1240,7 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         rotor_inertia=float(getattr(theta, "rotor_inertia", None) or real.options.rotor_inertia
                             or float("nan")),
         band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None,
-        quasi_static_mass=quasi_static_mass(real))
+        quasi_static_mass=quasi_static_mass(real), motor_split=motor_split(real))
     return out, res.posterior, theta
 
 
@@ -1434,6 +1483,7 @@ def format_table(results: Sequence[RealIdentification],
             "transitions, no EM): " + ", ".join(
                 f"{r.name} {1e3 * q:.2f} g ({100 * (q / SCALE_MASS - 1.0):+.1f} %)"
                 for r, q in zip(results, qs, strict=True) if np.isfinite(q)))
+    lines += _rebuilt_motor_lines(results)
     yaw = [r for r in results if r.name in YAW_FLIGHTS]
     if len(yaw) >= 2:
         izz = np.array([r.inertia[2] for r in yaw])
@@ -1459,6 +1509,38 @@ def format_table(results: Sequence[RealIdentification],
         + " | ".join(f"{1e6 * v:.2f}" for v in PUBLISHED_INERTIA) + " |",
     ]
     return "\n".join(lines)
+
+
+def _rebuilt_motor_lines(results: Sequence[RealIdentification]) -> list[str]:
+    """What the logs with rebuilt rotor speeds say about the mass without the rebuild: the
+    measured motors' part of the model-free mass, and the mass if each rebuilt motor
+    carried a share of the thrust anywhere in the range it carries on the clean logs."""
+    split = {r.name: r.motor_split for r in results if r.motor_split is not None}
+    clean = {n: m for n, m in split.items() if not m.rebuilt}
+    faulty = {n: m for n, m in split.items() if m.rebuilt}
+    motors = sorted({i for m in faulty.values() for i in m.rebuilt})
+    if not faulty or not clean or len(motors) != 1:
+        return []
+    i = motors[0]
+    shares = np.array([m.share[i] for m in clean.values()])
+    lo, hi = float(shares.min()), float(shares.max())
+    names = list(clean)
+    words = [
+        f"M{i + 1} rebuilt from PWM ({', '.join(faulty)}): the three measured motors alone carry "
+        + ", ".join(f"{n} {1e3 * m.measured_mass:.2f} g" for n, m in faulty.items())
+        + f" of the model-free mass; on the clean logs M{i + 1} carries {lo:.3f} "
+        f"({names[int(np.argmin(shares))]}) to {hi:.3f} ({names[int(np.argmax(shares))]}) of "
+        "the four-motor mean thrust, and with a share anywhere in that range the faulty "
+        "logs' mass would be "
+        + ", ".join(f"{n} {1e3 * m.mass_if(lo):.2f}-{1e3 * m.mass_if(hi):.2f} g "
+                    f"({100 * (m.mass_if(lo) / SCALE_MASS - 1):+.1f} to "
+                    f"{100 * (m.mass_if(hi) / SCALE_MASS - 1):+.1f} %)"
+                    for n, m in faulty.items())
+        + "; within 1.5 % of the scale needs a share of at most "
+        + ", ".join(f"{n} {m.share_for(1.015 * SCALE_MASS):.3f}" for n, m in faulty.items())
+        + " (the PWM rebuild gives "
+        + ", ".join(f"{n} {m.share[i]:.3f}" for n, m in faulty.items()) + ")"]
+    return words
 
 
 def _rotor_choice(text: str) -> str | float:

@@ -150,6 +150,18 @@ def test_faulty_log_is_repaired_and_its_mass_is_near_the_scale():
     assert any("rebuilt from its PWM" in note for note in ident.notes)
     assert any("battery voltage stuck" in note for note in ident.notes)
     np.testing.assert_allclose(ident.inertia[:2], PUBLISHED_INERTIA[:2], rtol=0.15)
+    # The model-free check split by motor: M1's rebuilt share puts back exactly the
+    # model-free mass, and the three measured motors alone already carry 3/4 of a vehicle
+    # heavier than the scale's: M1 would need to carry less of the thrust than on any
+    # clean log (jana00 has the lowest M1 share, 0.92).
+    split = ident.motor_split
+    assert split is not None and split.rebuilt == (0,)
+    assert split.mass_if(split.share[0]) == pytest.approx(ident.quasi_static_mass, rel=1e-9)
+    assert split.share.sum() == pytest.approx(4.0, rel=1e-12)
+    clean = identified("jana00").motor_split
+    assert clean is not None and not clean.rebuilt
+    assert split.share_for(SCALE_MASS) < clean.share[0] < split.share[0]
+    assert clean.measured_mass == pytest.approx(identified("jana00").quasi_static_mass, rel=1e-12)
     # Without the repair every airborne row is implausible: nothing left to identify.
     with pytest.raises(ValueError, match="no usable actuation"):
         load_real(FLIGHTS / "jana20", RealDataOptions(faults="exclude"),
