@@ -16,8 +16,12 @@ coefficient from ``pinquad.effects``, and drag + wind together) and each seed:
 
 Targets (issue 7): no effect -> nothing selected in >= 95 % of seeds; each single effect
 -> its name selected in >= 95 %, every coefficient within 10 %, mass and inertia within
-the clean-data accuracy (``|error| <= 2 x RMS relative error of the clean condition`` per
-parameter), affected held-out RMS down by >= 50 %; drag + wind -> both named.
+the clean-data accuracy, affected held-out RMS down by >= 50 %; drag + wind -> both
+named. "Within the clean-data accuracy" is scored two ways per seed: absolute
+(``|error| <= 2 x RMS relative error of the clean condition`` per parameter, which 3 in
+20 clean flights already miss) and paired with the seed's clean twin, the same seed
+flown without the effect (``|error| <= |twin's error| + 2 x clean RMS``: the refit is no
+worse than the clean flight with the same noise).
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import math
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -58,15 +62,20 @@ PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
 
 
 def discovery_scenario():
-    """The Monte Carlo flight (about 19 s): the crazyflie21 scaling of the paper's scenario
-    (start (0.15, 0.3, 0) m) through six waypoints [m] (1.2, 0.9, 0.9), (0.6, 1.5, 0.5),
-    (1.8, 1.2, 1.2), (1.2, 0.6, 0.07), (0.5, 0.4, 0.12), (1.0, 1.0, 0.8), cruise 1 m/s,
+    """The Monte Carlo flight (about 20 s): the crazyflie21 scaling of the paper's scenario
+    (start (0.15, 0.3, 0) m) through six waypoints [m] (1.2, 0.9, 0.9), (0.6, 1.8, 0.5),
+    (1.8, 0.6, 1.2), (1.2, 1.4, 0.07), (0.5, 0.4, 0.12), (1.0, 1.0, 0.8), cruise 1 m/s,
     1 s hover at each: speeds up to ~1.1 m/s and a pass 5-12 cm above the floor, as in
-    the real random flights (0.1-1.5 m/s, down to 6 cm)."""
+    the real random flights (0.1-1.5 m/s, down to 6 cm).
+
+    The legs travel about as far along y (5.1 m in all) as along x (4.65 m): an earlier
+    route with 2.9 m along y left the lateral drag coefficient D_y 2.4x less precise
+    than D_x (scatter 7.6 % vs 3.2 % over 20 seeds), an artefact of the route, not of
+    the estimator (3.6 % vs 4.0 % on this one)."""
     from pinquad.params import PAPER_SCENARIO
 
     sc = PAPER_SCENARIO.scaled(0.3)
-    wp = np.array([[1.2, 0.9, 0.9], [0.6, 1.5, 0.5], [1.8, 1.2, 1.2], [1.2, 0.6, 0.07],
+    wp = np.array([[1.2, 0.9, 0.9], [0.6, 1.8, 0.5], [1.8, 0.6, 1.2], [1.2, 1.4, 0.07],
                    [0.5, 0.4, 0.12], [1.0, 1.0, 0.8]])
     return replace(sc, waypoints=wp, cruise_speed=1.0, hover_time=1.0)
 
@@ -101,7 +110,10 @@ def case_seed(base: int, condition: str, i: int) -> int:
 class CaseResult:
     """One seeded case: selected names; coefficient relative errors by effect (max over its
     coefficients, NaN when not selected); refit and base relative errors of
-    [m, Ixx, Iyy, Izz]; held-out RMS before/after per axis; seconds; crashed flight."""
+    [m, Ixx, Iyy, Izz]; held-out RMS before/after per axis; seconds; crashed flight;
+    twin_err (4,): the base EM's relative errors on the clean twin, the same seed flown
+    without the effect (the simulator's noise draws do not depend on the effects, which
+    are deterministic), NaN for the no-effect condition."""
 
     condition: str
     seed: int
@@ -114,6 +126,7 @@ class CaseResult:
     rms_after: dict[str, float]
     seconds: float
     crashed: bool
+    twin_err: Array = field(default_factory=lambda: np.full(4, np.nan))
 
     def to_json(self) -> dict:
         return {"condition": self.condition, "seed": self.seed, "selected": list(self.selected),
@@ -121,7 +134,8 @@ class CaseResult:
                 "refit_rel_err": dict(zip(PARAMS, self.refit_err.tolist(), strict=True)),
                 "base_rel_err": dict(zip(PARAMS, self.base_err.tolist(), strict=True)),
                 "rms_before": self.rms_before, "rms_after": self.rms_after,
-                "seconds": self.seconds, "crashed": self.crashed}
+                "seconds": self.seconds, "crashed": self.crashed,
+                "twin_rel_err": dict(zip(PARAMS, self.twin_err.tolist(), strict=True))}
 
 
 def run_case(condition: str, seed: int, workdir: Path) -> CaseResult:
@@ -157,10 +171,16 @@ def run_case(condition: str, seed: int, workdir: Path) -> CaseResult:
             continue
         c0 = np.asarray(list(effects.injected_coefficients(e).values()))
         coef_err[e] = float(np.max(np.abs(np.asarray(coefs[e]) - c0) / np.abs(c0)))
+    twin = np.full(4, np.nan)
+    if injected:
+        twin_log, _ = simulate_log((), seed)
+        twin_back = read_log(write_log(twin_log, workdir / f"twin-{condition}-{seed}.csv"))
+        twin_run = _simulated(twin_back, args).runs[0]
+        twin = np.r_[twin_run.mass, twin_run.inertia] / truth - 1.0
     return CaseResult(condition, seed, tuple(s["effect"] for s in section["selected"]), coef_err,
                       coefs, est / truth - 1.0, base / truth - 1.0,
                       section["residual_rms_before"], section["residual_rms_after"],
-                      time.perf_counter() - t0, bool(flight.crashed))
+                      time.perf_counter() - t0, bool(flight.crashed), twin)
 
 
 def _run_job(job: tuple[str, int, str]) -> CaseResult:
@@ -211,6 +231,19 @@ def summarize(cases: list[CaseResult]) -> dict:
                                            strict=True))
         if np.all(np.isfinite(clean_rms)):
             row["within_clean_accuracy"] = int(np.sum(np.all(np.abs(ref) <= 2.0 * clean_rms, axis=1)))
+        twin = np.array([c.twin_err for c in cs])
+        paired = np.all(np.isfinite(twin), axis=1)
+        if injected and paired.any():
+            row["twin_n"] = int(paired.sum())
+            row["twin_rms_rel_err"] = dict(zip(
+                PARAMS, np.sqrt(np.mean(twin[paired] ** 2, axis=0)).tolist(), strict=True))
+            row["refit_rms_rel_err_paired"] = dict(zip(
+                PARAMS, np.sqrt(np.mean(ref[paired] ** 2, axis=0)).tolist(), strict=True))
+            if np.all(np.isfinite(clean_rms)):
+                # one-sided: a refit better than its twin (motor-lag flights excite the
+                # attitude more than their clean twins) is not held against it
+                row["within_clean_of_twin"] = int(np.sum(np.all(
+                    np.abs(ref[paired]) <= np.abs(twin[paired]) + 2.0 * clean_rms, axis=1)))
         row["seconds_mean"] = float(np.mean([c.seconds for c in cs]))
         out["conditions"][cond] = row
     return out
@@ -220,12 +253,13 @@ def markdown(summary: dict) -> str:
     """The result table (one row per condition)."""
     cr = summary["clean_rms_rel_err"]
     lines = ["| condition | n | named (all) | exact set | coef within 10 % | coef err median / max "
-             "| refit within clean acc. | affected-axis median RMS drop | extra selected |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| refit within clean acc. | refit within clean acc. of its clean twin "
+             "| affected-axis median RMS drop | extra selected |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for cond, r in summary["conditions"].items():
         if cond == "none":
             lines.append(f"| none | {r['n']} | nothing selected {r['nothing_selected']}/{r['n']} | "
-                         f"| | | {r.get('within_clean_accuracy', '')}/{r['n']} | | "
+                         f"| | | {r.get('within_clean_accuracy', '')}/{r['n']} | | | "
                          f"{', '.join(r['spurious']) or '-'} |")
             continue
         effs = CONDITIONS[cond]
@@ -235,7 +269,8 @@ def markdown(summary: dict) -> str:
         drops = "; ".join(", ".join(f"{a} {100 * v:.0f} %" for a, v in r[f"{e}_median_drop"].items())
                           for e in effs)
         lines.append(f"| {cond} | {r['n']} | {r['all_named']}/{r['n']} | {r['exact']}/{r['n']} | "
-                     f"{within} | {errs} | {r.get('within_clean_accuracy', '')}/{r['n']} | {drops} | "
+                     f"{within} | {errs} | {r.get('within_clean_accuracy', '')}/{r['n']} | "
+                     f"{_twin_count(r)} | {drops} | "
                      f"{', '.join(r['extra_selected']) or '-'} |")
     lines += ["", "RMS relative error of mass and inertia over the seeds, base EM -> after the refit "
               "(the none row is the clean-data accuracy):", "",
@@ -244,11 +279,26 @@ def markdown(summary: dict) -> str:
         lines.append(f"| {cond} | " + " | ".join(
             f"{100 * r['base_rms_rel_err'][k]:.2f} -> {100 * r['refit_rms_rel_err'][k]:.2f} %"
             for k in PARAMS) + " |")
+    paired = [(c, r) for c, r in summary["conditions"].items() if "twin_rms_rel_err" in r]
+    if paired:
+        lines += ["", "Paired with the clean twins (the same seeds flown without the effect, base "
+                  "EM): RMS relative error of the twins -> of the refit on the effect's flights:",
+                  "", "| condition | twins | mass | I_xx | I_yy | I_zz |", "|---|---|---|---|---|---|"]
+        for cond, r in paired:
+            lines.append(f"| {cond} | {r['twin_n']} | " + " | ".join(
+                f"{100 * r['twin_rms_rel_err'][k]:.2f} -> {100 * r['refit_rms_rel_err_paired'][k]:.2f} %"
+                for k in PARAMS) + " |")
     lines.append("")
     lines.append("Clean-data accuracy (RMS relative error, no effect): "
                  + ", ".join(f"{k} {100 * v:.2f} %" for k, v in cr.items())
-                 + "; 'within' = every parameter within 2x that.")
+                 + "; 'within' = every parameter within 2x that; 'of its clean twin': for "
+                 "every parameter |refit error| <= |twin's error| + 2x that (no worse than the "
+                 "same seed flown without the effect, by more than twice the clean accuracy).")
     return "\n".join(lines)
+
+
+def _twin_count(row: dict) -> str:
+    return f"{row['within_clean_of_twin']}/{row['twin_n']}" if "within_clean_of_twin" in row else ""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -325,7 +375,8 @@ def _case_from_json(d: dict) -> CaseResult:
                       np.array([f(d["refit_rel_err"][k]) for k in PARAMS]),
                       np.array([f(d["base_rel_err"][k]) for k in PARAMS]),
                       {k: f(v) for k, v in d["rms_before"].items()},
-                      {k: f(v) for k, v in d["rms_after"].items()}, f(d["seconds"]), bool(d["crashed"]))
+                      {k: f(v) for k, v in d["rms_after"].items()}, f(d["seconds"]), bool(d["crashed"]),
+                      np.array([f(d.get("twin_rel_err", {}).get(k)) for k in PARAMS]))
 
 
 def _merge(paths: list[Path], out: Path | None) -> int:

@@ -263,3 +263,39 @@ def test_real_circle_flight_names_drag():
         assert 0.006 < sel["coefficients"][name] < 0.03
     for axis in ("force_x", "force_y"):
         assert fit.section["residual_rms_after"][axis] < 0.8 * fit.section["residual_rms_before"][axis]
+
+
+def test_clean_twin_has_the_same_noise_and_scores_one_sided():
+    """The Monte Carlo's clean twin is the same seed flown without the effect: the
+    simulator's noise draws do not depend on the (deterministic) effects, so the gyro
+    noise (measured - true rate) is the same sample by sample, while the flights differ.
+    The paired criterion counts a refit no worse than its twin by 2x the clean RMS."""
+    from pinquad.discovery_mc import CaseResult, _case_from_json, simulate_log, summarize
+
+    with_wind, _ = simulate_log(("wind",), 4000)
+    twin, _ = simulate_log((), 4000)
+    seen = np.isfinite(with_wind.gyro[:, 0])
+    noise_wind = with_wind.gyro[seen] - with_wind.truth[seen, 9:12]
+    noise_twin = twin.gyro[seen] - twin.truth[seen, 9:12]
+    np.testing.assert_allclose(noise_wind, noise_twin, atol=1e-12)
+    assert np.max(np.abs(with_wind.truth[:, 0:2] - twin.truth[:, 0:2])) > 1e-3
+
+    def case(cond: str, seed: int, refit, twin_err) -> CaseResult:
+        z = np.zeros(4)
+        return CaseResult(cond, seed, ("wind",) if cond == "wind" else (), {"wind": 0.01}
+                          if cond == "wind" else {}, {}, np.asarray(refit, float), z, {}, {},
+                          1.0, False, np.asarray(twin_err, float))
+
+    clean = [case("none", i, [0.001, 0.01, -0.01, 0.02], [np.nan] * 4) for i in range(2)]
+    rms = np.array([0.001, 0.01, 0.01, 0.02])
+    cases = clean + [
+        case("wind", 10, [0.0005, 0.005, 0.0, 0.0], [0.002, 0.03, 0.0, 0.0]),  # better than twin
+        case("wind", 11, [0.003, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]),  # 3x clean: miss
+        case("wind", 12, [0.0, 0.0, 0.0, -0.05], [0.0, 0.0, 0.0, 0.02]),  # 0.05 <= 0.02 + 0.04
+    ]
+    row = summarize(cases)["conditions"]["wind"]
+    np.testing.assert_allclose(list(summarize(cases)["clean_rms_rel_err"].values()), rms)
+    assert row["twin_n"] == 3 and row["within_clean_of_twin"] == 2
+    assert row["within_clean_accuracy"] == 1  # absolute: only seed 10
+    back = _case_from_json(json.loads(json.dumps(cases[2].to_json())))
+    np.testing.assert_allclose(back.twin_err, cases[2].twin_err)
