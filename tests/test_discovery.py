@@ -229,10 +229,9 @@ def test_gyro_bias_seeded_refit():
 
 def test_ground_effect_coefficient_converges_in_the_joint_refinement():
     """Ground effect (k_ge = 1) on the Monte Carlo's seed-2000 flight: the refit's
-    coefficient/EM passes alone leave k_ge at 0.92 (each E-step leans towards the model it
-    was given); refined one E-step at a time with the parameters it reaches 0.98, the
-    value the true states give to 1 %, and the held-out vertical force residual drops
-    by more than half."""
+    coefficient/EM passes alone leave k_ge at 0.93 (each E-step leans towards the model it
+    was given); refined one E-step at a time with the parameters it reaches 1.00, and the
+    held-out vertical force residual drops by more than half."""
     from pinquad.discovery_mc import case_seed, simulate_log
 
     log, _ = simulate_log(("ground_effect",), case_seed(0, "ground_effect", 0))
