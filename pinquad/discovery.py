@@ -91,7 +91,7 @@ class DiscoveryConfig:
     fitted on the base posterior with the base mass and inertia, for quick checks);
     joint_iterations, joint_tol: after the passes, at most this many single-E-step
     updates of coefficients and parameters together, until the coefficients change by
-    less than joint_tol (relative; ``_joint_refinement``, compiled E-step only).
+    less than joint_tol (relative; ``_joint_refinement``).
     """
 
     block_seconds: float = 2.0
@@ -637,11 +637,12 @@ def _joint_refinement(obs: Observations, exclude: NDArray[np.bool_], coeffs: dic
     The passes of ``refit`` reach the same fixed point, but each E-step's accelerations
     lean towards the coefficients it was given, so the coefficients creep (ground effect's
     k_ge 0.79, 0.86, 0.90 over two passes where the true states give 0.99): here every
-    E-step moves them, not every converged EM run. Compiled E-step (plain QuadSSM) only."""
+    E-step moves them, not every converged EM run. Drag and wind use ``EffectSSM`` and
+    ``effect_mstep`` at the current coefficients (the generic E-step)."""
     for _ in range(cfg.joint_iterations):
         corr = replace(corrected_observations(obs, post.mean, coeffs), exclude=exclude)
-        post = smoother(QuadSSM(corr, theta), corr.ys)
-        theta = regressor_mstep(post, corr, theta).theta
+        post = smoother(_model_factory(coeffs)(corr, theta), corr.ys)
+        theta = effect_mstep(coeffs)(post, corr, theta).theta
         new, _, _ = _estimate_coefficients(obs, post, theta, effects, cfg, train)
         change = max(float(np.max(np.abs(new[e] - coeffs[e])
                                   / np.maximum(np.abs(coeffs[e]), 1e-12))) for e in new)
@@ -714,7 +715,7 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
         coeffs, _, _ = _estimate_coefficients(obs, post, theta, effects, cfg, train)
         if gyro:
             coeffs["gyro_bias"] = b_used
-    if cfg.joint_iterations and not gyro and _model_factory(coeffs) is QuadSSM:
+    if cfg.joint_iterations and not gyro:
         coeffs, theta, post = _joint_refinement(obs, exclude, coeffs, theta, post, effects,
                                                 smoother, cfg, train)
     if gyro:
