@@ -1161,6 +1161,9 @@ def motor_split(real: RealObservations) -> MotorSplit:
     """:class:`MotorSplit` of a measured flight (the rows of :func:`quasi_static_mass`;
     each bin's thrust divided between the motors by their bin-mean speeds squared)."""
     rows, rzz, lift = _vertical_balance(real)
+    if not rows.size:
+        return MotorSplit(share=np.full(4, np.nan), measured_mass=float("nan"),
+                          rebuilt=tuple(real.repaired))
     omega2 = np.asarray(real.log.rpm, dtype=float)[rows] ** 2
     weight = omega2 / omega2.sum(axis=1, keepdims=True)
     vertical = real.obs.inputs[rows, 0] * rzz
