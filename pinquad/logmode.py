@@ -187,7 +187,21 @@ def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
                 "e_steps": ident.e_steps,
                 "history": ident.history.tolist(),
                 "seconds": ident.seconds,
+                "model_free_mass": ident.quasi_static_mass,
+                "model_free_mass_note": "kf sum omega^2 along the vertical over g + the mean "
+                                        "vertical acceleration, the same transitions, no EM "
+                                        "(realdata.quasi_static_mass)",
             }
+            split = ident.motor_split
+            if split is not None:
+                detail["motor_split"] = {
+                    "thrust_share": split.share.tolist(),
+                    "rebuilt_motors": [i + 1 for i in split.rebuilt],
+                    "measured_motors_mass": split.measured_mass,
+                    "note": "each motor's part of the model-free mass's vertical thrust, "
+                            "relative to the four-motor mean (realdata.MotorSplit); "
+                            "measured_motors_mass: what the motors whose speeds were "
+                            "measured carry of the model-free mass [kg]"}
             runs.append(LogRun(label, "regressor", ident.mass, ident.inertia, ident.se_total,
                                ident.iterations, ident.loglik, ident.converged, detail))
             if first is None:
@@ -305,6 +319,19 @@ def _table(result: LogResult) -> str:
                          f"{100 * (r.mass / SCALE_MASS - 1):+.2f} %"
                          + ("" if not np.isfinite(r.stderr[0]) else
                             f" ({abs(r.mass - SCALE_MASS) / r.stderr[0]:.1f} standard errors)"))
+            free = r.detail.get("model_free_mass")
+            if free is not None and np.isfinite(free):
+                lines.append(f"{r.sensor}, model-free check (mean vertical thrust, no EM): "
+                             f"{free * 1e3:.2f} g ({100 * (free / SCALE_MASS - 1):+.2f} %)")
+            split = r.detail.get("motor_split")
+            if split and split["rebuilt_motors"]:
+                lines.append(
+                    f"{r.sensor}, motors measured "
+                    f"({', '.join(f'M{i}' for i in range(1, 5) if i not in split['rebuilt_motors'])}) "
+                    f"carry {split['measured_motors_mass'] * 1e3:.2f} g of it; thrust shares "
+                    f"of the four-motor mean " + ", ".join(
+                        f"M{i + 1} {v:.3f}{' (rebuilt)' if i + 1 in split['rebuilt_motors'] else ''}"
+                        for i, v in enumerate(split["thrust_share"])))
     for r in result.runs:
         if r.full is not None:
             full = r.full

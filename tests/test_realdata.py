@@ -198,6 +198,13 @@ def test_offline_cli_identifies_a_real_log(tmp_path):
     assert report["discovery"] == {"selected": [], "residual_rms_before": {},
                                    "residual_rms_after": {}, "validation": "not run"}
     assert report["cycles"] == [] and report["excluded"]
+    # the model-free mass check rides along: within 0.5 % of EM's mass on this clean log,
+    # and with every rotor measured the measured motors carry all of it
+    run = report["runs"][0]
+    assert abs(run["model_free_mass"] / est["mass"] - 1) < 0.005
+    assert run["motor_split"]["rebuilt_motors"] == []
+    assert run["motor_split"]["measured_motors_mass"] == pytest.approx(run["model_free_mass"])
+    assert "model-free check" in (out / "report.md").read_text()
     logs = report["run_logs"]["log"]
     assert (out / logs["log"]).is_file() and (out / logs["smoothed"]).is_file()
     smoothed = np.load(out / logs["smoothed"])
