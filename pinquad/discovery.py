@@ -745,7 +745,9 @@ def _window_rms(values: Array, block: NDArray[np.int64], steps: NDArray[np.int64
 
 
 def _heldout_rms(res: _Residuals, pi: Array, coeffs: dict[str, Array], test: NDArray[np.bool_],
-                 window: int) -> dict[str, float]:
+                 window: int, steps_mask: NDArray[np.bool_] | None = None) -> dict[str, float]:
+    """RMS per axis of ``window``-step means of the residual on the blocks in ``test``
+    (and, if given, only on the steps k with steps_mask[k])."""
     wrench = [e for e in coeffs if e not in ("motor_lag", "gyro_bias")]
     phi, fixed = _effect_columns(res, wrench, float(coeffs["motor_lag"][0]) if "motor_lag" in coeffs
                                  else None)
@@ -753,11 +755,15 @@ def _heldout_rms(res: _Residuals, pi: Array, coeffs: dict[str, Array], test: NDA
     rho = (np.einsum("kap,p->ka", res.y, pi) - res.tau - fixed
            - np.einsum("kap,p->ka", phi, c))
     sel = test[res.block]
+    if steps_mask is not None:
+        sel = sel & steps_mask[res.idx]
     out = {a: _window_rms(rho[sel, i], res.block[sel], res.idx[sel], window)
            for i, a in enumerate(AXES)}
     g = res.gyro_res - (coeffs["gyro_bias"] if "gyro_bias" in coeffs else 0.0)
     gsel = test[res.gyro_block]
     steps = np.arange(g.shape[0])
+    if steps_mask is not None:
+        gsel = gsel & steps_mask
     for i, a in enumerate(GYRO_AXES):
         out[a] = _window_rms(g[gsel, i], res.gyro_block[gsel], steps[gsel], window)
     for i, a in enumerate(ATT_AXES):

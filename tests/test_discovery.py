@@ -262,6 +262,16 @@ def test_real_circle_flight_names_drag():
         assert 0.006 < sel["coefficients"][name] < 0.03
     for axis in ("force_x", "force_y"):
         assert fit.section["residual_rms_after"][axis] < 0.8 * fit.section["residual_rms_before"][axis]
+    # the near-floor evaluation: the circle at 0.45 m never comes below 12 cm, so the
+    # near-floor residual has no sample; an all-true mask is the whole flight
+    from pinquad.realdiscovery import evaluate, near_floor
+
+    pi = np.r_[fit.mass, fit.inertia]
+    assert not near_floor(fit).any()
+    assert np.isnan(evaluate(fit, pi, {}, near_floor(fit))["force_z"])
+    whole = evaluate(fit, pi, {})
+    masked = evaluate(fit, pi, {}, np.ones(fit.obs.n, dtype=bool))
+    assert masked == pytest.approx(whole, rel=1e-12)
 
 
 def test_clean_twin_has_the_same_noise_and_scores_one_sided():
