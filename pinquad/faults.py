@@ -18,7 +18,10 @@ half its partner's speed in most of the rest, and the battery voltage is stuck a
 3700 mV. A motor whose readings are implausible in more than ``unreliable_fraction`` of
 the airborne rows is declared unreliable as a whole: its remaining readings are not
 trusted either. :func:`reconstruct_rpm` replaces untrusted readings from the motor
-commands (PWM) through a per-log map learned on the trusted motors.
+commands (PWM) through a per-log map learned on the trusted motors, except where the
+channel reads a whole fraction of that rebuilt speed: jana20-29's M1 reads 1/2 of it
+(median reading / rebuild 0.499-0.504), a sensor counting every other pulse, and those
+readings are doubled and kept (:func:`pulse_divided_readings`).
 """
 
 from __future__ import annotations
@@ -199,10 +202,17 @@ class RpmReconstruction:
     speed sensor respond late to a command). The commanded duty maps to speed through the
     battery voltage, which is why the map is learned per log.
 
+    A distrusted channel whose non-zero readings sit at a whole fraction 1/n of the
+    rebuilt speed (the sensor counting one pulse in n; jana20-29's M1 reads 1/2) keeps
+    its readings where they agree with that fraction: they are multiplied by n and used
+    as measurements (:func:`pulse_divided_readings`).
+
     rpm (N, 4) [rev/min]: the measured speeds with ``replaced`` entries substituted;
-    replaced (N, 4) bool; coef (3,) c0 [rev/min], c1, c2 [rev/min per 1e4 PWM counts
-    (squared)]; tau [s]; fit_rms [rev/min]: residual of the map on the training data;
-    motors_used: motors (0-based) that trained the map; notes.
+    replaced (N, 4) bool: entries taken from the PWM map; coef (3,) c0 [rev/min], c1, c2
+    [rev/min per 1e4 PWM counts (squared)]; tau [s]; fit_rms [rev/min]: residual of the
+    map on the training data; motors_used: motors (0-based) that trained the map; notes;
+    rescaled (N, 4) bool: distrusted readings kept, multiplied by ``divisor``;
+    divisor (4,) int: each channel's pulse divisor (1: none found).
     """
 
     rpm: Array
@@ -212,6 +222,45 @@ class RpmReconstruction:
     fit_rms: float
     motors_used: tuple[int, ...]
     notes: tuple[str, ...]
+    rescaled: BoolArray | None = None
+    divisor: tuple[int, ...] = (1, 1, 1, 1)
+
+
+@dataclass(frozen=True)
+class PulseDivision:
+    """Readings of one channel that count one pulse in ``divisor``.
+
+    divisor: n (1 when none was found); ratio: median over the channel's non-zero
+    readings of reading / rebuilt speed; keep (N,) bool: readings with
+    |n reading / rebuilt - 1| < tolerance (whole counts; zero and partial counts fail).
+    """
+
+    divisor: int
+    ratio: float
+    keep: BoolArray
+
+
+def pulse_divided_readings(reading: Array, rebuilt: Array, candidates: BoolArray,
+                           tolerance: float = 0.1, max_divisor: int = 4) -> PulseDivision:
+    """Whether a channel's distrusted readings (N,) [rev/min] are the rotor speed
+    divided by a whole number: n = round(1 / median(reading / rebuilt)) over the
+    ``candidates`` rows with a positive reading, accepted when 2 <= n <= max_divisor and
+    |n median - 1| < tolerance / 2 (the median itself sits on the fraction).
+
+    A speed sensor that misses every other pulse reads exactly half; the PWM rebuild
+    (``rebuilt`` (N,), independent of the reading) tells which fraction.
+    """
+    none = PulseDivision(divisor=1, ratio=float("nan"), keep=np.zeros(reading.shape, bool))
+    sel = candidates & np.isfinite(reading) & (reading > 0) & (rebuilt > 0)
+    if not sel.any():
+        return none
+    ratio = float(np.median(reading[sel] / rebuilt[sel]))
+    n = int(round(1.0 / ratio)) if ratio > 0 else 0
+    if not 2 <= n <= max_divisor or abs(n * ratio - 1.0) >= tolerance / 2:
+        return replace(none, ratio=ratio)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        keep = sel & (np.abs(n * reading / rebuilt - 1.0) < tolerance)
+    return PulseDivision(divisor=n, ratio=ratio, keep=keep)
 
 
 def _first_order_lag(x: Array, tau: float, dt: float) -> Array:
@@ -228,14 +277,17 @@ def _first_order_lag(x: Array, tau: float, dt: float) -> Array:
 def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
                     taus: tuple[float, ...] = (0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.12, 0.15,
                                                0.2),
-                    replace_motors: tuple[int, ...] | None = None) -> RpmReconstruction:
+                    replace_motors: tuple[int, ...] | None = None,
+                    rescue: bool = True) -> RpmReconstruction:
     """Replace untrusted rotor readings from the PWM commands (see :class:`RpmReconstruction`).
 
     pwm: (N, 4) motor commands [0..65535] on the log's rows (``SdFlight.pwm``).
     Replaced: every reading of an unreliable motor, and each flagged reading of the
     others; ``replace_motors`` (0-based) forces whole motors to be replaced instead
     (used to validate the map on clean logs against the measured speeds). tau is chosen
-    from ``taus`` by the smallest residual on the training data.
+    from ``taus`` by the smallest residual on the training data. With ``rescue``, a
+    replaced channel whose readings are pulse-divided keeps them, multiplied back
+    (:func:`pulse_divided_readings`).
     """
     if log.rpm is None:
         raise ValueError(f"{log.meta.source}: the log has no rpm to repair")
@@ -269,20 +321,38 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
     assert best is not None
     rms, tau, coef = best
     out = rpm.copy()
+    rescaled = np.zeros_like(replaced)
+    divisor = [1, 1, 1, 1]
+    notes: list[str] = []
     for i in range(4):
         if replaced[:, i].any():
             if not np.isfinite(pwm[:, i]).all():
                 raise ValueError(f"{log.meta.source}: motor M{i + 1} has no PWM command to "
                                  "reconstruct from")
             q = _first_order_lag(pwm[:, i], tau, dt) / 1e4
-            out[replaced[:, i], i] = (coef[0] + coef[1] * q + coef[2] * q * q)[replaced[:, i]]
+            speed = coef[0] + coef[1] * q + coef[2] * q * q
+            out[replaced[:, i], i] = speed[replaced[:, i]]
+            if not rescue:
+                continue
+            div = pulse_divided_readings(rpm[:, i], speed, replaced[:, i] & report.airborne)
+            if div.divisor > 1:
+                divisor[i] = div.divisor
+                rescaled[:, i] = div.keep
+                out[div.keep, i] = div.divisor * rpm[div.keep, i]
+                notes.append(
+                    f"M{i + 1} counts one pulse in {div.divisor} (median reading / PWM rebuild "
+                    f"{div.ratio:.3f} over its non-zero readings): {int(div.keep.sum())} "
+                    f"readings within {100 * 0.1:.0f} % of 1/{div.divisor} of the rebuilt "
+                    f"speed multiplied by {div.divisor} and used as measured")
+    replaced &= ~rescaled
     n_rep = replaced.sum(axis=0)
     rebuilt = ", ".join(f"M{i + 1}: {int(n_rep[i])} rows" for i in range(4) if n_rep[i])
-    notes = (f"rotor speeds of {rebuilt} rebuilt from PWM (map learned on "
-             f"{', '.join(f'M{i + 1}' for i in train_motors)}: tau = {tau * 1e3:.0f} ms, "
-             f"residual {rms:.0f} rev/min)",)
+    notes.insert(0, f"rotor speeds of {rebuilt} rebuilt from PWM (map learned on "
+                    f"{', '.join(f'M{i + 1}' for i in train_motors)}: tau = "
+                    f"{tau * 1e3:.0f} ms, residual {rms:.0f} rev/min)")
     return RpmReconstruction(rpm=out, replaced=replaced, coef=np.asarray(coef), tau=tau,
-                             fit_rms=rms, motors_used=train_motors, notes=notes)
+                             fit_rms=rms, motors_used=train_motors, notes=tuple(notes),
+                             rescaled=rescaled, divisor=tuple(divisor))
 
 
 def repair_log(log: FlightLog, pwm: Array | None = None,

@@ -198,10 +198,15 @@ def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
                     "thrust_share": split.share.tolist(),
                     "rebuilt_motors": [i + 1 for i in split.rebuilt],
                     "measured_motors_mass": split.measured_mass,
+                    "all_measured_mass": (split.all_measured_mass
+                                          if np.isfinite(split.all_measured_mass) else None),
+                    "all_measured_transitions": split.all_measured_rows,
                     "note": "each motor's part of the model-free mass's vertical thrust, "
                             "relative to the four-motor mean (realdata.MotorSplit); "
-                            "measured_motors_mass: what the motors whose speeds were "
-                            "measured carry of the model-free mass [kg]"}
+                            "rebuilt_motors: motors with speeds from the PWM map in some "
+                            "rows; measured_motors_mass: what the other motors carry of the "
+                            "model-free mass [kg]; all_measured_mass: the model-free mass "
+                            "over the transitions with no speed from the PWM map [kg]"}
             runs.append(LogRun(label, "regressor", ident.mass, ident.inertia, ident.se_total,
                                ident.iterations, ident.loglik, ident.converged, detail))
             if first is None:
@@ -330,8 +335,14 @@ def _table(result: LogResult) -> str:
                     f"({', '.join(f'M{i}' for i in range(1, 5) if i not in split['rebuilt_motors'])}) "
                     f"carry {split['measured_motors_mass'] * 1e3:.2f} g of it; thrust shares "
                     f"of the four-motor mean " + ", ".join(
-                        f"M{i + 1} {v:.3f}{' (rebuilt)' if i + 1 in split['rebuilt_motors'] else ''}"
+                        f"M{i + 1} {v:.3f}{' (repaired)' if i + 1 in split['rebuilt_motors'] else ''}"
                         for i, v in enumerate(split["thrust_share"])))
+                own = split.get("all_measured_mass")
+                if own is not None:
+                    lines.append(
+                        f"{r.sensor}, model-free mass on the {split['all_measured_transitions']} "
+                        f"transitions with every rotor speed measured: {own * 1e3:.2f} g "
+                        f"({100 * (own / SCALE_MASS - 1):+.2f} %)")
     for r in result.runs:
         if r.full is not None:
             full = r.full

@@ -421,7 +421,9 @@ class RealObservations:
     original-rate log; kf: the thrust coefficient used; source: the file; repaired:
     motors (0-based) whose readings were rebuilt from PWM; rotor_acc (N,) [rad/s^2]: mean
     over [t_k, t_k + dt) of sum_i spin_i d(omega_i)/dt (:func:`rotor_acceleration`, gaps
-    interpolated), the regressor of the rotor-inertia yaw torque J_r * rotor_acc.
+    interpolated), the regressor of the rotor-inertia yaw torque J_r * rotor_acc;
+    rebuilt_fraction (N,) [-]: share of the log's rotor samples in [t_k, t_k + dt) with a
+    speed taken from the PWM map (1 for a bin without samples; None: not recorded).
     """
 
     obs: Observations
@@ -434,6 +436,7 @@ class RealObservations:
     options: RealDataOptions = field(default_factory=RealDataOptions)
     repaired: tuple[int, ...] = ()
     rotor_acc: Array | None = None
+    rebuilt_fraction: Array | None = None
 
     @property
     def n_transitions(self) -> int:
@@ -461,40 +464,46 @@ class RealObservations:
 # ----------------------------------------------------------------------------- build
 
 def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
-            ) -> tuple[Array, BoolArray, list[str]]:
+            ) -> tuple[Array, BoolArray, BoolArray, list[str]]:
     """Rotor speeds (N, 4) after the chosen fault handling, rows (N,) still untrusted,
-    and notes."""
+    readings (N, 4) taken from the PWM map, and notes."""
     log = raw.log
     rpm = np.asarray(log.rpm, dtype=float)
     untrusted = report.motor_mask | report.unreliable[None, :]
     notes: list[str] = []
+    none = np.zeros((log.n, 4), dtype=bool)
     if not untrusted.any():
-        return rpm, np.zeros(log.n, dtype=bool), notes
+        return rpm, np.zeros(log.n, dtype=bool), none, notes
     if mode == "exclude" or raw.pwm is None or not np.isfinite(raw.pwm).all():
         if mode != "exclude":
             notes.append("implausible rotor speeds cannot be rebuilt (no PWM in the log): "
                          "their rows are excluded")
-        return rpm, untrusted.any(axis=1), notes
+        return rpm, untrusted.any(axis=1), none, notes
     bad_motors = [i for i in range(4) if untrusted[:, i].any()]
     if mode == "repair" and not any(untrusted[:, PARTNER[i]].any() for i in bad_motors):
         # A motor's diagonal partner spins the same way with the same propeller type;
         # on the clean flights the PWM -> rpm map of M3 alone predicts M1's mean speed
         # to +0.5 % on average, the map of all three other motors to +2 %.
         out = rpm.copy()
+        rebuilt = none.copy()
         for i in bad_motors:
             others = tuple(j for j in range(4) if j != PARTNER[i])
             rec = reconstruct_rpm(log, raw.pwm, report, replace_motors=others)
             out[untrusted[:, i], i] = rec.rpm[untrusted[:, i], i]
-            notes.append(f"M{i + 1}: {int(untrusted[:, i].sum())} readings rebuilt from its PWM "
+            kept = rec.rescaled is not None and rec.rescaled[:, i]
+            rebuilt[:, i] = untrusted[:, i] & ~kept
+            n_rebuilt = int(rebuilt[:, i].sum())
+            notes.append(f"M{i + 1}: {n_rebuilt} readings rebuilt from its PWM "
                          f"through the PWM -> rpm map of its diagonal partner M{PARTNER[i] + 1} "
                          f"(first-order lag {rec.tau * 1e3:.0f} ms, map residual "
                          f"{rec.fit_rms:.0f} rev/min)")
-        return out, np.zeros(log.n, dtype=bool), notes
+            notes.extend(note for note in rec.notes[1:] if note.startswith(f"M{i + 1} "))
+        return out, np.zeros(log.n, dtype=bool), rebuilt, notes
     if mode == "repair":
         notes.append("a diagonal partner is untrusted too: map learned on all trusted motors")
     rec = reconstruct_rpm(log, raw.pwm, report)
     notes.extend(rec.notes)
-    return rec.rpm, np.zeros(log.n, dtype=bool), notes
+    return rec.rpm, np.zeros(log.n, dtype=bool), rec.replaced, notes
 
 
 def rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float]) -> Array:
@@ -538,7 +547,7 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     dt = options.dt
 
     report = detect_actuation_faults(log, flight_rpm=options.flight_rpm)
-    rpm, untrusted_rows, repair_notes = _repair(raw, report, options.faults)
+    rpm, untrusted_rows, rebuilt, repair_notes = _repair(raw, report, options.faults)
     untrusted_motors = report.motor_mask | report.unreliable[None, :]
     notes.extend(repair_notes)
     if report.vbat_stuck:
@@ -564,6 +573,7 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     accel = _bin_mean(t_src, log.accel, centred, dt, k)
     vel = _bin_mean(t_src, log.velocity, centred, dt, k)
     rpm_g = _bin_mean(t_src, np.where(untrusted_rows[:, None], np.nan, rpm), grid, dt, k)
+    rebuilt_g = _bin_mean(t_src, rebuilt.any(axis=1).astype(float), grid, dt, k)[:, 0]
     inputs = _bin_mean(t_src, wrench, grid, dt, k)
     rotor_acc_g = _interp_nan(grid, _bin_mean(
         t_src, np.where(untrusted_rows, np.nan, rotor_acc), grid, dt, k)[:, 0])
@@ -691,7 +701,8 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     return RealObservations(obs=obs, log=resampled, exclusions=tuple(exclusions),
                             notes=tuple(notes), faults=report, kf=kf, source=source,
                             options=options, repaired=repaired,
-                            rotor_acc=np.nan_to_num(rotor_acc_g))
+                            rotor_acc=np.nan_to_num(rotor_acc_g),
+                            rebuilt_fraction=np.nan_to_num(rebuilt_g, nan=1.0))
 
 
 def _interp_nan(t: Array, x: Array) -> Array:
@@ -1140,12 +1151,17 @@ class MotorSplit:
     measured_mass [kg]:
     the part of m_qs the motors whose speeds were measured carry,
     m_meas = sum_k F_k R_k,zz sum_(i measured) w_ik / sum_k (g + a_z,k); rebuilt: the
-    motors (0-based) whose speeds were rebuilt from PWM.
+    motors (0-based) whose speeds were rebuilt from PWM (in some or all rows);
+    all_measured_mass [kg]: m_qs over only the transitions whose bin holds no reading
+    from the PWM map (every motor measured, a pulse-divided channel multiplied back;
+    NaN if there is none); all_measured_rows: their number.
     """
 
     share: Array
     measured_mass: float
     rebuilt: tuple[int, ...]
+    all_measured_mass: float = float("nan")
+    all_measured_rows: int = 0
 
     def mass_if(self, share: float) -> float:
         """The model-free mass [kg] if the rebuilt motors carried ``share`` each (of the
@@ -1170,7 +1186,13 @@ def motor_split(real: RealObservations) -> MotorSplit:
     share = 4.0 * (vertical @ weight) / vertical.sum()
     measured = [i for i in range(4) if i not in real.repaired]
     mass = float(np.sum(vertical * weight[:, measured].sum(axis=1)) / np.sum(lift))
-    return MotorSplit(share=share, measured_mass=mass, rebuilt=tuple(real.repaired))
+    if real.rebuilt_fraction is None:
+        own = np.ones(rows.size, dtype=bool) if not real.repaired else np.zeros(rows.size, bool)
+    else:
+        own = real.rebuilt_fraction[rows] == 0.0
+    own_mass = float(vertical[own].sum() / lift[own].sum()) if own.any() else float("nan")
+    return MotorSplit(share=share, measured_mass=mass, rebuilt=tuple(real.repaired),
+                      all_measured_mass=own_mass, all_measured_rows=int(own.sum()))
 
 
 def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
@@ -1529,7 +1551,7 @@ def _rebuilt_motor_lines(results: Sequence[RealIdentification]) -> list[str]:
     lo, hi = float(shares.min()), float(shares.max())
     names = list(clean)
     words = [
-        f"M{i + 1} rebuilt from PWM ({', '.join(faulty)}): the three measured motors alone carry "
+        f"M{i + 1} repaired ({', '.join(faulty)}): the three measured motors alone carry "
         + ", ".join(f"{n} {1e3 * m.measured_mass:.2f} g" for n, m in faulty.items())
         + f" of the model-free mass; on the clean logs M{i + 1} carries {lo:.3f} "
         f"({names[int(np.argmin(shares))]}) to {hi:.3f} ({names[int(np.argmax(shares))]}) of "
@@ -1541,8 +1563,16 @@ def _rebuilt_motor_lines(results: Sequence[RealIdentification]) -> list[str]:
                     for n, m in faulty.items())
         + "; within 1.5 % of the scale needs a share of at most "
         + ", ".join(f"{n} {m.share_for(1.015 * SCALE_MASS):.3f}" for n, m in faulty.items())
-        + " (the PWM rebuild gives "
+        + " (the repaired M1 gives "
         + ", ".join(f"{n} {m.share[i]:.3f}" for n, m in faulty.items()) + ")"]
+    own = {n: m for n, m in faulty.items() if m.all_measured_rows}
+    if own:
+        words.append(
+            f"model-free mass on the transitions where no rotor speed comes from the PWM map "
+            f"(M{i + 1} measured, its pulse-divided readings multiplied back): "
+            + ", ".join(f"{n} {1e3 * m.all_measured_mass:.2f} g "
+                        f"({100 * (m.all_measured_mass / SCALE_MASS - 1):+.1f} %, "
+                        f"{m.all_measured_rows} transitions)" for n, m in own.items()))
     return words
 
 

@@ -12,6 +12,7 @@ from pinquad.actuators import ActuatorModel, rad_s_from_rpm
 from pinquad.faults import (
     ActuationFaultReport,
     detect_actuation_faults,
+    pulse_divided_readings,
     reconstruct_rpm,
     repair_log,
 )
@@ -116,6 +117,48 @@ def test_reconstruction_from_pwm_on_clean_logs(name):
     w2_rec = (rad_s_from_rpm(rec.rpm) ** 2).sum(axis=1)
     assert abs(np.mean(w2_rec / w2 - 1.0)) < 0.03
     np.testing.assert_array_equal(rec.rpm[:, 1:], fl.log.rpm[:, 1:])
+    # A healthy channel is not mistaken for one that counts every other pulse.
+    assert rec.divisor == (1, 1, 1, 1) and not rec.rescaled.any()
+
+
+def test_pulse_divided_readings_synthetic():
+    """Readings at half the rebuilt speed are found and kept; zeros, partial counts and a
+    channel at a fraction that is not 1/n are not."""
+    rng = np.random.default_rng(7)
+    n = 2000
+    rebuilt = 19500.0 + 800.0 * rng.standard_normal(n)
+    kind = rng.choice(3, size=n, p=[0.6, 0.3, 0.1])  # half, zero, partial count
+    reading = np.where(kind == 0, rebuilt / 2 * (1 + 0.01 * rng.standard_normal(n)),
+                       np.where(kind == 1, 0.0, rebuilt / 3.3))
+    everywhere = np.ones(n, dtype=bool)
+    div = pulse_divided_readings(reading, rebuilt, everywhere)
+    assert div.divisor == 2 and div.ratio == pytest.approx(0.5, abs=0.01)
+    np.testing.assert_array_equal(div.keep, kind == 0)
+    only_some = everywhere.copy()
+    only_some[: n // 2] = False
+    assert not pulse_divided_readings(reading, rebuilt, only_some).keep[: n // 2].any()
+    for scale in (0.8, 0.44):  # 0.8: no whole divisor; 0.44: 1/2 too far from the median
+        off = pulse_divided_readings(rebuilt * scale, rebuilt, everywhere)
+        assert off.divisor == 1 and not off.keep.any()
+
+
+@pytest.mark.parametrize("name", ["jana20", "jana27"])
+def test_faulty_motor_1_counts_every_other_pulse(name):
+    """jana20-29's M1 reads about half its partner where it does not read 0: doubled, it
+    agrees with the PWM rebuild (which never sees the reading), so those readings are
+    kept as measurements and only the rest is rebuilt."""
+    fl = flight(name)
+    rec = reconstruct_rpm(fl.log, fl.pwm, report(name))
+    assert rec.divisor == (2, 1, 1, 1)
+    kept = rec.rescaled[:, 0]
+    air = report(name).airborne
+    assert kept.sum() > 0.4 * air.sum()
+    assert not (rec.replaced[:, 0] & kept).any()
+    assert (rec.replaced[:, 0] | kept)[air].all()
+    np.testing.assert_array_equal(rec.rpm[kept, 0], 2.0 * fl.log.rpm[kept, 0])
+    without = reconstruct_rpm(fl.log, fl.pwm, report(name), rescue=False)
+    assert np.median(rec.rpm[kept, 0] / without.rpm[kept, 0]) == pytest.approx(1.0, abs=0.02)
+    assert any("counts one pulse in 2" in note for note in rec.notes)
 
 
 @pytest.mark.parametrize("name", ["jana20", "jana25"])

@@ -138,7 +138,8 @@ def test_clean_log_mass_within_1p5_percent_of_the_scale():
 
 
 def test_faulty_log_is_repaired_and_its_mass_is_near_the_scale():
-    """jana20: motor 1's rpm reads 0 or a stuck value; rebuilt from its PWM. The mass is
+    """jana20: motor 1's rpm reads 0 or half the speed; the halves are doubled, the rest
+    rebuilt from its PWM. The mass is
     2.3 % above the scale, not within the issue's 1.5 %: all faulty flights sit 2-3 %
     above the clean ones, and the excess is in the measured M2-M4 speeds as much as in
     the rebuilt M1 (realdata.REPAIR_REL_SE), so the repair does not cause it; the test
@@ -162,6 +163,14 @@ def test_faulty_log_is_repaired_and_its_mass_is_near_the_scale():
     assert clean is not None and not clean.rebuilt
     assert split.share_for(SCALE_MASS) < clean.share[0] < split.share[0]
     assert clean.measured_mass == pytest.approx(identified("jana00").quasi_static_mass, rel=1e-12)
+    assert clean.all_measured_mass == pytest.approx(clean.measured_mass, rel=1e-12)
+    # Where M1's half-count reading is there (doubled), no speed comes from PWM: the
+    # mass these transitions balance agrees with the repaired flight's, so the excess
+    # does not come from the PWM map either.
+    assert any("counts one pulse in 2" in note for note in ident.notes)
+    assert split.all_measured_rows > 500
+    assert split.all_measured_mass == pytest.approx(ident.quasi_static_mass, rel=0.01)
+    assert split.all_measured_mass > 1.015 * SCALE_MASS
     # Without the repair every airborne row is implausible: nothing left to identify.
     with pytest.raises(ValueError, match="no usable actuation"):
         load_real(FLIGHTS / "jana20", RealDataOptions(faults="exclude"),
