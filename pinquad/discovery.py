@@ -87,8 +87,9 @@ class DiscoveryConfig:
     compiled E-step (every other effect); restart_em: with the compiled E-step, start the
     refit EM from the paper's warm-up (fixed Q0/R0) rather than the base fit's noise;
     full_refit: also refit on all transitions for the reported estimates (else the
-    training-block refit is reported); refit_em: False skips the EM refit (coefficients
-    fitted on the base posterior with the base mass and inertia, for quick checks);
+    training-block refit is reported); refit_em: False skips the EM refit (mass and
+    coefficients fitted on the base posterior's force rows with the base inertia held:
+    measured flights, whose inertia comes from a band-limited M-step, and quick checks);
     joint_iterations, joint_tol: after the passes, at most this many single-E-step
     updates of coefficients and parameters together, until the coefficients change by
     less than joint_tol (relative; ``_joint_refinement``).
@@ -333,6 +334,37 @@ def _fit(gram: Array, n: int, pi0: Array, p: int) -> _Fit:
     return _Fit(th[0:4], th[4:4 + p], float(out.fun), s / n, n)
 
 
+def _fit_given_inertia(gram: Array, n: int, pi0: Array, p: int) -> _Fit:
+    """Mass and the effects' coefficients with the inertia held at ``pi0[1:4]``: argmin
+    over (m, c) of the objective of :func:`_fit` (its inertia log det term is constant
+    here). The mass rows are the force rows, which the measured-flight M-step also fits
+    in full band; only its inertia comes from a band-limited fit this one must not undo."""
+    scale_c = np.ones(p)
+    c0 = np.zeros(0)
+    if p:
+        th0 = np.r_[pi0, np.zeros(p), 1.0]
+        w = 1.0 / np.maximum(np.einsum("q,aqr,r->a", th0, gram, th0), 1e-300)
+        gw = np.einsum("a,aqr->qr", w, gram)
+        cc = gw[4:4 + p, 4:4 + p]
+        c0 = np.linalg.lstsq(cc, -(gw[4:4 + p, 0:4] @ pi0 + gw[4:4 + p, -1]), rcond=None)[0]
+        scale_c = np.maximum(np.abs(c0), np.sqrt(np.maximum(np.diag(np.linalg.pinv(cc)), 1e-30)))
+
+    def unpack(v: Array) -> Array:
+        return np.concatenate([[np.exp(np.clip(v[0], -20.0, 20.0)) * pi0[0]], pi0[1:4],
+                               v[1:] * scale_c, [1.0]])
+
+    def fun(v: Array) -> tuple[float, Array]:
+        th = unpack(v)
+        val, g = _objective(th, gram, n)
+        return val, np.concatenate([[g[0] * th[0]], g[4:4 + p] * scale_c])
+
+    out = minimize(fun, np.concatenate([[0.0], c0 / scale_c]), jac=True, method="BFGS",
+                   options={"gtol": 1e-8, "maxiter": 500})
+    th = unpack(out.x)
+    s = np.einsum("q,aqr,r->a", th, gram, th)
+    return _Fit(th[0:4], th[4:4 + p], float(out.fun), s / n, n)
+
+
 def _heldout_sse(fit: _Fit, gram: Array) -> Array:
     th = np.concatenate([fit.pi, fit.c, [1.0]])
     return np.einsum("q,aqr,r->a", th, gram, th)
@@ -358,8 +390,9 @@ class _ModelFit:
 
 
 def _fit_model(res: _Residuals, effects: Sequence[str], train: NDArray[np.bool_], pi0: Array,
-               window: int = 10) -> _ModelFit:
-    """Fit pi and the wrench effects' coefficients on the blocks ``train`` (B,) bool."""
+               window: int = 10, hold_inertia: bool = False) -> _ModelFit:
+    """Fit pi and the wrench effects' coefficients on the blocks ``train`` (B,) bool
+    (``hold_inertia``: mass and coefficients, the inertia held at ``pi0``'s)."""
     wrench_effects = [e for e in effects if e != "gyro_bias"]
     n_train = int(np.isin(res.block, np.flatnonzero(train)).sum())
     n_test = int(np.isin(res.block, np.flatnonzero(~train)).sum())
@@ -369,7 +402,8 @@ def _fit_model(res: _Residuals, effects: Sequence[str], train: NDArray[np.bool_]
     def fit_at(lag: float | None) -> tuple[_Fit, Array]:
         _, fixed = _effect_columns(res, [], lag)
         g = _grams(res, phi, fixed)
-        return _fit(g[train].sum(axis=0), n_train, pi0, p), g[~train].sum(axis=0)
+        solve = _fit_given_inertia if hold_inertia else _fit
+        return solve(g[train].sum(axis=0), n_train, pi0, p), g[~train].sum(axis=0)
 
     lag = None
     if "motor_lag" in wrench_effects:
@@ -572,12 +606,13 @@ def _model_factory(coefficients: dict[str, Array]):
 
 
 def _estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],
-                           cfg: DiscoveryConfig, train: NDArray[np.bool_]
+                           cfg: DiscoveryConfig, train: NDArray[np.bool_],
+                           hold_inertia: bool = False
                            ) -> tuple[dict[str, Array], _Residuals, _ModelFit]:
     res = _residuals(obs, post, theta.gravity, cfg.block_seconds)
     train = train[: res.n_blocks]
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
-    mf = _fit_model(res, effects, train, pi0)
+    mf = _fit_model(res, effects, train, pi0, hold_inertia=hold_inertia)
     coeffs = dict(mf.coefficients)
     if "gyro_bias" in effects:
         coeffs["gyro_bias"] = _gyro_fit(res, train[res.gyro_block])[0]
@@ -772,7 +807,8 @@ def _heldout_rms(res: _Residuals, pi: Array, coeffs: dict[str, Array], test: NDA
 
 
 def _jackknife(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],
-               cfg: DiscoveryConfig, train: NDArray[np.bool_]) -> dict[str, Array]:
+               cfg: DiscoveryConfig, train: NDArray[np.bool_], hold_inertia: bool = False
+               ) -> dict[str, Array]:
     """Block-jackknife standard errors of the coefficients (robust to the residuals'
     serial correlation within a block)."""
     blocks = np.flatnonzero(train)
@@ -780,7 +816,7 @@ def _jackknife(obs: Observations, post: Posterior, theta: Theta, effects: Sequen
     for b in blocks:
         t = train.copy()
         t[b] = False
-        c, _, _ = _estimate_coefficients(obs, post, theta, effects, cfg, t)
+        c, _, _ = _estimate_coefficients(obs, post, theta, effects, cfg, t, hold_inertia)
         for e in effects:
             draws[e].append(c[e])
     nb = blocks.size
@@ -831,15 +867,21 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
         return DiscoveryResult((), {}, {}, tuple(scores), before, dict(before), theta.mass,
                                np.asarray(theta.inertia), theta, posterior, validation)
     if not cfg.refit_em:
-        coeffs, _, mf = _estimate_coefficients(obs, posterior, theta, selected, cfg, train)
-        after = _heldout_rms(res0, mf.fit.pi, coeffs, test, window)
-        stderr = _jackknife(obs, posterior, theta, selected, cfg, train)
+        # No EM refit: the base inertia stands (on measured flights it comes from the
+        # band-limited M-step, and a full-band refit of it here would show up as worse
+        # torque rows that no effect caused); mass and coefficients are fitted together
+        # on the force rows, since a missing force effect bends the base mass.
+        coeffs, _, mf = _estimate_coefficients(obs, posterior, theta, selected, cfg, train,
+                                               hold_inertia=True)
+        pi_after = mf.fit.pi
+        after = _heldout_rms(res0, pi_after, coeffs, test, window)
+        stderr = _jackknife(obs, posterior, theta, selected, cfg, train, hold_inertia=True)
         figures: list[str] = []
         if figures_dir is not None:
-            figures = _figures(Path(figures_dir), selected, res0, pi0, res0, mf.fit.pi, coeffs, test,
-                               window)
+            figures = _figures(Path(figures_dir), selected, res0, pi0, res0, pi_after, coeffs,
+                               test, window)
         return DiscoveryResult(tuple(selected), coeffs, stderr, tuple(scores), before, after,
-                               theta.mass, np.asarray(theta.inertia), theta, posterior,
+                               float(pi_after[0]), np.asarray(theta.inertia), theta, posterior,
                                validation + " (no EM refit: effects fitted on the base posterior)",
                                tuple(figures))
     th_tr, post_tr, coeffs_tr = refit(obs, theta, posterior, selected, smoother, cfg, train)

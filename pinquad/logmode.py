@@ -450,9 +450,9 @@ def run_discovery(result: LogResult, figs: Path) -> dict:
 DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
                                         "measured-table": {"refit_em": False}}
 """DiscoveryConfig overrides by log kind (``simulated``, ``sdlog``, ``measured-table``).
-Measured flights keep the base estimates of ``realdata``'s band-limited M-step (the
-plain regressor M-step of the EM refit does not hold their inertia: on jana10 it moved
-I_xx from 17 to 24 e-6 kg m^2); their effects are fitted on the base posterior."""
+Measured flights keep the base inertia of ``realdata``'s band-limited M-step (the
+plain regressor M-step of the EM refit does not hold it: on jana10 it moved I_xx from 17
+to 24 e-6 kg m^2); their effects and the mass are fitted on the base posterior."""
 
 
 def discovery_summary(section: dict) -> str:
