@@ -301,8 +301,14 @@ def _objective(theta_full: Array, gram: Array, n: int) -> tuple[float, Array]:
     return val, grad
 
 
-def _fit(gram: Array, n: int, pi0: Array, p: int) -> _Fit:
-    """Profiled ML over (log pi, c) of J (module docstring) for the summed Gram (6, q, q)."""
+def _fit(gram: Array, n: int, pi0: Array, p: int, hold_inertia: bool = False) -> _Fit:
+    """Profiled ML over (log pi, c) of J (module docstring) for the summed Gram (6, q, q).
+
+    hold_inertia: the inertia stays at ``pi0[1:4]`` and only (log m, c) move (J's inertia
+    log det term is then constant): the measured-flight M-step fits the mass on the same
+    full-band force rows, but its inertia on band-limited torque rows this fit must not
+    undo."""
+    free = np.array([True] + [not hold_inertia] * 3)
     scale_c = np.ones(p)
     if p:
         # c from weighted LS at pi0 (starting point and parameter scale)
@@ -315,51 +321,23 @@ def _fit(gram: Array, n: int, pi0: Array, p: int) -> _Fit:
         scale_c = np.maximum(np.abs(c0), np.sqrt(np.maximum(np.diag(np.linalg.pinv(cc)), 1e-30)))
     else:
         c0 = np.zeros(0)
+    n_free = int(free.sum())
 
     def unpack(v: Array) -> Array:
         # log-parameter steps clipped at e^+-20: a BFGS line search from a base fit far
         # off (a CoM torque can put the inertia 100x off) must not overflow
-        return np.concatenate([np.exp(np.clip(v[0:4], -20.0, 20.0)) * pi0, v[4:] * scale_c, [1.0]])
+        pi = pi0.copy()
+        pi[free] *= np.exp(np.clip(v[:n_free], -20.0, 20.0))
+        return np.concatenate([pi, v[n_free:] * scale_c, [1.0]])
 
     def fun(v: Array) -> tuple[float, Array]:
         th = unpack(v)
         val, g = _objective(th, gram, n)
-        gv = np.concatenate([g[0:4] * th[0:4], g[4:4 + p] * scale_c])
+        gv = np.concatenate([(g[0:4] * th[0:4])[free], g[4:4 + p] * scale_c])
         return val, gv
 
-    v0 = np.concatenate([np.zeros(4), c0 / scale_c])
+    v0 = np.concatenate([np.zeros(n_free), c0 / scale_c])
     out = minimize(fun, v0, jac=True, method="BFGS", options={"gtol": 1e-8, "maxiter": 500})
-    th = unpack(out.x)
-    s = np.einsum("q,aqr,r->a", th, gram, th)
-    return _Fit(th[0:4], th[4:4 + p], float(out.fun), s / n, n)
-
-
-def _fit_given_inertia(gram: Array, n: int, pi0: Array, p: int) -> _Fit:
-    """Mass and the effects' coefficients with the inertia held at ``pi0[1:4]``: argmin
-    over (m, c) of the objective of :func:`_fit` (its inertia log det term is constant
-    here). The mass rows are the force rows, which the measured-flight M-step also fits
-    in full band; only its inertia comes from a band-limited fit this one must not undo."""
-    scale_c = np.ones(p)
-    c0 = np.zeros(0)
-    if p:
-        th0 = np.r_[pi0, np.zeros(p), 1.0]
-        w = 1.0 / np.maximum(np.einsum("q,aqr,r->a", th0, gram, th0), 1e-300)
-        gw = np.einsum("a,aqr->qr", w, gram)
-        cc = gw[4:4 + p, 4:4 + p]
-        c0 = np.linalg.lstsq(cc, -(gw[4:4 + p, 0:4] @ pi0 + gw[4:4 + p, -1]), rcond=None)[0]
-        scale_c = np.maximum(np.abs(c0), np.sqrt(np.maximum(np.diag(np.linalg.pinv(cc)), 1e-30)))
-
-    def unpack(v: Array) -> Array:
-        return np.concatenate([[np.exp(np.clip(v[0], -20.0, 20.0)) * pi0[0]], pi0[1:4],
-                               v[1:] * scale_c, [1.0]])
-
-    def fun(v: Array) -> tuple[float, Array]:
-        th = unpack(v)
-        val, g = _objective(th, gram, n)
-        return val, np.concatenate([[g[0] * th[0]], g[4:4 + p] * scale_c])
-
-    out = minimize(fun, np.concatenate([[0.0], c0 / scale_c]), jac=True, method="BFGS",
-                   options={"gtol": 1e-8, "maxiter": 500})
     th = unpack(out.x)
     s = np.einsum("q,aqr,r->a", th, gram, th)
     return _Fit(th[0:4], th[4:4 + p], float(out.fun), s / n, n)
@@ -402,8 +380,8 @@ def _fit_model(res: _Residuals, effects: Sequence[str], train: NDArray[np.bool_]
     def fit_at(lag: float | None) -> tuple[_Fit, Array]:
         _, fixed = _effect_columns(res, [], lag)
         g = _grams(res, phi, fixed)
-        solve = _fit_given_inertia if hold_inertia else _fit
-        return solve(g[train].sum(axis=0), n_train, pi0, p), g[~train].sum(axis=0)
+        return (_fit(g[train].sum(axis=0), n_train, pi0, p, hold_inertia),
+                g[~train].sum(axis=0))
 
     lag = None
     if "motor_lag" in wrench_effects:

@@ -211,8 +211,8 @@ class RpmReconstruction:
     replaced (N, 4) bool: entries taken from the PWM map; coef (3,) c0 [rev/min], c1, c2
     [rev/min per 1e4 PWM counts (squared)]; tau [s]; fit_rms [rev/min]: residual of the
     map on the training data; motors_used: motors (0-based) that trained the map; notes;
-    rescaled (N, 4) bool: distrusted readings kept, multiplied by ``divisor``;
-    divisor (4,) int: each channel's pulse divisor (1: none found).
+    divisions (4,): each replaced channel's :class:`PulseDivision` (None: not replaced or
+    not checked).
     """
 
     rpm: Array
@@ -222,8 +222,21 @@ class RpmReconstruction:
     fit_rms: float
     motors_used: tuple[int, ...]
     notes: tuple[str, ...]
-    rescaled: BoolArray | None = None
-    divisor: tuple[int, ...] = (1, 1, 1, 1)
+    divisions: tuple[PulseDivision | None, ...] = (None, None, None, None)
+
+    @property
+    def rescaled(self) -> BoolArray:
+        """(N, 4) distrusted readings kept, multiplied by their channel's divisor."""
+        out = np.zeros_like(self.replaced)
+        for i, div in enumerate(self.divisions):
+            if div is not None:
+                out[:, i] = div.keep
+        return out
+
+    @property
+    def divisor(self) -> tuple[int, ...]:
+        """(4,) each channel's pulse divisor (1: none found)."""
+        return tuple(1 if d is None else d.divisor for d in self.divisions)
 
 
 @dataclass(frozen=True)
@@ -238,6 +251,15 @@ class PulseDivision:
     divisor: int
     ratio: float
     keep: BoolArray
+    tolerance: float = 0.1
+
+    def describe(self, motor: int) -> str:
+        """One line on what was found for ``motor`` (0-based)."""
+        return (f"M{motor + 1} counts one pulse in {self.divisor} (median reading / PWM "
+                f"rebuild {self.ratio:.3f} over its non-zero readings): "
+                f"{int(self.keep.sum())} readings within {100 * self.tolerance:.0f} % of "
+                f"1/{self.divisor} of the rebuilt speed multiplied by {self.divisor} and used "
+                "as measured")
 
 
 def pulse_divided_readings(reading: Array, rebuilt: Array, candidates: BoolArray,
@@ -250,7 +272,8 @@ def pulse_divided_readings(reading: Array, rebuilt: Array, candidates: BoolArray
     A speed sensor that misses every other pulse reads exactly half; the PWM rebuild
     (``rebuilt`` (N,), independent of the reading) tells which fraction.
     """
-    none = PulseDivision(divisor=1, ratio=float("nan"), keep=np.zeros(reading.shape, bool))
+    none = PulseDivision(divisor=1, ratio=float("nan"), keep=np.zeros(reading.shape, bool),
+                         tolerance=tolerance)
     sel = candidates & np.isfinite(reading) & (reading > 0) & (rebuilt > 0)
     if not sel.any():
         return none
@@ -260,7 +283,7 @@ def pulse_divided_readings(reading: Array, rebuilt: Array, candidates: BoolArray
         return replace(none, ratio=ratio)
     with np.errstate(divide="ignore", invalid="ignore"):
         keep = sel & (np.abs(n * reading / rebuilt - 1.0) < tolerance)
-    return PulseDivision(divisor=n, ratio=ratio, keep=keep)
+    return PulseDivision(divisor=n, ratio=ratio, keep=keep, tolerance=tolerance)
 
 
 def _first_order_lag(x: Array, tau: float, dt: float) -> Array:
@@ -321,8 +344,7 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
     assert best is not None
     rms, tau, coef = best
     out = rpm.copy()
-    rescaled = np.zeros_like(replaced)
-    divisor = [1, 1, 1, 1]
+    divisions: list[PulseDivision | None] = [None, None, None, None]
     notes: list[str] = []
     for i in range(4):
         if replaced[:, i].any():
@@ -335,16 +357,11 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
             if not rescue:
                 continue
             div = pulse_divided_readings(rpm[:, i], speed, replaced[:, i] & report.airborne)
+            divisions[i] = div
             if div.divisor > 1:
-                divisor[i] = div.divisor
-                rescaled[:, i] = div.keep
                 out[div.keep, i] = div.divisor * rpm[div.keep, i]
-                notes.append(
-                    f"M{i + 1} counts one pulse in {div.divisor} (median reading / PWM rebuild "
-                    f"{div.ratio:.3f} over its non-zero readings): {int(div.keep.sum())} "
-                    f"readings within {100 * 0.1:.0f} % of 1/{div.divisor} of the rebuilt "
-                    f"speed multiplied by {div.divisor} and used as measured")
-    replaced &= ~rescaled
+                replaced[div.keep, i] = False
+                notes.append(div.describe(i))
     n_rep = replaced.sum(axis=0)
     rebuilt = ", ".join(f"M{i + 1}: {int(n_rep[i])} rows" for i in range(4) if n_rep[i])
     notes.insert(0, f"rotor speeds of {rebuilt} rebuilt from PWM (map learned on "
@@ -352,7 +369,7 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
                     f"{tau * 1e3:.0f} ms, residual {rms:.0f} rev/min)")
     return RpmReconstruction(rpm=out, replaced=replaced, coef=np.asarray(coef), tau=tau,
                              fit_rms=rms, motors_used=train_motors, notes=tuple(notes),
-                             rescaled=rescaled, divisor=tuple(divisor))
+                             divisions=tuple(divisions))
 
 
 def repair_log(log: FlightLog, pwm: Array | None = None,

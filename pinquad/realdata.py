@@ -490,14 +490,14 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
             others = tuple(j for j in range(4) if j != PARTNER[i])
             rec = reconstruct_rpm(log, raw.pwm, report, replace_motors=others)
             out[untrusted[:, i], i] = rec.rpm[untrusted[:, i], i]
-            kept = rec.rescaled is not None and rec.rescaled[:, i]
-            rebuilt[:, i] = untrusted[:, i] & ~kept
-            n_rebuilt = int(rebuilt[:, i].sum())
-            notes.append(f"M{i + 1}: {n_rebuilt} readings rebuilt from its PWM "
+            rebuilt[:, i] = untrusted[:, i] & rec.replaced[:, i]
+            notes.append(f"M{i + 1}: {int(rebuilt[:, i].sum())} readings rebuilt from its PWM "
                          f"through the PWM -> rpm map of its diagonal partner M{PARTNER[i] + 1} "
                          f"(first-order lag {rec.tau * 1e3:.0f} ms, map residual "
                          f"{rec.fit_rms:.0f} rev/min)")
-            notes.extend(note for note in rec.notes[1:] if note.startswith(f"M{i + 1} "))
+            div = rec.divisions[i]
+            if div is not None and div.divisor > 1:
+                notes.append(div.describe(i))
         return out, np.zeros(log.n, dtype=bool), rebuilt, notes
     if mode == "repair":
         notes.append("a diagonal partner is untrusted too: map learned on all trusted motors")
