@@ -61,8 +61,9 @@ scored."""
 PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
 
 
-def discovery_scenario():
-    """The Monte Carlo flight (about 20 s): the crazyflie21 scaling of the paper's scenario
+def discovery_scenario(laps: int = 1):
+    """The Monte Carlo flight (about 20 s a lap; ``laps`` times round the route): the
+    crazyflie21 scaling of the paper's scenario
     (start (0.15, 0.3, 0) m) through six waypoints [m] (1.2, 0.9, 0.9), (0.6, 1.8, 0.5),
     (1.8, 0.6, 1.2), (1.2, 1.4, 0.07), (0.5, 0.4, 0.12), (1.0, 1.0, 0.8), cruise 1 m/s,
     1 s hover at each: speeds up to ~1.1 m/s and a pass 5-12 cm above the floor, as in
@@ -77,7 +78,7 @@ def discovery_scenario():
     sc = PAPER_SCENARIO.scaled(0.3)
     wp = np.array([[1.2, 0.9, 0.9], [0.6, 1.8, 0.5], [1.8, 0.6, 1.2], [1.2, 1.4, 0.07],
                    [0.5, 0.4, 0.12], [1.0, 1.0, 0.8]])
-    return replace(sc, waypoints=wp, cruise_speed=1.0, hover_time=1.0)
+    return replace(sc, waypoints=np.tile(wp, (laps, 1)), cruise_speed=1.0, hover_time=1.0)
 
 
 def discovery_gains():
@@ -88,14 +89,14 @@ def discovery_gains():
     return design_gains(att_weights=(100.0, 1600.0), k_theta=20.0)
 
 
-def simulate_log(effects_in: tuple[str, ...], seed: int):
+def simulate_log(effects_in: tuple[str, ...], seed: int, laps: int = 1):
     """(FlightLog, Flight) of one discovery flight with ``effects_in`` injected (defaults)."""
     from pinquad import effects
     from pinquad.params import CRAZYFLIE21
     from pinquad.sim import SimConfig, flight_log, simulate
 
     dist = tuple(effects.SIMULATOR_FACTORIES[e]() for e in effects_in)
-    cfg = SimConfig(vehicle=CRAZYFLIE21, scenario=discovery_scenario(), sensor="B",
+    cfg = SimConfig(vehicle=CRAZYFLIE21, scenario=discovery_scenario(laps), sensor="B",
                     disturbances=dist, gains=discovery_gains())
     flight = simulate(cfg, np.random.default_rng(seed))
     return flight_log(flight), flight
@@ -113,7 +114,7 @@ class CaseResult:
     [m, Ixx, Iyy, Izz]; held-out RMS before/after per axis; seconds; crashed flight;
     twin_err (4,): the base EM's relative errors on the clean twin, the same seed flown
     without the effect (the simulator's noise draws do not depend on the effects, which
-    are deterministic), NaN for the no-effect condition."""
+    are deterministic), NaN for the no-effect condition; laps: times round the route."""
 
     condition: str
     seed: int
@@ -127,9 +128,11 @@ class CaseResult:
     seconds: float
     crashed: bool
     twin_err: Array = field(default_factory=lambda: np.full(4, np.nan))
+    laps: int = 1
 
     def to_json(self) -> dict:
-        return {"condition": self.condition, "seed": self.seed, "selected": list(self.selected),
+        return {"condition": self.condition, "seed": self.seed, "laps": self.laps,
+                "selected": list(self.selected),
                 "coef_rel_err": self.coef_rel_err, "coefficients": self.coefficients,
                 "refit_rel_err": dict(zip(PARAMS, self.refit_err.tolist(), strict=True)),
                 "base_rel_err": dict(zip(PARAMS, self.base_err.tolist(), strict=True)),
@@ -138,7 +141,7 @@ class CaseResult:
                 "twin_rel_err": dict(zip(PARAMS, self.twin_err.tolist(), strict=True))}
 
 
-def run_case(condition: str, seed: int, workdir: Path) -> CaseResult:
+def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseResult:
     """Simulate, write CSV, read back, identify and discover as ``offline --log`` does."""
     from pinquad import effects
     from pinquad.logmode import _simulated, run_discovery
@@ -147,7 +150,7 @@ def run_case(condition: str, seed: int, workdir: Path) -> CaseResult:
 
     t0 = time.perf_counter()
     injected = CONDITIONS[condition]
-    log, flight = simulate_log(injected, seed)
+    log, flight = simulate_log(injected, seed, laps)
     path = write_log(log, workdir / f"{condition}-{seed}.csv")
     back = read_log(path)
     args = argparse.Namespace(sensor=None, mstep="regressor", estep="rts", max_iterations=100,
@@ -173,19 +176,19 @@ def run_case(condition: str, seed: int, workdir: Path) -> CaseResult:
         coef_err[e] = float(np.max(np.abs(np.asarray(coefs[e]) - c0) / np.abs(c0)))
     twin = np.full(4, np.nan)
     if injected:
-        twin_log, _ = simulate_log((), seed)
+        twin_log, _ = simulate_log((), seed, laps)
         twin_back = read_log(write_log(twin_log, workdir / f"twin-{condition}-{seed}.csv"))
         twin_run = _simulated(twin_back, args).runs[0]
         twin = np.r_[twin_run.mass, twin_run.inertia] / truth - 1.0
     return CaseResult(condition, seed, tuple(s["effect"] for s in section["selected"]), coef_err,
                       coefs, est / truth - 1.0, base / truth - 1.0,
                       section["residual_rms_before"], section["residual_rms_after"],
-                      time.perf_counter() - t0, bool(flight.crashed), twin)
+                      time.perf_counter() - t0, bool(flight.crashed), twin, laps)
 
 
-def _run_job(job: tuple[str, int, str]) -> CaseResult:
-    condition, seed, workdir = job
-    return run_case(condition, seed, Path(workdir))
+def _run_job(job: tuple[str, int, str, int]) -> CaseResult:
+    condition, seed, workdir, laps = job
+    return run_case(condition, seed, Path(workdir), laps)
 
 
 def summarize(cases: list[CaseResult]) -> dict:
@@ -313,6 +316,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--base-seed", type=int, default=0, help="base seed")
     p.add_argument("--conditions", nargs="*", default=list(CONDITIONS), choices=list(CONDITIONS))
     p.add_argument("--jobs", type=int, default=1, help="worker processes")
+    p.add_argument("--laps", type=int, default=1,
+                   help="times round the route per flight (about 20 s a lap)")
     p.add_argument("--start-index", type=int, default=0,
                    help="first seed index i (to extend an earlier run with more seeds)")
     p.add_argument("--merge", type=Path, nargs="+", default=None,
@@ -322,19 +327,20 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.merge:
         return _merge(args.merge, args.out)
-    if args.seeds < 1:
-        print("error: --seeds must be at least 1", file=sys.stderr)
+    if args.seeds < 1 or args.laps < 1:
+        print("error: --seeds and --laps must be at least 1", file=sys.stderr)
         return 2
     out = args.out or new_run_dir("discovery-mc")
     out.mkdir(parents=True, exist_ok=True)
     jobs = [(c, case_seed(args.base_seed, c, i)) for c in args.conditions
             for i in range(args.start_index, args.start_index + args.seeds)]
     print(f"discovery Monte Carlo: {len(args.conditions)} condition(s) x {args.seeds} seeds, "
-          f"base seed {args.base_seed} (seed = base*100000 + condition*1000 + i), {args.jobs} worker(s)")
+          f"base seed {args.base_seed} (seed = base*100000 + condition*1000 + i), {args.laps} "
+          f"lap(s) of the route, {args.jobs} worker(s)")
     t0 = time.perf_counter()
     cases: list[CaseResult] = []
     with tempfile.TemporaryDirectory(prefix="pinquad-dmc-") as tmp:
-        work = [(c, s, tmp) for c, s in jobs]
+        work = [(c, s, tmp, args.laps) for c, s in jobs]
         if args.jobs > 1:
             from concurrent.futures import ProcessPoolExecutor
 
@@ -352,6 +358,7 @@ def main(argv: list[str] | None = None) -> int:
     summary["seconds"] = time.perf_counter() - t0
     summary["base_seed"] = args.base_seed
     summary["seeds_per_condition"] = args.seeds
+    summary["laps"] = args.laps
     table = markdown(summary)
     print()
     for cond in args.conditions:
@@ -376,7 +383,8 @@ def _case_from_json(d: dict) -> CaseResult:
                       np.array([f(d["base_rel_err"][k]) for k in PARAMS]),
                       {k: f(v) for k, v in d["rms_before"].items()},
                       {k: f(v) for k, v in d["rms_after"].items()}, f(d["seconds"]), bool(d["crashed"]),
-                      np.array([f(d.get("twin_rel_err", {}).get(k)) for k in PARAMS]))
+                      np.array([f(d.get("twin_rel_err", {}).get(k)) for k in PARAMS]),
+                      int(d.get("laps", 1)))
 
 
 def _merge(paths: list[Path], out: Path | None) -> int:
@@ -394,8 +402,14 @@ def _merge(paths: list[Path], out: Path | None) -> int:
             return 2
         for d in (data["cases"] if isinstance(data, dict) else data):
             cases[(d["condition"], int(d["seed"]))] = _case_from_json(d)
+    laps = sorted({c.laps for c in cases.values()})
+    if len(laps) > 1:
+        print(f"error: the files mix flights of {', '.join(map(str, laps))} laps; merge runs "
+              "of one route length", file=sys.stderr)
+        return 2
     ordered = sorted(cases.values(), key=lambda c: (list(CONDITIONS).index(c.condition), c.seed))
     summary = summarize(ordered)
+    summary["laps"] = laps[0] if laps else 1
     table = markdown(summary)
     for cond in CONDITIONS:
         seeds = [c.seed for c in ordered if c.condition == cond]
