@@ -392,6 +392,7 @@ def _merge(paths: list[Path], out: Path | None) -> int:
     from pinquad.runs import atomic_write_json
 
     cases: dict[tuple[str, int], CaseResult] = {}
+    seen_laps: set[int] = set()
     for p in paths:
         try:
             text = Path(p).read_text()
@@ -401,8 +402,10 @@ def _merge(paths: list[Path], out: Path | None) -> int:
             print(f"error: {p}: cannot read a discovery_mc.json ({exc})", file=sys.stderr)
             return 2
         for d in (data["cases"] if isinstance(data, dict) else data):
-            cases[(d["condition"], int(d["seed"]))] = _case_from_json(d)
-    laps = sorted({c.laps for c in cases.values()})
+            case = _case_from_json(d)
+            cases[(case.condition, case.seed)] = case
+            seen_laps.add(case.laps)
+    laps = sorted(seen_laps)
     if len(laps) > 1:
         print(f"error: the files mix flights of {', '.join(map(str, laps))} laps; merge runs "
               "of one route length", file=sys.stderr)

@@ -315,3 +315,22 @@ def test_clean_twin_has_the_same_noise_and_scores_one_sided():
     assert row["within_clean_accuracy"] == 1  # absolute: only seed 10
     back = _case_from_json(json.loads(json.dumps(cases[2].to_json())))
     np.testing.assert_allclose(back.twin_err, cases[2].twin_err)
+
+
+def test_laps_repeat_the_route_and_runs_of_two_lengths_do_not_merge(tmp_path, capsys):
+    from pinquad.discovery_mc import CaseResult, _case_from_json, discovery_scenario, main
+
+    one, two = discovery_scenario(), discovery_scenario(2)
+    np.testing.assert_array_equal(two.waypoints, np.vstack([one.waypoints, one.waypoints]))
+    z = np.zeros(4)
+    files = []
+    for laps in (1, 2):
+        case = CaseResult("none", 7, (), {}, {}, z, z, {}, {}, 1.0, False, laps=laps)
+        assert _case_from_json(json.loads(json.dumps(case.to_json()))).laps == laps
+        path = tmp_path / f"laps{laps}.jsonl"
+        path.write_text(json.dumps(case.to_json()) + "\n")
+        files.append(str(path))
+    assert main(["--merge", *files]) == 2
+    assert "mix flights of 1, 2 laps" in capsys.readouterr().err
+    assert main(["--merge", files[1], "--out", str(tmp_path / "m")]) == 0
+    assert json.loads((tmp_path / "m" / "discovery_mc.json").read_text())["summary"]["laps"] == 2
