@@ -20,7 +20,7 @@ the airborne rows is declared unreliable as a whole: its remaining readings are 
 trusted either. :func:`reconstruct_rpm` replaces untrusted readings from the motor
 commands (PWM) through a per-log map learned on the trusted motors, except where the
 channel reads a whole fraction of that rebuilt speed: jana20-29's M1 reads 1/2 of it
-(median reading / rebuild 0.499-0.504), a sensor counting every other pulse, and those
+(median reading / rebuild 0.494-0.504), a sensor counting every other pulse, and those
 readings are doubled and kept (:func:`pulse_divided_readings`).
 """
 

@@ -551,7 +551,8 @@ def identify_log(args: argparse.Namespace) -> int:
             report["discovery"] = discovery
         atomic_write_json(writer.path("report.json"), report)
         md = (f"# pinquad: identification from {args.log}\n\n" + _table(result) + "\n\n"
-              + "\n".join(f"- excluded: {e}" for e in result.excluded) + "\n")
+              + "\n".join(f"- excluded: {e}" for e in result.excluded) + "\n"
+              + "".join(f"- note: {n}\n" for n in result.notes))
         if discovery is not None:
             from pinquad.discovery import discovery_markdown
 

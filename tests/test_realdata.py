@@ -213,7 +213,9 @@ def test_offline_cli_identifies_a_real_log(tmp_path):
     assert abs(run["model_free_mass"] / est["mass"] - 1) < 0.005
     assert run["motor_split"]["rebuilt_motors"] == []
     assert run["motor_split"]["measured_motors_mass"] == pytest.approx(run["model_free_mass"])
-    assert "model-free check" in (out / "report.md").read_text()
+    md = (out / "report.md").read_text()
+    assert "model-free check" in md
+    assert "- note: motion capture:" in md and "- excluded: total:" in md
     logs = report["run_logs"]["log"]
     assert (out / logs["log"]).is_file() and (out / logs["smoothed"]).is_file()
     smoothed = np.load(out / logs["smoothed"])
