@@ -227,7 +227,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                   f"{lo:g}-{hi:g} Hz {1e6 * np.median([r.band_gain(lo, hi)[j] for r in results]):.1f}"
                   for lo, hi in ((2.0, 3.0), (3.0, 5.0), (5.0, 8.0), (8.0, 12.0), (12.0, 16.0))))
     if args.out is not None:
-        print(f"figure: {plot_response(results, args.out, PUBLISHED_INERTIA)}")
+        try:
+            print(f"figure: {plot_response(results, args.out, PUBLISHED_INERTIA)}")
+        except OSError as exc:
+            print(f"error: {args.out}: cannot write the figure ({exc.strerror or exc})",
+                  file=sys.stderr)
+            return 2
     print(f"{len(results)} logs in {time.perf_counter() - t0:.0f} s")
     return 0
 
