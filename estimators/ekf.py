@@ -58,7 +58,8 @@ def update(model: StateSpaceModel, k: int, mean: Array, cov: Array, y: Array,
     idx = np.flatnonzero(obs)
     h = h_full[idx]
     ph_t = cov @ h.T
-    s = h @ ph_t + r_full[np.ix_(idx, idx)]
+    r_used = r_full[idx[:, None], idx]
+    s = h @ ph_t + r_used
     nu = nu_full[idx]
     rejected = none
     if gate_sigma is not None:
@@ -68,6 +69,7 @@ def update(model: StateSpaceModel, k: int, mean: Array, cov: Array, y: Array,
             idx, h, nu = idx[keep], h[keep], nu[keep]
             ph_t = ph_t[:, keep]
             s = s[np.ix_(keep, keep)]
+            r_used = r_used[np.ix_(keep, keep)]
     if idx.size == 0:
         return UpdateResult(mean, cov, 0.0, 0.0, idx, rejected)
     chol = np.linalg.cholesky(s)
@@ -75,7 +77,7 @@ def update(model: StateSpaceModel, k: int, mean: Array, cov: Array, y: Array,
     gain_t = np.linalg.solve(chol.T, np.linalg.solve(chol, ph_t.T))
     new_mean = mean + gain_t.T @ nu
     a = np.eye(mean.shape[0]) - gain_t.T @ h
-    new_cov = a @ cov @ a.T + gain_t.T @ r_full[np.ix_(idx, idx)] @ gain_t
+    new_cov = a @ cov @ a.T + gain_t.T @ r_used @ gain_t
     new_cov = 0.5 * (new_cov + new_cov.T)
     return UpdateResult(new_mean, new_cov, float(white @ white),
                         2.0 * float(np.log(np.diag(chol)).sum()), idx, rejected)

@@ -142,6 +142,31 @@ def test_spatial_inertia_is_linear_in_pi():
                                rtol=1e-12, atol=1e-18)
 
 
+def test_standard_errors_recover_the_information_of_a_quadratic_log_likelihood():
+    """A log-likelihood quadratic in pi, L = -(pi - pi0)^T A (pi - pi0) / 2, with a dense
+    A: the observed information must be A itself, off-diagonal terms included (the finite
+    differences are exact on a quadratic up to rounding), and the mass standard error
+    sqrt((A^-1)_00)."""
+    rng = np.random.default_rng(7)
+    obs = _observations(3)
+    theta = _theta(obs, COM, INERTIA)
+    pi0 = fi.dynamic_parameters(theta.mass, theta.com, theta.inertia)
+    scale = np.abs(pi0) + 1e-3 * np.abs(pi0).max()
+    root = rng.normal(size=(10, 10))
+    a = (root @ root.T + 10 * np.eye(10)) / np.outer(scale, scale) * 1e6
+    calls = []
+
+    def quadratic(model: fi.FullQuadSSM, ys: np.ndarray) -> float:
+        calls.append(1)
+        d = model.pi - pi0
+        return -0.5 * float(d @ a @ d)
+
+    se_mass, _, _, info = fi.standard_errors(obs, theta, quadratic)
+    np.testing.assert_allclose(info, a, rtol=1e-6, atol=1e-6 * np.abs(a).max())
+    assert se_mass == pytest.approx(np.sqrt(np.linalg.inv(a)[0, 0]), rel=1e-5)
+    assert len(calls) == 111
+
+
 def test_offline_log_identifies_all_ten_parameters(tmp_path):
     """`offline --log --mstep full` on a simulated 20 s CSV log of a vehicle with its CoM
     4 mm / -3 mm / 2 mm off the thrust centre and products of inertia: mass, horizontal
