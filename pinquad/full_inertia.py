@@ -473,12 +473,13 @@ def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = N
     # second differences along the axes and along the diagonals e_i + e_j: both
     # O(h^2), and the diagonal one needs 2 new evaluations a pair where the four-corner
     # stencil needs 4 (111 evaluations in all instead of 201)
-    along = np.array([at(1, i) + at(-1, i) - 2.0 * value((0,) * n) for i in range(n)])
+    centre = at(0)
+    along = np.array([at(1, i) + at(-1, i) - 2.0 * centre for i in range(n)])
     hess = np.diag(along)
     for i in range(n):
         for j in range(i):
-            hess[i, j] = hess[j, i] = 0.5 * (at(1, i, j) + at(-1, i, j)
-                                             - 2.0 * value((0,) * n) - along[i] - along[j])
+            hess[i, j] = hess[j, i] = 0.5 * (at(1, i, j) + at(-1, i, j) - 2.0 * centre
+                                             - along[i] - along[j])
     info = -hess / np.outer(steps, steps)
     try:
         cov_pi = np.linalg.inv(info)
