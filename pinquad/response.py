@@ -8,16 +8,34 @@ gyro's angular acceleration a_j = d(gyro_j)/dt [rad/s^2] through Welch spectra:
     H_j(f) = S_{a tau}(f) / S_{a a}(f)   [kg m^2],
     gamma_j^2(f) = |S_{a tau}|^2 / (S_{a a} S_{tau tau})   (coherence, 0..1).
 
-Where I_jj a_j = tau_j holds, |H_j| = I_jj at every frequency with zero phase; a |H_j|
-that changes with f means the torque model (or the measurement timing) misses a dynamic
-element, and the band the inertia M-step uses then decides the identified inertia. The
-gyroscopic term (omega x I omega) and the air-speed moments are left out: it is a
-diagnostic, not an estimator. Phase > 0: the modelled torque leads the acceleration (the
-gyro's filtering delays it; the 10 ms grid puts the torque bin half a step late, which is
-undone here by centring both on the grid times).
+Where I_jj a_j = tau_j holds and the torque is the only thing that moves the vehicle,
+|H_j| = I_jj at every frequency with zero phase. Two things make |H_j| change with f: a
+dynamic element the torque model misses, or, in closed loop, torques the model does not
+have at all. With a disturbance d, a = (tau + d) / I, while the controller makes
+tau = -C(s) x (x the attitude) from the same motion; in a band where d, not the
+reference or the sensor noise the controller reacts to, drives the motion, tau follows
+a through the controller and
+
+    H(j Omega) -> -C(j Omega) / (j Omega)^2,
+
+the controller's inverse, not the inertia: a gain falling with frequency, the torque
+leading (a PD law gives 0 to 90 deg), and a coherence near 1 (tau is a deterministic
+function of the motion). ``--simulate`` shows it on the simulator: the same closed loop
+with the simulator's torque noise gives a flat |H| = I, with ten times that noise |H|
+falls several-fold over 2-16 Hz, while direct EM on the same flights (whose E-step
+models the disturbance) stays near the true inertia. :func:`unexplained_torque`
+measures how large the missing torques are against the rotor torque, for measured and
+simulated flights alike. Either way the band the inertia M-step uses then decides the
+identified inertia. The gyroscopic term (omega x I omega) and the air-speed moments are
+left out: it is a diagnostic, not an estimator. Phase > 0: the modelled torque leads the
+acceleration (the gyro's filtering delays it; the 10 ms grid puts the torque bin half a
+step late, which is undone here by centring both on the grid times).
 
 ``python -m pinquad.response [LOG ...]`` prints |H| and the coherence per axis at a few
-frequencies for each log, and draws |H_j(f)| of every log in one figure.
+frequencies for each log, and draws |H_j(f)| of every log in one figure;
+``python -m pinquad.response --simulate 1 10 30`` does the same for simulated
+closed-loop flights with the torque noise multiplied by each factor, and prints what EM
+identifies on each.
 """
 
 from __future__ import annotations
@@ -26,7 +44,7 @@ import argparse
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +54,10 @@ Array = NDArray[np.float64]
 
 AXES = ("x (roll)", "y (pitch)", "z (yaw)")
 REPORT_HZ = (2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0)
+BANDS = ((2.0, 3.0), (3.0, 5.0), (5.0, 8.0), (8.0, 12.0), (12.0, 16.0))
+"""Frequency bands [Hz] of the printed band medians."""
+UNEXPLAINED_BAND = (2.0, 16.0)
+"""Band [Hz] of :func:`unexplained_torque`."""
 
 
 @dataclass(frozen=True)
@@ -44,7 +66,8 @@ class ApparentInertia:
 
     name: log name; freq (F,) [Hz]; gain (F, 3) [kg m^2]: |H_j(f)|; phase (F, 3) [rad]:
     arg H_j(f); coherence (F, 3) [-]; rotor_inertia [kg m^2]: the J_r added to the yaw
-    torque; seconds: length of the analysed span [s].
+    torque; seconds: length of the analysed span [s]; unexplained (3,) [-]:
+    :func:`unexplained_torque` against a reference inertia (NaN: none given).
     """
 
     name: str
@@ -54,6 +77,7 @@ class ApparentInertia:
     coherence: Array
     rotor_inertia: float
     seconds: float
+    unexplained: Array = field(default_factory=lambda: np.full(3, np.nan))
 
     def at(self, hz: float) -> tuple[Array, Array, Array]:
         """(gain (3,), phase (3,), coherence (3,)) at the frequency bin nearest ``hz``."""
@@ -74,33 +98,57 @@ def _used_span(exclude: NDArray[np.bool_]) -> slice:
     return slice(int(used[0]), int(used[-1]) + 2)
 
 
-def apparent_inertia(real, name: str = "", rotor_inertia: float = 0.0,
-                     segment_s: float = 2.56) -> ApparentInertia:
-    """:class:`ApparentInertia` of a measured flight (``realdata.RealObservations``).
-
-    Torque bins cover [t_k, t_k + dt) and gyro bins are centred on t_k, so the torque is
-    averaged over neighbouring bins, (tau_{k-1} + tau_k) / 2, to centre it on t_k as
-    well; a_k is the central difference of the gyro. Spectra: Welch, Hann segments of
-    ``segment_s`` seconds, half overlap, over the span between the first and the last
-    used transition (gaps inside it interpolated)."""
-    from scipy.signal import csd, welch
-
-    obs = real.obs
-    dt = obs.dt
-    span = _used_span(obs.exclude)
-    t = obs.t[span]
-    gyro = np.asarray(real.log.gyro, dtype=float)[span]
+def _span_signals(t: Array, dt: float, gyro: Array, torque: Array,
+                  exclude: NDArray[np.bool_]) -> tuple[Array, Array, Array]:
+    """(t (K,), a (K, 3) [rad/s^2], tau (K, 3) [N m]) over the used span: the gyro's
+    central-difference angular acceleration (gaps interpolated) and the torque bins
+    [t_k, t_k + dt) centred on t_k as (tau_{k-1} + tau_k) / 2."""
+    span = _used_span(exclude)
+    t = np.asarray(t, dtype=float)[span]
+    gyro = np.asarray(gyro, dtype=float)[span]
     seen = np.isfinite(gyro).all(axis=1)
     if seen.sum() < 2:
-        raise ValueError(f"{real.source}: no gyro samples in the used span")
+        raise ValueError("no gyro samples in the used span")
     gyro = np.column_stack([np.interp(t, t[seen], gyro[seen, j]) for j in range(3)])
     acc = np.gradient(gyro, dt, axis=0)
-    torque = np.asarray(obs.inputs, dtype=float)[:, 1:4].copy()
-    if rotor_inertia and real.rotor_acc is not None:
-        torque[:, 2] += rotor_inertia * real.rotor_acc
+    torque = np.asarray(torque, dtype=float)
     centred = torque.copy()
     centred[1:] = 0.5 * (torque[1:] + torque[:-1])
-    tau = centred[span]
+    return t, acc, centred[span]
+
+
+def unexplained_torque(acc: Array, tau: Array, inertia: Array, dt: float,
+                       band: tuple[float, float] = UNEXPLAINED_BAND) -> Array:
+    """(3,) [-] per axis, the torque the model leaves over relative to the torque it has,
+    both band-passed to ``band`` [Hz] (zero-phase Butterworth, order 2):
+
+        u_j = rms(BP[I_jj a_j - tau_j]) / rms(BP[tau_j])
+
+    with I the reference inertia (3,) [kg m^2]. It measures how large the torques the
+    model does not have (disturbances: air, rotor aerodynamics, anything unmodelled) are
+    against the rotor torque: in closed loop the controller answers them, and where they
+    dominate |H| follows the controller rather than the inertia (module docstring)."""
+    from scipy.signal import butter, sosfiltfilt
+
+    sos = butter(2, [band[0], min(band[1], 0.45 / dt)], btype="band", fs=1.0 / dt,
+                 output="sos")
+    left = sosfiltfilt(sos, np.asarray(inertia) * acc - tau, axis=0)
+    have = sosfiltfilt(sos, tau, axis=0)
+    return np.sqrt(np.mean(left**2, axis=0) / np.mean(have**2, axis=0))
+
+
+def response_of_signals(name: str, t: Array, dt: float, gyro: Array, torque: Array,
+                        exclude: NDArray[np.bool_], rotor_inertia: float = 0.0,
+                        segment_s: float = 2.56, reference: Array | None = None
+                        ) -> ApparentInertia:
+    """:class:`ApparentInertia` of grid signals: t (N,) [s], gyro (N, 3) [rad/s] sampled
+    at t_k, torque (N, 3) [N m] binned over [t_k, t_k + dt), exclude (N,) the transitions
+    outside flight. Spectra: Welch, Hann segments of ``segment_s`` seconds, half overlap,
+    over the span between the first and the last used transition. reference (3,)
+    [kg m^2]: the inertia :func:`unexplained_torque` is measured against (NaN if None)."""
+    from scipy.signal import csd, welch
+
+    t, acc, tau = _span_signals(t, dt, gyro, torque, exclude)
     fs = 1.0 / dt
     nper = min(int(round(segment_s * fs)), t.size)
     gain, phase, coh = [], [], []
@@ -114,10 +162,83 @@ def apparent_inertia(real, name: str = "", rotor_inertia: float = 0.0,
             coh.append(np.abs(s_at) ** 2 / (s_aa * s_tt))
         gain.append(np.abs(h))
         phase.append(np.angle(h))
-    return ApparentInertia(name=name or Path(real.source).name, freq=freq,
-                           gain=np.column_stack(gain), phase=np.column_stack(phase),
-                           coherence=np.column_stack(coh), rotor_inertia=float(rotor_inertia),
-                           seconds=float(t[-1] - t[0]))
+    left = (np.full(3, np.nan) if reference is None
+            else unexplained_torque(acc, tau, reference, dt))
+    return ApparentInertia(name=name, freq=freq, gain=np.column_stack(gain),
+                           phase=np.column_stack(phase), coherence=np.column_stack(coh),
+                           rotor_inertia=float(rotor_inertia), seconds=float(t[-1] - t[0]),
+                           unexplained=left)
+
+
+def apparent_inertia(real, name: str = "", rotor_inertia: float = 0.0,
+                     segment_s: float = 2.56, reference: Array | None = None
+                     ) -> ApparentInertia:
+    """:class:`ApparentInertia` of a measured flight (``realdata.RealObservations``): the
+    rotor torques (plus J_r sum_i spin_i omega_i' on yaw) against the gyro
+    (:func:`response_of_signals`)."""
+    torque = np.asarray(real.obs.inputs, dtype=float)[:, 1:4].copy()
+    if rotor_inertia and real.rotor_acc is not None:
+        torque[:, 2] += rotor_inertia * real.rotor_acc
+    try:
+        return response_of_signals(name or Path(real.source).name, real.obs.t, real.obs.dt,
+                                   np.asarray(real.log.gyro, dtype=float), torque,
+                                   real.obs.exclude, rotor_inertia, segment_s, reference)
+    except ValueError as exc:
+        raise ValueError(f"{real.source}: {exc}") from None
+
+
+@dataclass(frozen=True)
+class SimulatedResponse:
+    """The frequency response of a simulated closed-loop flight and what direct EM makes
+    of the same flight.
+
+    factor: torque disturbance as a multiple of the simulator's process noise (std);
+    seed: the flight's generator seed; sensor: A, B or C; response: the ApparentInertia
+    of the logged commanded torque against the logged gyro, reference = the true
+    inertia; em_inertia (3,) [kg m^2]: EM's diagonal inertia (regressor M-step);
+    truth (3,) [kg m^2]; crashed: the flight crashed.
+    """
+
+    factor: float
+    seed: int
+    sensor: str
+    response: ApparentInertia
+    em_inertia: Array
+    truth: Array
+    crashed: bool
+
+    @property
+    def em_rel_error(self) -> Array:
+        """(3,) [-] EM inertia / truth - 1."""
+        return self.em_inertia / self.truth - 1.0
+
+
+def simulated_response(factor: float, seed: int = 0, sensor: str = "A",
+                       max_iterations: int = 200) -> SimulatedResponse:
+    """Fly the simulated Crazyflie 2.1 (the offline command's scenario, the paper's scaled
+    by 0.3, closed loop) with the torque process noise multiplied by ``factor``, compute
+    its apparent inertia from the log's commanded torques and gyro, and identify the same
+    log with EM (EKF + RTS E-step, regressor M-step, the offline command's start)."""
+    from pinquad.experiment import identify
+    from pinquad.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO, process_noise_for
+    from pinquad.sim import SimConfig, flight_log, simulate
+    from pinquad.sources import observations
+
+    vehicle = CRAZYFLIE21
+    config = SimConfig(vehicle=vehicle, sensor=sensor,
+                       process_noise=process_noise_for(vehicle).scaled(1.0, factor),
+                       scenario=PAPER_SCENARIO.scaled(0.3))
+    flight = simulate(config, np.random.default_rng(seed))
+    truth = np.diag(vehicle.inertia).copy()
+    response = response_of_signals(f"sim x{factor:g}", flight.t, float(flight.t[1] - flight.t[0]),
+                                   flight.onboard.gyro, flight.inputs[:, 1:4], flight.contact,
+                                   reference=truth)
+    obs = observations(flight_log(flight), sensor)
+    ident, _ = identify(obs, vehicle.mass * PAPER_INITIAL_MASS / 0.18, vehicle.inertia * 0.5,
+                        vehicle.gravity, "rts", "regressor", max_iterations, False)
+    return SimulatedResponse(factor=float(factor), seed=seed, sensor=sensor, response=response,
+                             em_inertia=np.diag(ident.inertia).copy(), truth=truth,
+                             crashed=bool(flight.crashed))
 
 
 def format_response(results: Sequence[ApparentInertia], hz: Sequence[float] = REPORT_HZ,
@@ -177,6 +298,66 @@ def plot_response(results: Sequence[ApparentInertia], path: Path,
     return atomic_write_bytes(path, buf.getvalue())
 
 
+def _band_lines(results: Sequence[ApparentInertia], what: str) -> list[str]:
+    """Per axis, the median over ``results`` of each band's median |H| [1e-6 kg m^2]."""
+    return [f"\naxis {axis}, median over the {what} of the median |H| per band "
+            "[1e-6 kg m^2]: " + ", ".join(
+                f"{lo:g}-{hi:g} Hz {1e6 * np.median([r.band_gain(lo, hi)[j] for r in results]):.1f}"
+                for lo, hi in BANDS)
+            for j, axis in enumerate(AXES)]
+
+
+def _unexplained_line(r: ApparentInertia, against: str) -> str:
+    lo, hi = UNEXPLAINED_BAND
+    return (f"{r.name}: unexplained / rotor torque in {lo:g}-{hi:g} Hz (against {against}) "
+            "roll {:.2f}, pitch {:.2f}, yaw {:.2f}".format(*r.unexplained))
+
+
+def format_simulated(results: Sequence[SimulatedResponse]) -> str:
+    """A Markdown table, one row per simulated flight: the band medians of |H| per axis,
+    the unexplained torque ratio and EM's inertia error."""
+    head = ("| torque noise | seed | sensor | axis | " + " | ".join(
+        f"{lo:g}-{hi:g} Hz" for lo, hi in BANDS) + " | true I | unexplained / rotor torque "
+        f"({UNEXPLAINED_BAND[0]:g}-{UNEXPLAINED_BAND[1]:g} Hz) | EM inertia error |")
+    lines = [head, "|---|---|---|---|" + "---|" * len(BANDS) + "---|---|---|"]
+    for s in results:
+        for j, axis in enumerate(("roll", "pitch", "yaw")):
+            bands = " | ".join(f"{1e6 * s.response.band_gain(lo, hi)[j]:.1f}"
+                               for lo, hi in BANDS)
+            crash = " (crashed)" if s.crashed else ""
+            lines.append(f"| x{s.factor:g}{crash} | {s.seed} | {s.sensor} | {axis} | {bands} | "
+                         f"{1e6 * s.truth[j]:.2f} | {s.response.unexplained[j]:.2f} | "
+                         f"{100 * s.em_rel_error[j]:+.1f} % |")
+    return "\n".join(lines)
+
+
+def _run_simulated(factors: Sequence[float], seed: int, sensor: str, out: Path | None
+                   ) -> int:
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    if any(f <= 0 or not np.isfinite(f) for f in factors):
+        print("error: --simulate factors must be positive numbers", file=sys.stderr)
+        return 2
+    results = [simulated_response(f, seed, sensor)
+               for f in tqdm(factors, unit="flight", file=sys.stderr)]
+    print(f"simulated Crazyflie 2.1, closed loop, sensor {sensor}, generator seed {seed} for "
+          f"every flight; torque process noise x {', '.join(f'{f:g}' for f in factors)}; "
+          "|H| of the logged commanded torque against the logged gyro, band medians "
+          "[1e-6 kg m^2]; EM: EKF + RTS E-step, regressor M-step on the same log\n")
+    print(format_simulated(results))
+    if out is not None:
+        try:
+            truth = results[0].truth
+            print(f"figure: {plot_response([r.response for r in results], out, truth)}")
+        except OSError as exc:
+            print(f"error: {out}: cannot write the figure ({exc.strerror or exc})",
+                  file=sys.stderr)
+            return 2
+    print(f"{len(results)} flights in {time.perf_counter() - t0:.0f} s")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from tqdm import tqdm
 
@@ -205,7 +386,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="J_r [kg m^2] added to the yaw torque as J_r sum spin_i omega_i'")
     p.add_argument("--out", type=Path, default=None,
                    help="write the figure here (PNG; default: none)")
+    p.add_argument("--simulate", type=float, nargs="+", metavar="FACTOR", default=None,
+                   help="instead of measured logs, fly the simulated Crazyflie in closed loop "
+                        "once per FACTOR, with the torque process noise multiplied by it, and "
+                        "print its apparent inertia and what EM identifies (about 10-20 s "
+                        "per flight)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="generator seed of every simulated flight (with --simulate)")
+    p.add_argument("--sensor", choices=("A", "B", "C"), default="A",
+                   help="sensor set of the simulated flights (with --simulate)")
     args = p.parse_args(argv)
+    if args.simulate is not None:
+        return _run_simulated(args.simulate, args.seed, args.sensor, args.out)
     t0 = time.perf_counter()
     flights = flights_dir(args.data)
     try:
@@ -214,18 +406,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         for name in tqdm(args.logs, unit="log", file=sys.stderr):
             path = Path(name) if Path(name).exists() else flights / name
             real = load_real(path, RealDataOptions(), kf)
-            results.append(apparent_inertia(real, path.name, args.rotor_inertia))
+            results.append(apparent_inertia(real, path.name, args.rotor_inertia,
+                                            reference=PUBLISHED_INERTIA))
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(f"apparent inertia |H_j(f)| = |S_a,tau / S_a,a| per axis, J_r = "
           f"{args.rotor_inertia:g} kg m^2 on the yaw torque; {len(results)} logs from {flights}")
     print(format_response(results, published=PUBLISHED_INERTIA))
-    for j, axis in enumerate(AXES):
-        print(f"\naxis {axis}, median over the logs of the median |H| per band "
-              "[1e-6 kg m^2]: " + ", ".join(
-                  f"{lo:g}-{hi:g} Hz {1e6 * np.median([r.band_gain(lo, hi)[j] for r in results]):.1f}"
-                  for lo, hi in ((2.0, 3.0), (3.0, 5.0), (5.0, 8.0), (8.0, 12.0), (12.0, 16.0))))
+    for line in _band_lines(results, "logs"):
+        print(line)
+    print()
+    for r in results:
+        print(_unexplained_line(r, "the published inertia"))
     if args.out is not None:
         try:
             print(f"figure: {plot_response(results, args.out, PUBLISHED_INERTIA)}")
