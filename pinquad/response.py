@@ -263,9 +263,12 @@ def format_response(results: Sequence[ApparentInertia], hz: Sequence[float] = RE
 
 def plot_response(results: Sequence[ApparentInertia], path: Path,
                   published: Array | None = None, band: tuple[float, float] = (3.0, 8.0),
-                  fmax: float = 20.0) -> Path:
+                  fmax: float = 20.0, reference_label: str = "published (CF 2.0)",
+                  title: str = "apparent inertia against frequency (flat and on the dashed "
+                               "line if the rigid-body torque model held)") -> Path:
     """|H_j(f)| of every log, one panel per axis, the inertia M-step's band shaded and the
-    published inertia dashed; written atomically to ``path`` (PNG)."""
+    reference inertia ``published`` (3,) [kg m^2] dashed; written atomically to ``path``
+    (PNG)."""
     import io
 
     import matplotlib
@@ -282,15 +285,14 @@ def plot_response(results: Sequence[ApparentInertia], path: Path,
             ax.plot(r.freq[sel], 1e6 * r.gain[sel, j], lw=1.2, label=r.name)
         ax.axvspan(*band, color="0.9", zorder=0, label=f"M-step band {band[0]:g}-{band[1]:g} Hz")
         if published is not None:
-            ax.axhline(1e6 * published[j], color="k", ls="--", lw=1, label="published (CF 2.0)")
+            ax.axhline(1e6 * published[j], color="k", ls="--", lw=1, label=reference_label)
         ax.set_yscale("log")
         ax.set_title(f"axis {AXES[j]}")
         ax.set_xlabel("frequency [Hz]")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("|torque / angular acceleration| [1e-6 kg m^2]")
     axes[-1].legend(fontsize=7, loc="upper right")
-    fig.suptitle("apparent inertia against frequency (flat and on the dashed line if the "
-                 "rigid-body torque model held)")
+    fig.suptitle(title)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
@@ -349,7 +351,11 @@ def _run_simulated(factors: Sequence[float], seed: int, sensor: str, out: Path |
     if out is not None:
         try:
             truth = results[0].truth
-            print(f"figure: {plot_response([r.response for r in results], out, truth)}")
+            fig = plot_response([r.response for r in results], out, truth,
+                                reference_label="true inertia",
+                                title="simulated closed loop: apparent inertia against "
+                                      "frequency, torque noise x factor")
+            print(f"figure: {fig}")
         except OSError as exc:
             print(f"error: {out}: cannot write the figure ({exc.strerror or exc})",
                   file=sys.stderr)
