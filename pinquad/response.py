@@ -196,7 +196,11 @@ class SimulatedResponse:
     seed: the flight's generator seed; sensor: A, B or C; response: the ApparentInertia
     of the logged commanded torque against the logged gyro, reference = the true
     inertia; em_inertia (3,) [kg m^2]: EM's diagonal inertia (regressor M-step);
-    truth (3,) [kg m^2]; crashed: the flight crashed.
+    band_inertia (3,) [kg m^2]: what the measured-flight pipeline (``realdata``: rotor
+    speeds from the commanded wrench, ``identify_real`` with its 3-8 Hz band-passed
+    inertia M-step and nuisance moments, no rotor inertia) finds on the same flight
+    (NaN without pose samples, i.e. sensors A and C); truth (3,) [kg m^2]; crashed: the
+    flight crashed.
     """
 
     factor: float
@@ -204,6 +208,7 @@ class SimulatedResponse:
     sensor: str
     response: ApparentInertia
     em_inertia: Array
+    band_inertia: Array
     truth: Array
     crashed: bool
 
@@ -212,13 +217,21 @@ class SimulatedResponse:
         """(3,) [-] EM inertia / truth - 1."""
         return self.em_inertia / self.truth - 1.0
 
+    @property
+    def band_rel_error(self) -> Array:
+        """(3,) [-] the measured-flight pipeline's inertia / truth - 1."""
+        return self.band_inertia / self.truth - 1.0
 
-def simulated_response(factor: float, seed: int = 0, sensor: str = "A",
+
+def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
                        max_iterations: int = 200) -> SimulatedResponse:
     """Fly the simulated Crazyflie 2.1 (the offline command's scenario, the paper's scaled
     by 0.3, closed loop) with the torque process noise multiplied by ``factor``, compute
     its apparent inertia from the log's commanded torques and gyro, and identify the same
-    log with EM (EKF + RTS E-step, regressor M-step, the offline command's start)."""
+    log with EM (EKF + RTS E-step, regressor M-step, the offline command's start) and,
+    with sensor B, with the measured-flight pipeline (``realdata.identify_real`` on
+    ``realdata.raw_from_simulated``, started at the truth)."""
+    from pinquad.actuators import KF_CRAZYFLIE
     from pinquad.experiment import identify
     from pinquad.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO, process_noise_for
     from pinquad.sim import SimConfig, flight_log, simulate
@@ -236,9 +249,23 @@ def simulated_response(factor: float, seed: int = 0, sensor: str = "A",
     obs = observations(flight_log(flight), sensor)
     ident, _ = identify(obs, vehicle.mass * PAPER_INITIAL_MASS / 0.18, vehicle.inertia * 0.5,
                         vehicle.gravity, "rts", "regressor", max_iterations, False)
+    band = np.full(3, np.nan)
+    if sensor == "B":
+        from pinquad.realdata import (
+            RealDataOptions,
+            build_observations,
+            identify_real,
+            raw_from_simulated,
+        )
+
+        options = RealDataOptions(kf=KF_CRAZYFLIE)
+        real = build_observations(raw_from_simulated(flight), options)
+        measured, _, _ = identify_real(real, vehicle.mass, vehicle.inertia, information=False,
+                                       fit_rotor_inertia=False)
+        band = np.asarray(measured.inertia, dtype=float).copy()
     return SimulatedResponse(factor=float(factor), seed=seed, sensor=sensor, response=response,
-                             em_inertia=np.diag(ident.inertia).copy(), truth=truth,
-                             crashed=bool(flight.crashed))
+                             em_inertia=np.diag(ident.inertia).copy(), band_inertia=band,
+                             truth=truth, crashed=bool(flight.crashed))
 
 
 def format_response(results: Sequence[ApparentInertia], hz: Sequence[float] = REPORT_HZ,
@@ -320,8 +347,9 @@ def format_simulated(results: Sequence[SimulatedResponse]) -> str:
     the unexplained torque ratio and EM's inertia error."""
     head = ("| torque noise | seed | sensor | axis | " + " | ".join(
         f"{lo:g}-{hi:g} Hz" for lo, hi in BANDS) + " | true I | unexplained / rotor torque "
-        f"({UNEXPLAINED_BAND[0]:g}-{UNEXPLAINED_BAND[1]:g} Hz) | EM inertia error |")
-    lines = [head, "|---|---|---|---|" + "---|" * len(BANDS) + "---|---|---|"]
+        f"({UNEXPLAINED_BAND[0]:g}-{UNEXPLAINED_BAND[1]:g} Hz) | EM inertia error | "
+        "measured-flight pipeline (3-8 Hz M-step) inertia error |")
+    lines = [head, "|---|---|---|---|" + "---|" * len(BANDS) + "---|---|---|---|"]
     for s in results:
         for j, axis in enumerate(("roll", "pitch", "yaw")):
             bands = " | ".join(f"{1e6 * s.response.band_gain(lo, hi)[j]:.1f}"
@@ -329,7 +357,9 @@ def format_simulated(results: Sequence[SimulatedResponse]) -> str:
             crash = " (crashed)" if s.crashed else ""
             lines.append(f"| x{s.factor:g}{crash} | {s.seed} | {s.sensor} | {axis} | {bands} | "
                          f"{1e6 * s.truth[j]:.2f} | {s.response.unexplained[j]:.2f} | "
-                         f"{100 * s.em_rel_error[j]:+.1f} % |")
+                         f"{100 * s.em_rel_error[j]:+.1f} % | "
+                         + (f"{100 * s.band_rel_error[j]:+.1f} % |"
+                            if np.isfinite(s.band_rel_error[j]) else "- |"))
     return "\n".join(lines)
 
 
@@ -346,7 +376,9 @@ def _run_simulated(factors: Sequence[float], seed: int, sensor: str, out: Path |
     print(f"simulated Crazyflie 2.1, closed loop, sensor {sensor}, generator seed {seed} for "
           f"every flight; torque process noise x {', '.join(f'{f:g}' for f in factors)}; "
           "|H| of the logged commanded torque against the logged gyro, band medians "
-          "[1e-6 kg m^2]; EM: EKF + RTS E-step, regressor M-step on the same log\n")
+          "[1e-6 kg m^2]; EM: EKF + RTS E-step, regressor M-step on the same log; "
+          "measured-flight pipeline: pinquad.realdata's identification of the same flight "
+          "with rotor speeds from the commanded wrench\n")
     print(format_simulated(results))
     if out is not None:
         try:
@@ -399,8 +431,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "per flight)")
     p.add_argument("--seed", type=int, default=0,
                    help="generator seed of every simulated flight (with --simulate)")
-    p.add_argument("--sensor", choices=("A", "B", "C"), default="A",
-                   help="sensor set of the simulated flights (with --simulate)")
+    p.add_argument("--sensor", choices=("A", "B", "C"), default="B",
+                   help="sensor set of the simulated flights (with --simulate; B, the default, "
+                        "logs the pose the measured-flight pipeline needs)")
     args = p.parse_args(argv)
     if args.simulate is not None:
         return _run_simulated(args.simulate, args.seed, args.sensor, args.out)
