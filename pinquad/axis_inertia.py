@@ -40,7 +40,6 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -265,29 +264,15 @@ def _cell(fit: AxisFit) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     from tqdm import tqdm
 
+    from pinquad.cli import add_measured_log_arguments, measured_logs, positive_factors
     from pinquad.logs import LogFormatError
-    from pinquad.realdata import (
-        POOL_FLIGHTS,
-        PUBLISHED_INERTIA,
-        RealDataOptions,
-        flights_dir,
-        load_real,
-        stand_dir,
-        thrust_coefficient,
-    )
+    from pinquad.realdata import PUBLISHED_INERTIA
 
     p = argparse.ArgumentParser(
         prog="python -m pinquad.axis_inertia",
         description="Inertia of measured Crazyflie flights by direct maximum likelihood per "
                     "body axis, with the unmodelled torques as a coloured disturbance.")
-    p.add_argument("logs", nargs="*", default=list(POOL_FLIGHTS),
-                   help="log names in the data directory, or paths (default: the seven clean "
-                        "logs)")
-    p.add_argument("--data", type=Path, default=None,
-                   help="Crazyflie data directory (default: $PINQUAD_CRAZYFLIE_DATA, else "
-                        "../shared/data/crazyflie next to the repository)")
-    p.add_argument("--rotor-inertia", type=float, default=0.0,
-                   help="J_r [kg m^2] added to the yaw torque as J_r sum spin_i omega_i'")
+    add_measured_log_arguments(p)
     p.add_argument("--simulate", type=float, nargs="+", metavar="FACTOR", default=None,
                    help="instead of measured logs, identify simulated closed-loop flights "
                         "(sensor B) with the torque process noise multiplied by each FACTOR")
@@ -296,8 +281,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     t0 = time.perf_counter()
     if args.simulate is not None:
-        if any(not (f > 0 and math.isfinite(f)) for f in args.simulate):
-            print("error: --simulate factors must be positive numbers", file=sys.stderr)
+        error = positive_factors(args.simulate)
+        if error:
+            print(f"error: {error}", file=sys.stderr)
             return 2
         print("simulated Crazyflie 2.1, closed loop, sensor B, read as a measured log; "
               f"seeds {', '.join(map(str, args.seeds))}; inertia [1e-6 kg m^2] ± standard "
@@ -314,18 +300,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"\ntruth {', '.join(f'{1e6 * v:.2f}' for v in truth)} e-6 kg m^2; "
               f"{len(jobs)} flights in {time.perf_counter() - t0:.0f} s")
         return 0
-    flights = flights_dir(args.data)
     rows = []
     try:
-        kf = thrust_coefficient(stand_dir(args.data))
-        for name in tqdm(args.logs, unit="log", file=sys.stderr):
-            path = Path(name) if Path(name).exists() else flights / name
-            real = load_real(path, RealDataOptions(), kf)
-            rows.append((path.name, identify_axes(real, PUBLISHED_INERTIA, args.rotor_inertia)))
+        for name, real in measured_logs(args):
+            rows.append((name, identify_axes(real, PUBLISHED_INERTIA, args.rotor_inertia)))
+            kf = real.kf.kf
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    print(f"direct maximum likelihood per axis, coloured torque disturbance; kf = {kf.kf:.4e} "
+    if not rows:
+        print("error: no logs given", file=sys.stderr)
+        return 2
+    print(f"direct maximum likelihood per axis, coloured torque disturbance; kf = {kf:.4e} "
           f"N/(rad/s)^2; J_r = {args.rotor_inertia:g} kg m^2 on yaw; inertia [1e-6 kg m^2] ± "
           "statistical standard error (kf's and the yaw ratio's uncertainty not included)\n")
     print("| log | I_xx | I_yy | I_zz |")

@@ -363,14 +363,23 @@ def format_simulated(results: Sequence[SimulatedResponse]) -> str:
     return "\n".join(lines)
 
 
+def _figure(results: Sequence[ApparentInertia], out: Path, reference: Array, **kwargs
+            ) -> bool:
+    """:func:`plot_response` to ``out``, printing its path, or the error on stderr
+    (False) if it cannot be written."""
+    try:
+        print(f"figure: {plot_response(results, out, reference, **kwargs)}")
+    except OSError as exc:
+        print(f"error: {out}: cannot write the figure ({exc.strerror or exc})", file=sys.stderr)
+        return False
+    return True
+
+
 def _run_simulated(factors: Sequence[float], seed: int, sensor: str, out: Path | None
                    ) -> int:
     from tqdm import tqdm
 
     t0 = time.perf_counter()
-    if any(f <= 0 or not np.isfinite(f) for f in factors):
-        print("error: --simulate factors must be positive numbers", file=sys.stderr)
-        return 2
     results = [simulated_response(f, seed, sensor)
                for f in tqdm(factors, unit="flight", file=sys.stderr)]
     print(f"simulated Crazyflie 2.1, closed loop, sensor {sensor}, generator seed {seed} for "
@@ -380,48 +389,26 @@ def _run_simulated(factors: Sequence[float], seed: int, sensor: str, out: Path |
           "measured-flight pipeline: pinquad.realdata's identification of the same flight "
           "with rotor speeds from the commanded wrench\n")
     print(format_simulated(results))
-    if out is not None:
-        try:
-            truth = results[0].truth
-            fig = plot_response([r.response for r in results], out, truth,
-                                reference_label="true inertia",
-                                title="simulated closed loop: apparent inertia against "
-                                      "frequency, torque noise x factor")
-            print(f"figure: {fig}")
-        except OSError as exc:
-            print(f"error: {out}: cannot write the figure ({exc.strerror or exc})",
-                  file=sys.stderr)
-            return 2
+    if out is not None and not _figure(
+            [r.response for r in results], out, results[0].truth,
+            reference_label="true inertia",
+            title="simulated closed loop: apparent inertia against frequency, torque noise "
+                  "x factor"):
+        return 2
     print(f"{len(results)} flights in {time.perf_counter() - t0:.0f} s")
     return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from tqdm import tqdm
-
+    from pinquad.cli import add_measured_log_arguments, measured_logs, positive_factors
     from pinquad.logs import LogFormatError
-    from pinquad.realdata import (
-        POOL_FLIGHTS,
-        PUBLISHED_INERTIA,
-        RealDataOptions,
-        flights_dir,
-        load_real,
-        stand_dir,
-        thrust_coefficient,
-    )
+    from pinquad.realdata import PUBLISHED_INERTIA
 
     p = argparse.ArgumentParser(
         prog="python -m pinquad.response",
         description="Apparent inertia |torque / angular acceleration| against frequency on "
                     "measured Crazyflie flights: where the rigid-body torque model holds.")
-    p.add_argument("logs", nargs="*", default=list(POOL_FLIGHTS),
-                   help="log names in the data directory, or paths (default: the seven clean "
-                        "logs)")
-    p.add_argument("--data", type=Path, default=None,
-                   help="Crazyflie data directory (default: $PINQUAD_CRAZYFLIE_DATA, else "
-                        "../shared/data/crazyflie next to the repository)")
-    p.add_argument("--rotor-inertia", type=float, default=0.0,
-                   help="J_r [kg m^2] added to the yaw torque as J_r sum spin_i omega_i'")
+    add_measured_log_arguments(p)
     p.add_argument("--out", type=Path, default=None,
                    help="write the figure here (PNG; default: none)")
     p.add_argument("--simulate", type=float, nargs="+", metavar="FACTOR", default=None,
@@ -436,35 +423,28 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "logs the pose the measured-flight pipeline needs)")
     args = p.parse_args(argv)
     if args.simulate is not None:
+        error = positive_factors(args.simulate)
+        if error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
         return _run_simulated(args.simulate, args.seed, args.sensor, args.out)
     t0 = time.perf_counter()
-    flights = flights_dir(args.data)
     try:
-        kf = thrust_coefficient(stand_dir(args.data))
-        results = []
-        for name in tqdm(args.logs, unit="log", file=sys.stderr):
-            path = Path(name) if Path(name).exists() else flights / name
-            real = load_real(path, RealDataOptions(), kf)
-            results.append(apparent_inertia(real, path.name, args.rotor_inertia,
-                                            reference=PUBLISHED_INERTIA))
+        results = [apparent_inertia(real, name, args.rotor_inertia, reference=PUBLISHED_INERTIA)
+                   for name, real in measured_logs(args)]
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(f"apparent inertia |H_j(f)| = |S_a,tau / S_a,a| per axis, J_r = "
-          f"{args.rotor_inertia:g} kg m^2 on the yaw torque; {len(results)} logs from {flights}")
+          f"{args.rotor_inertia:g} kg m^2 on the yaw torque; {len(results)} logs")
     print(format_response(results, published=PUBLISHED_INERTIA))
     for line in _band_lines(results, "logs"):
         print(line)
     print()
     for r in results:
         print(_unexplained_line(r, "the published inertia"))
-    if args.out is not None:
-        try:
-            print(f"figure: {plot_response(results, args.out, PUBLISHED_INERTIA)}")
-        except OSError as exc:
-            print(f"error: {args.out}: cannot write the figure ({exc.strerror or exc})",
-                  file=sys.stderr)
-            return 2
+    if args.out is not None and not _figure(results, args.out, PUBLISHED_INERTIA):
+        return 2
     print(f"{len(results)} logs in {time.perf_counter() - t0:.0f} s")
     return 0
 
