@@ -27,9 +27,9 @@ phi is kept in (0, 1) (a low-pass disturbance). Standard error of I: from the ob
 information of (log I, log q_white, log q_colour, log r) at phi fixed (phi sits near 1
 on the measured flights, where its own curvature is flat), pseudo-inverted.
 
-``python -m pinquad.axis_inertia [LOG ...]`` prints the table for measured logs;
-``--simulate 1 10`` checks the estimator on simulated closed-loop flights with a known
-inertia.
+``python -m pinquad.axis_inertia [LOG ...]`` prints the table for measured logs
+(``--parts 2``: each half of each flight on its own); ``--simulate 1 10`` checks the
+estimator on simulated closed-loop flights with a known inertia.
 """
 
 from __future__ import annotations
@@ -229,11 +229,18 @@ def axis_signals(real, reference: Array, rotor_inertia: float = 0.0
     return u, y, gap, float(obs.dt)
 
 
-def identify_axes(real, reference: Array, rotor_inertia: float = 0.0
-                  ) -> tuple[AxisFit, AxisFit, AxisFit]:
+def identify_axes(real, reference: Array, rotor_inertia: float = 0.0, part: int = 0,
+                  parts: int = 1) -> tuple[AxisFit, AxisFit, AxisFit]:
     """:class:`AxisFit` of roll, pitch and yaw of a measured flight, each started at the
-    reference inertia (3,) [kg m^2]."""
+    reference inertia (3,) [kg m^2]; with ``parts`` > 1, of the ``part``-th (0-based) of
+    that many equal consecutive pieces of the used span alone (a consistency check: the
+    pieces of one flight should agree within their standard errors)."""
     u, y, gap, dt = axis_signals(real, reference, rotor_inertia)
+    if not 0 <= part < parts:
+        raise ValueError(f"part {part} of {parts}: expected 0 <= part < parts")
+    cut = np.linspace(0, y.shape[0], parts + 1).astype(int)
+    piece = slice(cut[part], cut[part + 1])
+    u, y, gap = u[piece], y[piece], gap[piece]
     fits = tuple(fit_axis(u[:, j], y[:, j], gap, dt, float(reference[j]), j) for j in range(3))
     return fits[0], fits[1], fits[2]
 
@@ -278,8 +285,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "(sensor B) with the torque process noise multiplied by each FACTOR")
     p.add_argument("--seeds", type=int, nargs="+", default=[0],
                    help="generator seeds of the simulated flights (with --simulate)")
+    p.add_argument("--parts", type=int, default=1,
+                   help="identify each log's flight cut into this many equal consecutive "
+                        "pieces, each alone (a consistency check)")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
+    if args.parts < 1:
+        print(f"error: --parts {args.parts}: expected a positive number", file=sys.stderr)
+        return 2
     if args.simulate is not None:
         error = positive_factors(args.simulate)
         if error:
@@ -303,7 +316,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     rows = []
     try:
         for name, real in measured_logs(args):
-            rows.append((name, identify_axes(real, PUBLISHED_INERTIA, args.rotor_inertia)))
+            for part in range(args.parts):
+                label = name if args.parts == 1 else f"{name} [{part + 1}/{args.parts}]"
+                rows.append((label, identify_axes(real, PUBLISHED_INERTIA, args.rotor_inertia,
+                                                  part, args.parts)))
             kf = real.kf.kf
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
