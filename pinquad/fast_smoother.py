@@ -256,6 +256,124 @@ def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
 
 
 @njit(cache=True)
+def _rotation_derivatives(phi, theta, psi, rot, d_rot):
+    """R = Rz(psi) Ry(theta) Rx(phi) into rot (3, 3) and dR/d(phi, theta, psi) into
+    d_rot (3, 3, 3), last axis the angle (``full_inertia._rotation_and_derivatives``)."""
+    sf, cf = math.sin(phi), math.cos(phi)
+    st, ct = math.sin(theta), math.cos(theta)
+    sp, cp = math.sin(psi), math.cos(psi)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cf, -sf], [0.0, sf, cf]])
+    ry = np.array([[ct, 0.0, st], [0.0, 1.0, 0.0], [-st, 0.0, ct]])
+    rz = np.array([[cp, -sp, 0.0], [sp, cp, 0.0], [0.0, 0.0, 1.0]])
+    drx = np.array([[0.0, 0.0, 0.0], [0.0, -sf, -cf], [0.0, cf, -sf]])
+    dry = np.array([[-st, 0.0, ct], [0.0, 0.0, 0.0], [-ct, 0.0, -st]])
+    drz = np.array([[-sp, -cp, 0.0], [cp, -sp, 0.0], [0.0, 0.0, 0.0]])
+    zy = rz @ ry
+    rot[:, :] = zy @ rx
+    d0 = zy @ drx
+    d1 = rz @ dry @ rx
+    d2 = drz @ ry @ rx
+    for r in range(3):
+        for c in range(3):
+            d_rot[r, c, 0] = d0[r, c]
+            d_rot[r, c, 1] = d1[r, c]
+            d_rot[r, c, 2] = d2[r, c]
+
+
+@njit(cache=True)
+def _full_dynamics(x, u, dt, gravity, m_inv, h, i_o, x_next, jac):
+    """Replace the velocity and rate rows of ``_transition``'s x_next (12,) and jac
+    (12, 12) by those of ``full_inertia.FullQuadSSM`` (ten inertial parameters: spatial
+    inertia inverse m_inv (6, 6) about the body origin, first moment h = m c (3,),
+    rotational inertia about the origin i_o (3, 3)):
+
+        [a_O; omega'] = M^-1 ([0, 0, F, tau] - [w x (w x h); w x I_O w]),
+        v' = R a_O - g e3,  omega' as above (explicit Euler, Jacobian I + dt df/dx)."""
+    wx, wy, wz = x[9], x[10], x[11]
+    w = np.array([wx, wy, wz])
+    iw = i_o @ w
+    wh = np.array([wy * h[2] - wz * h[1], wz * h[0] - wx * h[2], wx * h[1] - wy * h[0]])
+    bias = np.empty(6)
+    bias[0] = wy * wh[2] - wz * wh[1]
+    bias[1] = wz * wh[0] - wx * wh[2]
+    bias[2] = wx * wh[1] - wy * wh[0]
+    bias[3] = wy * iw[2] - wz * iw[1]
+    bias[4] = wz * iw[0] - wx * iw[2]
+    bias[5] = wx * iw[1] - wy * iw[0]
+    tau = np.array([0.0, 0.0, u[0], u[1], u[2], u[3]])
+    acc = m_inv @ (tau - bias)
+    wdh = wx * h[0] + wy * h[1] + wz * h[2]
+    d_bias = np.empty((6, 3))
+    for r in range(3):
+        for c in range(3):
+            d_bias[r, c] = w[r] * h[c] - 2.0 * h[r] * w[c]
+        d_bias[r, r] += wdh
+    sw = np.array([[0.0, -wz, wy], [wz, 0.0, -wx], [-wy, wx, 0.0]])
+    siw = np.array([[0.0, -iw[2], iw[1]], [iw[2], 0.0, -iw[0]], [-iw[1], iw[0], 0.0]])
+    d_bias[3:6, :] = sw @ i_o - siw
+    d_acc = -(m_inv @ d_bias)
+    rot = np.empty((3, 3))
+    d_rot = np.empty((3, 3, 3))
+    _rotation_derivatives(x[6], x[7], x[8], rot, d_rot)
+    for r in range(3):
+        fv = rot[r, 0] * acc[0] + rot[r, 1] * acc[1] + rot[r, 2] * acc[2]
+        if r == 2:
+            fv -= gravity
+        x_next[3 + r] = x[3 + r] + dt * fv
+        x_next[9 + r] = x[9 + r] + dt * acc[3 + r]
+        for c in range(_N):
+            jac[3 + r, c] = 0.0
+            jac[9 + r, c] = 0.0
+        jac[3 + r, 3 + r] = 1.0
+        jac[9 + r, 9 + r] = 1.0
+        for k in range(3):
+            jac[3 + r, 6 + k] = dt * (d_rot[r, 0, k] * acc[0] + d_rot[r, 1, k] * acc[1]
+                                      + d_rot[r, 2, k] * acc[2])
+            jac[3 + r, 9 + k] = dt * (rot[r, 0] * d_acc[0, k] + rot[r, 1] * d_acc[1, k]
+                                      + rot[r, 2] * d_acc[2, k])
+            jac[9 + r, 9 + k] += dt * d_acc[3 + r, k]
+
+
+@njit(cache=True)
+def _process_cov_full(x, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q):
+    """Q (12, 12) of ``full_inertia.FullQuadSSM`` at x: the kinematic diagonal, and over
+    the velocity and rate rows dt G diag(S) G^T, G = M^-1 with its force rows turned by R."""
+    _fill(q, 0.0)
+    if use_fixed:
+        for i in range(_N):
+            q[i, i] = fixed_q[i]
+        return
+    for i in range(3):
+        q[i, i] = q_kin[i]
+        q[6 + i, 6 + i] = q_kin[3 + i]
+    rot = np.empty((3, 3))
+    d_rot = np.empty((3, 3, 3))
+    _rotation_derivatives(x[6], x[7], x[8], rot, d_rot)
+    g = m_inv.copy()
+    for r in range(3):
+        for c in range(6):
+            g[r, c] = rot[r, 0] * m_inv[0, c] + rot[r, 1] * m_inv[1, c] + rot[r, 2] * m_inv[2, c]
+    rows = np.array([3, 4, 5, 9, 10, 11])
+    for a in range(6):
+        for b in range(6):
+            acc = 0.0
+            for j in range(6):
+                acc += (g[a, j] * s_wrench[j]) * g[b, j]
+            q[rows[a], rows[b]] = dt * acc
+
+
+@njit(cache=True)
+def _f_times_full(f, p, out):
+    """out = F p for the full model's Jacobian: ``_f_times``'s pattern with the velocity
+    rows reaching the rate columns too (rows 3-5: columns r, 6-11)."""
+    _f_times(f, p, out)
+    for r in range(3, 6):
+        f9, f10, f11 = f[r, 9], f[r, 10], f[r, 11]
+        for c in range(_N):
+            out[r, c] += f9 * p[9, c] + f10 * p[10, c] + f11 * p[11, c]
+
+
+@njit(cache=True)
 def _cholesky(a, p, low):
     """Lower Cholesky factor of a[:p, :p] into low; False if not positive definite."""
     for j in range(p):
@@ -340,7 +458,7 @@ def _f_times(f, p, out):
 @njit(cache=True)
 def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
              state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic, resets,
-             reset_var, store):
+             reset_var, full, m_inv, first_moment, i_o, s_wrench, store):
     """EKF forward pass (see module docstring) into fresh arrays. Returns filtered and
     predicted means and covariances, the products F_k P_k the backward pass needs, the
     log-likelihood and the first step whose innovation covariance was not positive
@@ -359,15 +477,17 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
     fps = np.empty((max(n_store - 1, 0) if store else 1, _N, _N))
     loglik, bad = _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity,
                                 meas_var, state_of_row, is_angle, use_fixed, fixed_q, q_kin,
-                                s_f, q_tau, kinematic, resets, reset_var, store, f_mean, f_cov,
-                                p_mean, p_cov, fps)
+                                s_f, q_tau, kinematic, resets, reset_var, full, m_inv,
+                                first_moment, i_o, s_wrench, store, f_mean, f_cov, p_mean,
+                                p_cov, fps)
     return f_mean, f_cov, p_mean, p_cov, fps, loglik, bad
 
 
 @njit(cache=True)
 def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
                   state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic,
-                  resets, reset_var, store, f_mean, f_cov, p_mean, p_cov, fps):
+                  resets, reset_var, full, m_inv, first_moment, i_o, s_wrench, store, f_mean,
+                  f_cov, p_mean, p_cov, fps):
     """``_forward`` into given arrays (f_mean, p_mean (N, 12), f_cov, p_cov (N, 12, 12),
     fps (N - 1, 12, 12); unused when not store). Returns (log-likelihood, first bad
     step or -1)."""
@@ -449,7 +569,10 @@ def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, m
             _copy_vec(mean, f_mean[k])
             _copy_mat(cov, f_cov[k])
         if k + 1 < n_steps:
-            _process_cov(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
+            if full:
+                _process_cov_full(mean, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q)
+            else:
+                _process_cov(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
             if resets[k]:
                 for i in range(_N):
                     q[i, i] += reset_var[i]
@@ -458,14 +581,23 @@ def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, m
             else:
                 _transition(mean, inputs[k], dt, mass, inertia, inertia_inv, gravity, x_next,
                             jac)
-            _f_times(jac, cov, fp)
+                if full:
+                    _full_dynamics(mean, inputs[k], dt, gravity, m_inv, first_moment, i_o,
+                                   x_next, jac)
+            if full:
+                _f_times_full(jac, cov, fp)
+            else:
+                _f_times(jac, cov, fp)
             if store:
                 _copy_mat(fp, fps[k])
             # F P F^T = F (F P)^T (P symmetric)
             for r in range(_N):
                 for c in range(_N):
                     fp_t[r, c] = fp[c, r]
-            _f_times(jac, fp_t, new_cov)
+            if full:
+                _f_times_full(jac, fp_t, new_cov)
+            else:
+                _f_times(jac, fp_t, new_cov)
             for r in range(_N):
                 for c in range(_N):
                     new_cov[r, c] += q[r, c]
@@ -565,12 +697,26 @@ def _kernel_inputs(model: QuadSSM, meas_dim: int) -> tuple | None:
     fixed_q = np.asarray(nz.fixed_q if use_fixed else np.zeros(_N), dtype=float)
     # The same expression as QuadSSM.__init__, so that Q's torque block is bit-identical.
     q_tau = obs.dt * body.inertia_inv @ np.diag(nz.wrench[3:6]) @ body.inertia_inv
+    full = _is_full(model)
+    m_inv = np.ascontiguousarray(model._m_inv if full else np.zeros((6, 6)), dtype=float)
+    first_moment = np.ascontiguousarray(model._first_moment if full else np.zeros(3),
+                                        dtype=float)
+    i_o = np.ascontiguousarray(model._i_o if full else np.zeros((3, 3)), dtype=float)
     return (float(obs.dt), float(body.mass), np.ascontiguousarray(body.inertia, dtype=float),
             np.ascontiguousarray(body.inertia_inv, dtype=float), float(body.gravity),
             np.ascontiguousarray(nz.meas, dtype=float), state_of_row, is_angle, use_fixed,
             fixed_q, np.ascontiguousarray(nz.q_kin, dtype=float),
             np.ascontiguousarray(nz.wrench[0:3], dtype=float), np.ascontiguousarray(q_tau),
-            type(model) is KinematicSSM, _reset_mask(obs), _ssm.RESET_VAR.copy())
+            type(model) is KinematicSSM, _reset_mask(obs), _ssm.RESET_VAR.copy(), full, m_inv,
+            first_moment, i_o, np.ascontiguousarray(nz.wrench, dtype=float))
+
+
+def _is_full(model: StateSpaceModel) -> bool:
+    """Whether ``model`` is exactly ``full_inertia.FullQuadSSM`` (imported here, late:
+    that module imports the EM machinery this one serves)."""
+    from pinquad.full_inertia import FullQuadSSM
+
+    return type(model) is FullQuadSSM
 
 
 def _reset_mask(obs: Observations) -> NDArray[np.bool_]:
@@ -592,7 +738,8 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
     new terms): transition, Jacobian, Q, H, R and the wrapped residual at a probe state,
     at the first and the last transition."""
     (dt, mass, inertia, inertia_inv, gravity, meas_var, state_of_row, is_angle, use_fixed,
-     fixed_q, q_kin, s_f, q_tau, kinematic, resets, reset_var) = consts
+     fixed_q, q_kin, s_f, q_tau, kinematic, resets, reset_var, full, m_inv, first_moment, i_o,
+     s_wrench) = consts
     n_steps = model.obs.n
     x = np.asarray(model.obs.x0, dtype=float) + _PROBE
     x_next, jac, q = np.empty(_N), np.empty((_N, _N)), np.empty((_N, _N))
@@ -606,7 +753,12 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
             _transition_kinematic(x, dt, x_next, jac)
         else:
             _transition(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
-        _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
+            if full:
+                _full_dynamics(x, u, dt, gravity, m_inv, first_moment, i_o, x_next, jac)
+        if full:
+            _process_cov_full(x, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q)
+        else:
+            _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
         if resets[k]:
             q = q + np.diag(reset_var)
         ref_q = model.process_cov(x, k)
@@ -657,7 +809,7 @@ def _agrees_cached(model: QuadSSM, consts: tuple) -> bool:
 def _prepared(model: StateSpaceModel, ys: Array) -> tuple[Array, tuple] | None:
     """(ys, kernel constants) if the kernels reproduce ``model``, else None (after a
     warning if the model is a QuadSSM the kernels no longer match)."""
-    if type(model) not in (QuadSSM, KinematicSSM):
+    if type(model) not in (QuadSSM, KinematicSSM) and not _is_full(model):
         return None
     ys = np.ascontiguousarray(ys, dtype=float)
     obs = model.obs

@@ -441,15 +441,17 @@ def _set_se_context(obs: Observations, theta: Theta) -> None:
 def _loglik_at(pi: Array, obs: Observations | None = None, theta: Theta | None = None,
                loglik: Callable | None = None) -> float:
     """log p(y | pi) of the EKF (or ``loglik``) on FullQuadSSM with the ten parameters pi
-    and theta's noise; obs and theta default to the worker's context."""
-    from estimators.ekf import run_filter
+    and theta's noise; obs and theta default to the worker's context. The EKF is the
+    compiled one (``fast_smoother.loglik_quad``, which falls back to the generic filter
+    where its kernels do not reproduce the model)."""
+    from pinquad.fast_smoother import loglik_quad
 
     if obs is None or theta is None:
         assert _SE_CONTEXT is not None
         obs, theta = _SE_CONTEXT
     mass, com, inertia = from_dynamic_parameters(pi)
     model = FullQuadSSM(obs, Theta(mass, inertia, theta.noise, theta.gravity, com))
-    return loglik(model, obs.ys) if loglik is not None else run_filter(model, obs.ys).loglik
+    return (loglik or loglik_quad)(model, obs.ys)
 
 
 def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = None,

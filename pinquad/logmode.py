@@ -283,6 +283,9 @@ def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity
     from pinquad.em import initial_theta
     from pinquad.full_inertia import identify_full
 
+    # the generic smoother, not the compiled one (equal per E-step to ~1e-9): over-relaxed
+    # EM in ten parameters from the paper's start has not converged after 40 E-steps, and
+    # where it stops then moves with such rounding differences (see the README)
     res = identify_full(obs, initial_theta(obs, mass0, inertia0, gravity), smooth,
                         max_iterations=args.max_iterations,
                         information=not args.no_information)
