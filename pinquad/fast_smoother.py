@@ -39,7 +39,11 @@ Backward pass (``estimators.rts``), k = N-2 .. 0:
 EM's force-free warm-up model (``KinematicSSM``: f = [v, 0, E^{-1} omega, 0] with the
 paper's fixed Q0) runs through the same passes with its own transition kernel, and
 ``loglik_quad`` runs the forward pass alone (no stored arrays) for the observed
-information's 33 likelihood evaluations.
+information's 33 likelihood evaluations. The ten-parameter model
+(``full_inertia.FullQuadSSM``: full inertia tensor and CoM offset) runs through the same
+passes with its own dynamic rows (``_full_dynamics``), process covariance
+(``_process_cov_full``) and F P product (its velocity rows reach the rate columns), behind
+the same agreement check.
 
 No outlier gate (EM runs the generic path with ``gate_sigma=None`` too). Anything the
 kernels do not cover (another model class, a gate, a QuadSSM whose behaviour has moved
@@ -220,16 +224,25 @@ def _transition_kinematic(x, dt, x_next, jac):
 
 
 @njit(cache=True)
-def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
-    """Q (12, 12) of QuadSSM.process_cov at x, written into q."""
+def _process_cov_start(use_fixed, fixed_q, q_kin, q):
+    """q = diag(fixed_q) (returns True: Q is complete), or zero but for the position and
+    Euler rows' kinematic variances (returns False: the dynamic blocks follow)."""
     _fill(q, 0.0)
     if use_fixed:
         for i in range(_N):
             q[i, i] = fixed_q[i]
-        return
+        return True
     for i in range(3):
         q[i, i] = q_kin[i]
         q[6 + i, 6 + i] = q_kin[3 + i]
+    return False
+
+
+@njit(cache=True)
+def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
+    """Q (12, 12) of QuadSSM.process_cov at x, written into q."""
+    if _process_cov_start(use_fixed, fixed_q, q_kin, q):
+        return
     sf, cf = math.sin(x[6]), math.cos(x[6])
     st, ct = math.sin(x[7]), math.cos(x[7])
     sp, cp = math.sin(x[8]), math.cos(x[8])
@@ -338,14 +351,8 @@ def _full_dynamics(x, u, dt, gravity, m_inv, h, i_o, x_next, jac):
 def _process_cov_full(x, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q):
     """Q (12, 12) of ``full_inertia.FullQuadSSM`` at x: the kinematic diagonal, and over
     the velocity and rate rows dt G diag(S) G^T, G = M^-1 with its force rows turned by R."""
-    _fill(q, 0.0)
-    if use_fixed:
-        for i in range(_N):
-            q[i, i] = fixed_q[i]
+    if _process_cov_start(use_fixed, fixed_q, q_kin, q):
         return
-    for i in range(3):
-        q[i, i] = q_kin[i]
-        q[6 + i, 6 + i] = q_kin[3 + i]
     rot = np.empty((3, 3))
     d_rot = np.empty((3, 3, 3))
     _rotation_derivatives(x[6], x[7], x[8], rot, d_rot)
