@@ -51,7 +51,6 @@ Array = NDArray[np.float64]
 GAP_VAR = (100.0, 0.1)
 """Process variances added across an excluded transition: rate [(rad/s)^2] and scaled
 disturbance [(rad/s)^2]."""
-AXIS_NAMES = ("roll", "pitch", "yaw")
 
 
 @dataclass(frozen=True)
@@ -247,20 +246,15 @@ def identify_axes(real, reference: Array, rotor_inertia: float = 0.0, part: int 
 
 # ----------------------------------------------------------------------------- command line
 
-def _simulated(factor: float, seed: int) -> tuple[tuple[AxisFit, AxisFit, AxisFit], Array]:
-    """Fly the simulated Crazyflie 2.1 (sensor B, closed loop, the torque noise x factor),
-    read it as a measured log (``realdata.raw_from_simulated``) and identify it."""
-    from pinquad.actuators import KF_CRAZYFLIE
-    from pinquad.params import CRAZYFLIE21, PAPER_SCENARIO, process_noise_for
-    from pinquad.realdata import RealDataOptions, build_observations, raw_from_simulated
-    from pinquad.sim import SimConfig, simulate
+def simulated_axes(factor: float, seed: int) -> tuple[tuple[AxisFit, AxisFit, AxisFit], Array]:
+    """:func:`identify_axes` of a simulated closed-loop Crazyflie 2.1 flight (sensor B,
+    the torque noise x factor; ``realdata.simulated_crazyflie``) read as a measured log,
+    and the true inertia diagonal (3,) [kg m^2]."""
+    from pinquad.params import CRAZYFLIE21
+    from pinquad.realdata import simulated_crazyflie, simulated_observations
 
-    vehicle = CRAZYFLIE21
-    config = SimConfig(vehicle=vehicle, sensor="B", scenario=PAPER_SCENARIO.scaled(0.3),
-                       process_noise=process_noise_for(vehicle).scaled(1.0, factor))
-    flight = simulate(config, np.random.default_rng(seed))
-    real = build_observations(raw_from_simulated(flight), RealDataOptions(kf=KF_CRAZYFLIE))
-    truth = np.diag(vehicle.inertia).copy()
+    real = simulated_observations(simulated_crazyflie(factor, seed, "B"))
+    truth = np.diag(CRAZYFLIE21.inertia).copy()
     return identify_axes(real, truth), truth
 
 
@@ -305,7 +299,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("|---|---|---|---|---|")
         jobs = [(f, s) for f in args.simulate for s in args.seeds]
         for factor, seed in tqdm(jobs, unit="flight", file=sys.stderr):
-            fits, truth = _simulated(factor, seed)
+            fits, truth = simulated_axes(factor, seed)
             cells = [f"{_cell(fit)}, {100 * (fit.inertia / truth[j] - 1):+.1f} % "
                      f"({(fit.inertia - truth[j]) / fit.se:+.1f} SE)"
                      for j, fit in enumerate(fits)]

@@ -374,6 +374,25 @@ def raw_from_simulated(flight, actuator: ActuatorModel | None = None) -> RawFlig
     return RawFlight(log=log, pose=pose)
 
 
+def simulated_crazyflie(factor: float, seed: int, sensor: str = "B"):
+    """A simulated closed-loop flight of the Crazyflie 2.1 (``pinquad.sim.Flight``): the
+    offline command's scenario (the paper's, scaled by 0.3), the sensor set ``sensor``,
+    the simulator's torque process noise multiplied by ``factor``, generator seed
+    ``seed``; the diagnostics' known-truth counterpart of a measured flight."""
+    from pinquad.params import PAPER_SCENARIO, process_noise_for
+    from pinquad.sim import SimConfig, simulate
+
+    config = SimConfig(vehicle=CRAZYFLIE21, sensor=sensor, scenario=PAPER_SCENARIO.scaled(0.3),
+                       process_noise=process_noise_for(CRAZYFLIE21).scaled(1.0, factor))
+    return simulate(config, np.random.default_rng(seed))
+
+
+def simulated_observations(flight) -> RealObservations:
+    """A sensor-B simulated flight through the measured-flight path
+    (:func:`raw_from_simulated`, then :func:`build_observations` with the shared kf)."""
+    return build_observations(raw_from_simulated(flight), RealDataOptions(kf=KF_CRAZYFLIE))
+
+
 def _bin_mean(t: Array, values: Array, start: Array, dt: float, k: int) -> Array:
     """(k, C) mean of the finite values with start[j] <= t < start[j] + dt; NaN if none.
 

@@ -231,17 +231,14 @@ def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
     log with EM (EKF + RTS E-step, regressor M-step, the offline command's start) and,
     with sensor B, with the measured-flight pipeline (``realdata.identify_real`` on
     ``realdata.raw_from_simulated``, started at the truth)."""
-    from pinquad.actuators import KF_CRAZYFLIE
     from pinquad.experiment import identify
-    from pinquad.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO, process_noise_for
-    from pinquad.sim import SimConfig, flight_log, simulate
+    from pinquad.params import CRAZYFLIE21, PAPER_INITIAL_MASS
+    from pinquad.realdata import identify_real, simulated_crazyflie, simulated_observations
+    from pinquad.sim import flight_log
     from pinquad.sources import observations
 
     vehicle = CRAZYFLIE21
-    config = SimConfig(vehicle=vehicle, sensor=sensor,
-                       process_noise=process_noise_for(vehicle).scaled(1.0, factor),
-                       scenario=PAPER_SCENARIO.scaled(0.3))
-    flight = simulate(config, np.random.default_rng(seed))
+    flight = simulated_crazyflie(factor, seed, sensor)
     truth = np.diag(vehicle.inertia).copy()
     response = response_of_signals(f"sim x{factor:g}", flight.t, float(flight.t[1] - flight.t[0]),
                                    flight.onboard.gyro, flight.inputs[:, 1:4], flight.contact,
@@ -251,16 +248,8 @@ def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
                         vehicle.gravity, "rts", "regressor", max_iterations, False)
     band = np.full(3, np.nan)
     if sensor == "B":
-        from pinquad.realdata import (
-            RealDataOptions,
-            build_observations,
-            identify_real,
-            raw_from_simulated,
-        )
-
-        options = RealDataOptions(kf=KF_CRAZYFLIE)
-        real = build_observations(raw_from_simulated(flight), options)
-        measured, _, _ = identify_real(real, vehicle.mass, vehicle.inertia, information=False,
+        measured, _, _ = identify_real(simulated_observations(flight), vehicle.mass,
+                                       vehicle.inertia, information=False,
                                        fit_rotor_inertia=False)
         band = np.asarray(measured.inertia, dtype=float).copy()
     return SimulatedResponse(factor=float(factor), seed=seed, sensor=sensor, response=response,

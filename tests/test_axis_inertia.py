@@ -76,9 +76,9 @@ def test_simulated_closed_loop_flight_read_as_a_measured_log():
     """The module's point: on a simulated closed-loop flight through the measured-log
     path, where realdata's band-passed M-step reads 11-21 % high, the direct likelihood
     is within 3 % and 3 standard errors of the truth on every axis."""
-    from pinquad.axis_inertia import _simulated
+    from pinquad.axis_inertia import simulated_axes
 
-    fits, truth = _simulated(1.0, 0)
+    fits, truth = simulated_axes(1.0, 0)
     for j, fit in enumerate(fits):
         assert abs(fit.inertia / truth[j] - 1) < 0.03, (j, fit)
         assert abs(fit.inertia - truth[j]) < 3 * fit.se, (j, fit)
