@@ -429,33 +429,20 @@ def _derived(pi: Array) -> Array:
     return np.concatenate([[mass], com, inertia.ravel()])
 
 
-# (obs, theta) of the standard-error workers, set once per worker process
-_SE_CONTEXT: tuple[Observations, Theta] | None = None
-
-
-def _set_se_context(obs: Observations, theta: Theta) -> None:
-    global _SE_CONTEXT
-    _SE_CONTEXT = (obs, theta)
-
-
-def _loglik_at(pi: Array, obs: Observations | None = None, theta: Theta | None = None,
-               loglik: Callable | None = None) -> float:
+def _loglik_at(pi: Array, obs: Observations, theta: Theta, loglik: Callable | None = None
+               ) -> float:
     """log p(y | pi) of the EKF (or ``loglik``) on FullQuadSSM with the ten parameters pi
-    and theta's noise; obs and theta default to the worker's context. The EKF is the
-    compiled one (``fast_smoother.loglik_quad``, which falls back to the generic filter
-    where its kernels do not reproduce the model)."""
+    and theta's noise. The EKF is the compiled one (``fast_smoother.loglik_quad``, which
+    falls back to the generic filter where its kernels do not reproduce the model)."""
     from pinquad.fast_smoother import loglik_quad
 
-    if obs is None or theta is None:
-        assert _SE_CONTEXT is not None
-        obs, theta = _SE_CONTEXT
     mass, com, inertia = from_dynamic_parameters(pi)
     model = FullQuadSSM(obs, Theta(mass, inertia, theta.noise, theta.gravity, com))
     return (loglik or loglik_quad)(model, obs.ys)
 
 
-def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = None,
-                    workers: int | None = None) -> tuple[float, Array, Array, Array]:
+def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = None
+                    ) -> tuple[float, Array, Array, Array]:
     """Standard errors of (mass, com, inertia about the CoM) from the observed
     information of log p(y | pi) (the EKF's, ``estimators.ekf``) over the ten
     parameters at ``theta``, the noise held at its values: central second differences
@@ -467,11 +454,7 @@ def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = N
     (offsets in units of h, both O(h^2)), Info = -H; then the delta method through
     pi -> (m, c, I_c). Returns (se_mass, se_com (3,), se_inertia
     (3, 3), the information (10, 10)); a direction the data do not determine shows up
-    as a large or NaN standard error. The 111 independent likelihood evaluations run in
-    ``workers`` processes (default: the machine's cores, at most 4; 1 or a custom
-    ``loglik``: in this process)."""
-    import os
-
+    as a large or NaN standard error (111 likelihood evaluations, compiled)."""
     pi0 = dynamic_parameters(theta.mass, theta.com, theta.inertia)
     scale_i = float(np.trace(theta.inertia)) / 3.0
     steps = np.array([1e-3 * theta.mass] + [1e-4 * theta.mass] * 3 + [1e-3 * scale_i] * 6)
@@ -484,17 +467,8 @@ def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = N
         for j in range(i):
             for sign in (1, -1):
                 offsets.append(tuple(sign if a in (i, j) else 0 for a in range(n)))
-    points = [pi0 + steps * np.asarray(o, dtype=float) for o in offsets]
-    workers = min(os.cpu_count() or 1, 4) if workers is None else max(int(workers), 1)
-    if loglik is not None or workers == 1:
-        values = [_loglik_at(pt, obs, theta, loglik) for pt in points]
-    else:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(workers, initializer=_set_se_context,
-                                 initargs=(obs, theta)) as pool:
-            values = list(pool.map(_loglik_at, points,
-                                   chunksize=max(len(points) // (4 * workers), 1)))
+    values = [_loglik_at(pi0 + steps * np.asarray(o, dtype=float), obs, theta, loglik)
+              for o in offsets]
     cache = dict(zip(offsets, values, strict=True))
 
     def value(offset: tuple[int, ...]) -> float:
