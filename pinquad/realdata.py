@@ -74,6 +74,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -97,6 +98,9 @@ from pinquad.faults import (
 from pinquad.logs import FlightLog, LogFormatError, LogMeta
 from pinquad.params import CRAZYFLIE21
 from pinquad.ssm import Observations, Theta
+
+if TYPE_CHECKING:
+    from pinquad.sim import Flight
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -345,7 +349,7 @@ def raw_from_sdflight(flight) -> RawFlight:
     return RawFlight(log=flight.log, pose=pose, pwm=flight.pwm, onboard_pos=onboard)
 
 
-def raw_from_simulated(flight, actuator: ActuatorModel | None = None) -> RawFlight:
+def raw_from_simulated(flight: Flight, actuator: ActuatorModel | None = None) -> RawFlight:
     """A simulated flight (``pinquad.sim.Flight`` flown with sensor B) as a measured log,
     so that the measured-flight pipeline can be checked against a known truth: rotor
     speeds from the logged commanded wrench through the inverse X mixer,
@@ -374,7 +378,7 @@ def raw_from_simulated(flight, actuator: ActuatorModel | None = None) -> RawFlig
     return RawFlight(log=log, pose=pose)
 
 
-def simulated_crazyflie(factor: float, seed: int, sensor: str = "B"):
+def simulated_crazyflie(factor: float, seed: int, sensor: str = "B") -> Flight:
     """A simulated closed-loop flight of the Crazyflie 2.1 (``pinquad.sim.Flight``): the
     offline command's scenario (the paper's, scaled by 0.3), the sensor set ``sensor``,
     the simulator's torque process noise multiplied by ``factor``, generator seed
@@ -387,7 +391,7 @@ def simulated_crazyflie(factor: float, seed: int, sensor: str = "B"):
     return simulate(config, np.random.default_rng(seed))
 
 
-def simulated_observations(flight) -> RealObservations:
+def simulated_observations(flight: Flight) -> RealObservations:
     """A sensor-B simulated flight through the measured-flight path
     (:func:`raw_from_simulated`, then :func:`build_observations` with the shared kf)."""
     return build_observations(raw_from_simulated(flight), RealDataOptions(kf=KF_CRAZYFLIE))
