@@ -197,7 +197,7 @@ class SimulatedResponse:
     of the logged commanded torque against the logged gyro, reference = the true
     inertia; em_inertia (3,) [kg m^2]: EM's diagonal inertia (regressor M-step);
     band_inertia (3,) [kg m^2]: what the measured-flight pipeline (``realdata``: rotor
-    speeds from the commanded wrench, ``identify_real`` with its 3-8 Hz band-passed
+    speeds from the commanded wrench, ``identify_real`` with its band-passed
     inertia M-step and nuisance moments, no rotor inertia) finds on the same flight
     (NaN without pose samples, i.e. sensors A and C); truth (3,) [kg m^2]; crashed: the
     flight crashed.
@@ -209,6 +209,7 @@ class SimulatedResponse:
     response: ApparentInertia
     em_inertia: Array
     band_inertia: Array
+    band: tuple[float, float]
     truth: Array
     crashed: bool
 
@@ -224,7 +225,8 @@ class SimulatedResponse:
 
 
 def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
-                       max_iterations: int = 200) -> SimulatedResponse:
+                       max_iterations: int = 200, band: tuple[float, float] = (3.0, 8.0)
+                       ) -> SimulatedResponse:
     """Fly the simulated Crazyflie 2.1 (the offline command's scenario, the paper's scaled
     by 0.3, closed loop) with the torque process noise multiplied by ``factor``, compute
     its apparent inertia from the log's commanded torques and gyro, and identify the same
@@ -246,14 +248,14 @@ def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
     obs = observations(flight_log(flight), sensor)
     ident, _ = identify(obs, vehicle.mass * PAPER_INITIAL_MASS / 0.18, vehicle.inertia * 0.5,
                         vehicle.gravity, "rts", "regressor", max_iterations, False)
-    band = np.full(3, np.nan)
+    band_inertia = np.full(3, np.nan)
     if sensor == "B":
         measured, _, _ = identify_real(simulated_observations(flight), vehicle.mass,
                                        vehicle.inertia, information=False,
-                                       fit_rotor_inertia=False)
-        band = np.asarray(measured.inertia, dtype=float).copy()
+                                       fit_rotor_inertia=False, band=band)
+        band_inertia = np.asarray(measured.inertia, dtype=float).copy()
     return SimulatedResponse(factor=float(factor), seed=seed, sensor=sensor, response=response,
-                             em_inertia=np.diag(ident.inertia).copy(), band_inertia=band,
+                             em_inertia=np.diag(ident.inertia).copy(), band_inertia=band_inertia, band=band,
                              truth=truth, crashed=bool(flight.crashed))
 
 
@@ -337,7 +339,7 @@ def format_simulated(results: Sequence[SimulatedResponse]) -> str:
     head = ("| torque noise | seed | sensor | axis | " + " | ".join(
         f"{lo:g}-{hi:g} Hz" for lo, hi in BANDS) + " | true I | unexplained / rotor torque "
         f"({UNEXPLAINED_BAND[0]:g}-{UNEXPLAINED_BAND[1]:g} Hz) | EM inertia error | "
-        "measured-flight pipeline (3-8 Hz M-step) inertia error |")
+        "measured-flight pipeline (band-passed M-step) inertia error |")
     lines = [head, "|---|---|---|---|" + "---|" * len(BANDS) + "---|---|---|---|"]
     for s in results:
         for j, axis in enumerate(("roll", "pitch", "yaw")):
@@ -364,19 +366,21 @@ def _figure(results: Sequence[ApparentInertia], out: Path, reference: Array, **k
     return True
 
 
-def _run_simulated(factors: Sequence[float], seed: int, sensor: str, out: Path | None
+def _run_simulated(factors: Sequence[float], seed: int, sensor: str, out: Path | None,
+                   band: tuple[float, float] = (3.0, 8.0)
                    ) -> int:
     from tqdm import tqdm
 
     t0 = time.perf_counter()
-    results = [simulated_response(f, seed, sensor)
+    results = [simulated_response(f, seed, sensor, band=band)
                for f in tqdm(factors, unit="flight", file=sys.stderr)]
     print(f"simulated Crazyflie 2.1, closed loop, sensor {sensor}, generator seed {seed} for "
           f"every flight; torque process noise x {', '.join(f'{f:g}' for f in factors)}; "
           "|H| of the logged commanded torque against the logged gyro, band medians "
           "[1e-6 kg m^2]; EM: EKF + RTS E-step, regressor M-step on the same log; "
           "measured-flight pipeline: pinquad.realdata's identification of the same flight "
-          "with rotor speeds from the commanded wrench\n")
+          f"with rotor speeds from the commanded wrench, inertia M-step band {band[0]:g}-"
+          f"{band[1]:g} Hz\n")
     print(format_simulated(results))
     if out is not None and not _figure(
             [r.response for r in results], out, results[0].truth,
@@ -407,6 +411,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "per flight)")
     p.add_argument("--seed", type=int, default=0,
                    help="generator seed of every simulated flight (with --simulate)")
+    p.add_argument("--band", type=float, nargs=2, metavar=("LO", "HI"), default=[3.0, 8.0],
+                   help="torque band [Hz] of the measured-flight pipeline's inertia M-step "
+                        "on the simulated flights (with --simulate; its default 3-8 Hz)")
     p.add_argument("--sensor", choices=("A", "B", "C"), default="B",
                    help="sensor set of the simulated flights (with --simulate; B, the default, "
                         "logs the pose the measured-flight pipeline needs)")
@@ -416,7 +423,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if error:
             print(f"error: {error}", file=sys.stderr)
             return 2
-        return _run_simulated(args.simulate, args.seed, args.sensor, args.out)
+        return _run_simulated(args.simulate, args.seed, args.sensor, args.out,
+                              tuple(args.band))
     t0 = time.perf_counter()
     try:
         results = [apparent_inertia(real, name, args.rotor_inertia, reference=PUBLISHED_INERTIA)
