@@ -213,6 +213,9 @@ def axis_signals(real, reference: Array, rotor_inertia: float = 0.0
     if used.size < 2:
         raise ValueError(f"{real.source}: fewer than two used transitions")
     span = slice(int(used[0]), int(used[-1]) + 2)
+    if "gyro" not in obs.channels:
+        raise ValueError(f"{real.source}: no gyro channel (channels {', '.join(obs.channels)}); "
+                         "the rate model needs the gyro")
     gi = 3 * list(obs.channels).index("gyro")
     y = np.asarray(obs.ys[span, gi:gi + 3], dtype=float)
     t = obs.t[span]
