@@ -51,6 +51,9 @@ Array = NDArray[np.float64]
 GAP_VAR = (100.0, 0.1)
 """Process variances added across an excluded transition: rate [(rad/s)^2] and scaled
 disturbance [(rad/s)^2]."""
+UNRELIABLE_SE = 0.25
+"""A fit whose inertia standard error is undefined or exceeds this fraction of the
+estimate is flagged (:attr:`AxisFit.unreliable`) and left out of the summary."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,13 @@ class AxisFit:
     gyro_var: float
     loglik: float
     steps: int
+
+    @property
+    def unreliable(self) -> bool:
+        """The inertia's standard error is undefined or over ``UNRELIABLE_SE`` of the
+        estimate (typically a fit that ran off: the disturbance explains the motion and
+        the torque gets no say)."""
+        return not (math.isfinite(self.se) and self.se <= UNRELIABLE_SE * self.inertia)
 
 
 @njit(cache=True)
@@ -262,7 +272,8 @@ def simulated_axes(factor: float, seed: int) -> tuple[tuple[AxisFit, AxisFit, Ax
 
 
 def _cell(fit: AxisFit) -> str:
-    return f"{1e6 * fit.inertia:.1f} ± {1e6 * fit.se:.1f} (phi {fit.phi:.2f})"
+    flag = " (!)" if fit.unreliable else ""
+    return f"{1e6 * fit.inertia:.1f} ± {1e6 * fit.se:.1f} (phi {fit.phi:.2f}){flag}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -326,15 +337,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     print(f"direct maximum likelihood per axis, coloured torque disturbance; kf = {kf:.4e} "
           f"N/(rad/s)^2; J_r = {args.rotor_inertia:g} kg m^2 on yaw; inertia [1e-6 kg m^2] ± "
-          "statistical standard error (kf's and the yaw ratio's uncertainty not included)\n")
+          "statistical standard error (kf's and the yaw ratio's uncertainty not included); "
+          f"(!): standard error undefined or over {100 * UNRELIABLE_SE:.0f} % of the "
+          "estimate (a fit that ran off)\n")
     print("| log | I_xx | I_yy | I_zz |")
     print("|---|---|---|---|")
     for name, fits in rows:
         print(f"| {name} | " + " | ".join(_cell(f) for f in fits) + " |")
-    values = np.array([[f.inertia for f in fits] for _, fits in rows])
-    mean, sd = values.mean(axis=0), values.std(axis=0, ddof=1) if len(rows) > 1 else np.zeros(3)
-    print("| mean ± sd | " + " | ".join(f"{1e6 * m:.1f} ± {1e6 * s:.1f} ({100 * s / m:.0f} %)"
-                                        for m, s in zip(mean, sd, strict=True)) + " |")
+    cells = []
+    for j in range(3):
+        kept = np.array([fits[j].inertia for _, fits in rows if not fits[j].unreliable])
+        if kept.size == 0:
+            cells.append("- (all flagged)")
+            continue
+        m = float(kept.mean())
+        sd = float(kept.std(ddof=1)) if kept.size > 1 else 0.0
+        cells.append(f"{1e6 * m:.1f} ± {1e6 * sd:.1f} ({100 * sd / m:.0f} %, {kept.size} of "
+                     f"{len(rows)})")
+    print("| mean ± sd ((!) left out) | " + " | ".join(cells) + " |")
     print("| published (CF 2.0, no decks) | "
           + " | ".join(f"{1e6 * v:.2f}" for v in PUBLISHED_INERTIA) + " |")
     print(f"\n{len(rows)} logs in {time.perf_counter() - t0:.0f} s")

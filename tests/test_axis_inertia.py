@@ -100,3 +100,15 @@ def test_command_on_a_measured_log_prints_the_table():
     bad = subprocess.run([sys.executable, "-m", "pinquad.axis_inertia", "--simulate", "-1"],
                          capture_output=True, text=True, env=env, timeout=120)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
+
+
+def test_a_fit_without_a_usable_standard_error_is_flagged():
+    from pinquad.axis_inertia import UNRELIABLE_SE, AxisFit
+
+    def fit(se: float) -> AxisFit:
+        return AxisFit(axis=0, inertia=2e-5, se=se, phi=0.9, q_white=1e-6, q_colour=1e-7,
+                       gyro_var=1e-6, loglik=0.0, steps=100)
+
+    assert not fit(1e-6).unreliable
+    assert fit(float("nan")).unreliable
+    assert fit(2e-5 * UNRELIABLE_SE * 1.01).unreliable
