@@ -243,19 +243,8 @@ def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
     """Q (12, 12) of QuadSSM.process_cov at x, written into q."""
     if _process_cov_start(use_fixed, fixed_q, q_kin, q):
         return
-    sf, cf = math.sin(x[6]), math.cos(x[6])
-    st, ct = math.sin(x[7]), math.cos(x[7])
-    sp, cp = math.sin(x[8]), math.cos(x[8])
     g = np.empty((3, 3))
-    g[0, 0] = ct * cp
-    g[0, 1] = sf * st * cp - cf * sp
-    g[0, 2] = cf * st * cp + sf * sp
-    g[1, 0] = ct * sp
-    g[1, 1] = sf * st * sp + cf * cp
-    g[1, 2] = cf * st * sp - sf * cp
-    g[2, 0] = -st
-    g[2, 1] = sf * ct
-    g[2, 2] = cf * ct
+    _rotation(x, g)
     for r in range(3):
         for c in range(3):
             g[r, c] = g[r, c] / mass
@@ -266,6 +255,24 @@ def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
                 acc += (g[r, j] * s_f[j]) * g[c, j]
             q[3 + r, 3 + c] = dt * acc
             q[9 + r, 9 + c] = q_tau[r, c]
+
+
+@njit(cache=True)
+def _rotation(x, rot):
+    """R = Rz(psi) Ry(theta) Rx(phi) of the Euler angles x[6:9] into rot (3, 3), with the
+    expressions of ``_process_cov``."""
+    sf, cf = math.sin(x[6]), math.cos(x[6])
+    st, ct = math.sin(x[7]), math.cos(x[7])
+    sp, cp = math.sin(x[8]), math.cos(x[8])
+    rot[0, 0] = ct * cp
+    rot[0, 1] = sf * st * cp - cf * sp
+    rot[0, 2] = cf * st * cp + sf * sp
+    rot[1, 0] = ct * sp
+    rot[1, 1] = sf * st * sp + cf * cp
+    rot[1, 2] = cf * st * sp - sf * cp
+    rot[2, 0] = -st
+    rot[2, 1] = sf * ct
+    rot[2, 2] = cf * ct
 
 
 @njit(cache=True)
@@ -354,8 +361,7 @@ def _process_cov_full(x, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q):
     if _process_cov_start(use_fixed, fixed_q, q_kin, q):
         return
     rot = np.empty((3, 3))
-    d_rot = np.empty((3, 3, 3))
-    _rotation_derivatives(x[6], x[7], x[8], rot, d_rot)
+    _rotation(x, rot)
     g = m_inv.copy()
     for r in range(3):
         for c in range(6):

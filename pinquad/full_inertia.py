@@ -444,7 +444,7 @@ def _loglik_at(pi: Array, obs: Observations, theta: Theta, loglik: Callable | No
 def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = None
                     ) -> tuple[float, Array, Array, Array]:
     """Standard errors of (mass, com, inertia about the CoM) from the observed
-    information of log p(y | pi) (the EKF's, ``estimators.ekf``) over the ten
+    information of log p(y | pi) (the EKF's, :func:`_loglik_at`) over the ten
     parameters at ``theta``, the noise held at its values: central second differences
     in pi with steps h of 1e-3 m, 1e-4 m x m and 1e-3 x the mean principal moment,
 
@@ -459,19 +459,12 @@ def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = N
     scale_i = float(np.trace(theta.inertia)) / 3.0
     steps = np.array([1e-3 * theta.mass] + [1e-4 * theta.mass] * 3 + [1e-3 * scale_i] * 6)
     n = 10
-    offsets = [(0,) * n]
-    for i in range(n):
-        for sign in (1, -1):
-            offsets.append(tuple(sign if a == i else 0 for a in range(n)))
-    for i in range(n):
-        for j in range(i):
-            for sign in (1, -1):
-                offsets.append(tuple(sign if a in (i, j) else 0 for a in range(n)))
-    values = [_loglik_at(pi0 + steps * np.asarray(o, dtype=float), obs, theta, loglik)
-              for o in offsets]
-    cache = dict(zip(offsets, values, strict=True))
+    cache: dict[tuple[int, ...], float] = {}
 
     def value(offset: tuple[int, ...]) -> float:
+        if offset not in cache:
+            cache[offset] = _loglik_at(pi0 + steps * np.asarray(offset, dtype=float), obs,
+                                       theta, loglik)
         return cache[offset]
 
     def at(sign: int, *axes: int) -> float:
