@@ -805,6 +805,17 @@ def _jackknife(obs: Observations, post: Posterior, theta: Theta, effects: Sequen
     return out
 
 
+def base_heldout_rms(obs: Observations, theta: Theta, posterior: Posterior,
+                     cfg: DiscoveryConfig = DiscoveryConfig()) -> dict[str, float]:
+    """The held-out residual RMS per axis that ``discover`` reports as "before" (base
+    model, ``cfg.window_seconds`` means on the odd ``cfg.block_seconds`` blocks), for a
+    fit on which discovery is not run: a clean flight's floor to compare "after" with."""
+    res = _residuals(obs, posterior, theta.gravity, cfg.block_seconds)
+    test = np.arange(res.n_blocks) % 2 == 1
+    window = max(int(round(cfg.window_seconds / obs.dt)), 1)
+    return _heldout_rms(res, np.r_[theta.mass, np.diag(theta.inertia)], {}, test, window)
+
+
 def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=None,
              cfg: DiscoveryConfig = DiscoveryConfig(), figures_dir: str | Path | None = None
              ) -> DiscoveryResult:
@@ -822,6 +833,8 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
     train = np.arange(res0.n_blocks) % 2 == 0
     test = ~train
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
+    window = max(int(round(cfg.window_seconds / obs.dt)), 1)
+    before = _heldout_rms(res0, pi0, {}, test, window)
     selected: list[str] = []
     scores: list[CandidateScore] = []
     for rnd in range(cfg.max_effects):
@@ -833,8 +846,6 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
         if best is None:
             break
         selected.append(best.effect)
-    window = max(int(round(cfg.window_seconds / obs.dt)), 1)
-    before = _heldout_rms(res0, pi0, {}, test, window)
     validation = (f"{cfg.block_seconds:g}-s blocks of the flight alternate: even blocks train "
                   f"(selection fits, refit M-step), odd blocks are held out (never in a refit "
                   f"M-step); RMS per axis of {cfg.window_seconds:g}-s means of the residual on the "

@@ -296,16 +296,20 @@ def test_clean_twin_has_the_same_noise_and_scores_one_sided():
     np.testing.assert_allclose(noise_wind, noise_twin, atol=1e-12)
     assert np.max(np.abs(with_wind.truth[:, 0:2] - twin.truth[:, 0:2])) > 1e-3
 
-    def case(cond: str, seed: int, refit, twin_err) -> CaseResult:
+    def case(cond: str, seed: int, refit, twin_err, before: float = 2.0, after: float = 1.0
+             ) -> CaseResult:
         z = np.zeros(4)
+        rms = cond == "wind"
         return CaseResult(cond, seed, ("wind",) if cond == "wind" else (), {"wind": 0.01}
-                          if cond == "wind" else {}, {}, np.asarray(refit, float), z, {}, {},
-                          1.0, False, np.asarray(twin_err, float))
+                          if cond == "wind" else {}, {}, np.asarray(refit, float), z,
+                          {"force_x": before} if rms else {}, {"force_x": after} if rms else {},
+                          1.0, False, np.asarray(twin_err, float),
+                          twin_rms={"force_x": 1.0} if rms else {})
 
     clean = [case("none", i, [0.001, 0.01, -0.01, 0.02], [np.nan] * 4) for i in range(2)]
     rms = np.array([0.001, 0.01, 0.01, 0.02])
     cases = clean + [
-        case("wind", 10, [0.0005, 0.005, 0.0, 0.0], [0.002, 0.03, 0.0, 0.0]),  # better than twin
+        case("wind", 10, [0.0005, 0.005, 0.0, 0.0], [0.002, 0.03, 0.0, 0.0], 3.0, 1.1),  # better than twin
         case("wind", 11, [0.003, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]),  # 3x clean: miss
         case("wind", 12, [0.0, 0.0, 0.0, -0.05], [0.0, 0.0, 0.0, 0.02]),  # 0.05 <= 0.02 + 0.04
     ]
@@ -313,8 +317,24 @@ def test_clean_twin_has_the_same_noise_and_scores_one_sided():
     np.testing.assert_allclose(list(summarize(cases)["clean_rms_rel_err"].values()), rms)
     assert row["twin_n"] == 3 and row["within_clean_of_twin"] == 2
     assert row["within_clean_accuracy"] == 1  # absolute: only seed 10
+    # the clean accuracy pooled over the no-effect seeds and the three twins (5 flights);
+    # twin 10's I_xx (0.03) is just outside 2x its 1.48 %, every other clean flight inside
+    summary = summarize(cases)
+    pooled = np.array([[0.001, 0.01, -0.01, 0.02]] * 2 + [[0.002, 0.03, 0.0, 0.0], [0.0] * 4,
+                                                         [0.0, 0.0, 0.0, 0.02]])
+    assert summary["clean_pooled_n"] == 5 and summary["clean_pooled_within"] == 4
+    np.testing.assert_allclose(list(summary["clean_pooled_rms_rel_err"].values()),
+                               [1.0954e-3, 0.014832, 0.0063246, 0.015492], rtol=1e-4)
+    np.testing.assert_allclose(np.sqrt(np.mean(pooled**2, axis=0)),
+                               list(summary["clean_pooled_rms_rel_err"].values()))
+    assert row["within_pooled_clean_accuracy"] == 1  # seed 11's mass and 12's I_zz miss
+    # before / after over the twin's floor, medians of (3, 2, 2) and (1.1, 1, 1)
+    assert row["wind_median_before_over_twin"]["force_x"] == pytest.approx(2.0)
+    assert row["wind_median_after_over_twin"]["force_x"] == pytest.approx(1.0)
+    assert np.isnan(row["wind_median_after_over_twin"]["force_y"])
     back = _case_from_json(json.loads(json.dumps(cases[2].to_json())))
     np.testing.assert_allclose(back.twin_err, cases[2].twin_err)
+    assert back.twin_rms == {"force_x": 1.0}
 
 
 def test_laps_repeat_the_route_and_runs_of_two_lengths_do_not_merge(tmp_path, capsys):
