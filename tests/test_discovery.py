@@ -19,7 +19,13 @@ import numpy as np
 import pytest
 
 from pinquad import effects
-from pinquad.discovery import DiscoveryConfig, EffectSSM, corrected_observations, discover
+from pinquad.discovery import (
+    DiscoveryConfig,
+    EffectSSM,
+    base_heldout_rms,
+    corrected_observations,
+    discover,
+)
 from pinquad.em import initial_theta, run_em
 from pinquad.experiment import get_smoother
 from pinquad.identify import regressor_mstep
@@ -61,6 +67,11 @@ def test_clean_flight_selects_nothing(clean):
     out = discover(obs, res.theta, res.posterior, cfg=FAST)
     assert out.selected == ()
     assert out.rms_after == out.rms_before
+    # the Monte Carlo's clean-twin floor is the same "before" measurement
+    floor = base_heldout_rms(obs, res.theta, res.posterior, FAST)
+    assert set(floor) == set(out.rms_before) and len(floor) == 12
+    np.testing.assert_allclose([floor[a] for a in out.rms_before], list(out.rms_before.values()),
+                               rtol=1e-12)
     rep = out.to_report()
     assert rep["selected"] == []
 
