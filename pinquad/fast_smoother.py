@@ -43,7 +43,8 @@ information's 33 likelihood evaluations. The ten-parameter model
 (``full_inertia.FullQuadSSM``: full inertia tensor and CoM offset) runs through the same
 passes with its own dynamic rows (``_full_dynamics``), process covariance
 (``_process_cov_full``) and F P product (its velocity rows reach the rate columns), behind
-the same agreement check.
+the same agreement check, and so does effect discovery's ``discovery.EffectSSM`` (QuadSSM
+plus lateral drag and wind forces: ``_effect_dynamics``, whose velocity block is full).
 
 No outlier gate (EM runs the generic path with ``gate_sigma=None`` too). Anything the
 kernels do not cover (another model class, a gate, a QuadSSM whose behaviour has moved
@@ -387,6 +388,43 @@ def _f_times_full(f, p, out):
 
 
 @njit(cache=True)
+def _effect_dynamics(x, dt, mass, drag, wind, x_next, jac):
+    """Add ``discovery.EffectSSM``'s lateral body forces to ``_transition``'s x_next (12,)
+    and jac (12, 12): f_b = -drag * R^T v + R^T wind with f_b[2] = 0 (drag (3,) [N s/m]
+    with drag[2] = 0, wind (3,) [N, world] with wind[2] = 0),
+    v_{k+1} += dt R f_b / m, and jac[3:6, 3:6] -= dt R diag(drag) R^T / m (as EffectSSM,
+    without the attitude dependence)."""
+    rot = np.empty((3, 3))
+    _rotation(x, rot)
+    f_b = np.empty(3)
+    for j in range(3):
+        v_b = rot[0, j] * x[3] + rot[1, j] * x[4] + rot[2, j] * x[5]
+        w_b = rot[0, j] * wind[0] + rot[1, j] * wind[1] + rot[2, j] * wind[2]
+        f_b[j] = -drag[j] * v_b + w_b
+    f_b[2] = 0.0
+    for r in range(3):
+        x_next[3 + r] += dt * (rot[r, 0] * f_b[0] + rot[r, 1] * f_b[1] + rot[r, 2] * f_b[2]) / mass
+        for c in range(3):
+            acc = 0.0
+            for j in range(3):
+                acc += rot[r, j] * drag[j] * rot[c, j]
+            jac[3 + r, 3 + c] -= dt * acc / mass
+
+
+@njit(cache=True)
+def _f_times_effect(f, p, out):
+    """out = F p for ``EffectSSM``'s Jacobian: ``_f_times``'s pattern with the velocity
+    rows reaching every velocity column (rows 3-5: columns 3-8)."""
+    _f_times(f, p, out)
+    for r in range(3, 6):
+        for j in range(3, 6):
+            if j != r:
+                fj = f[r, j]
+                for c in range(_N):
+                    out[r, c] += fj * p[j, c]
+
+
+@njit(cache=True)
 def _cholesky(a, p, low):
     """Lower Cholesky factor of a[:p, :p] into low; False if not positive definite."""
     for j in range(p):
@@ -471,7 +509,7 @@ def _f_times(f, p, out):
 @njit(cache=True)
 def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
              state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic, resets,
-             reset_var, full, m_inv, first_moment, i_o, s_wrench, store):
+             reset_var, full, m_inv, first_moment, i_o, s_wrench, effect, drag, wind, store):
     """EKF forward pass (see module docstring) into fresh arrays. Returns filtered and
     predicted means and covariances, the products F_k P_k the backward pass needs, the
     log-likelihood and the first step whose innovation covariance was not positive
@@ -491,16 +529,16 @@ def _forward(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_v
     loglik, bad = _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity,
                                 meas_var, state_of_row, is_angle, use_fixed, fixed_q, q_kin,
                                 s_f, q_tau, kinematic, resets, reset_var, full, m_inv,
-                                first_moment, i_o, s_wrench, store, f_mean, f_cov, p_mean,
-                                p_cov, fps)
+                                first_moment, i_o, s_wrench, effect, drag, wind, store, f_mean,
+                                f_cov, p_mean, p_cov, fps)
     return f_mean, f_cov, p_mean, p_cov, fps, loglik, bad
 
 
 @njit(cache=True)
 def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, meas_var,
                   state_of_row, is_angle, use_fixed, fixed_q, q_kin, s_f, q_tau, kinematic,
-                  resets, reset_var, full, m_inv, first_moment, i_o, s_wrench, store, f_mean,
-                  f_cov, p_mean, p_cov, fps):
+                  resets, reset_var, full, m_inv, first_moment, i_o, s_wrench, effect, drag,
+                  wind, store, f_mean, f_cov, p_mean, p_cov, fps):
     """``_forward`` into given arrays (f_mean, p_mean (N, 12), f_cov, p_cov (N, 12, 12),
     fps (N - 1, 12, 12); unused when not store). Returns (log-likelihood, first bad
     step or -1)."""
@@ -597,8 +635,12 @@ def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, m
                 if full:
                     _full_dynamics(mean, inputs[k], dt, gravity, m_inv, first_moment, i_o,
                                    x_next, jac)
+                elif effect:
+                    _effect_dynamics(mean, dt, mass, drag, wind, x_next, jac)
             if full:
                 _f_times_full(jac, cov, fp)
+            elif effect:
+                _f_times_effect(jac, cov, fp)
             else:
                 _f_times(jac, cov, fp)
             if store:
@@ -609,6 +651,8 @@ def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, m
                     fp_t[r, c] = fp[c, r]
             if full:
                 _f_times_full(jac, fp_t, new_cov)
+            elif effect:
+                _f_times_effect(jac, fp_t, new_cov)
             else:
                 _f_times(jac, fp_t, new_cov)
             for r in range(_N):
@@ -715,13 +759,19 @@ def _kernel_inputs(model: QuadSSM, meas_dim: int) -> tuple | None:
     first_moment = np.ascontiguousarray(model._first_moment if full else np.zeros(3),
                                         dtype=float)
     i_o = np.ascontiguousarray(model._i_o if full else np.zeros((3, 3)), dtype=float)
+    effect = _is_effect(model)
+    drag, wind = np.zeros(3), np.zeros(3)
+    if effect:
+        # EffectSSM's lateral forces only: its body z drag travels in the thrust input
+        drag[:2] = np.asarray(model._drag, dtype=float)[:2]
+        wind[:2] = np.asarray(model._wind, dtype=float)[:2]
     return (float(obs.dt), float(body.mass), np.ascontiguousarray(body.inertia, dtype=float),
             np.ascontiguousarray(body.inertia_inv, dtype=float), float(body.gravity),
             np.ascontiguousarray(nz.meas, dtype=float), state_of_row, is_angle, use_fixed,
             fixed_q, np.ascontiguousarray(nz.q_kin, dtype=float),
             np.ascontiguousarray(nz.wrench[0:3], dtype=float), np.ascontiguousarray(q_tau),
             type(model) is KinematicSSM, _reset_mask(obs), _ssm.RESET_VAR.copy(), full, m_inv,
-            first_moment, i_o, np.ascontiguousarray(nz.wrench, dtype=float))
+            first_moment, i_o, np.ascontiguousarray(nz.wrench, dtype=float), effect, drag, wind)
 
 
 def _is_full(model: StateSpaceModel) -> bool:
@@ -730,6 +780,14 @@ def _is_full(model: StateSpaceModel) -> bool:
     from pinquad.full_inertia import FullQuadSSM
 
     return type(model) is FullQuadSSM
+
+
+def _is_effect(model: StateSpaceModel) -> bool:
+    """Whether ``model`` is exactly ``discovery.EffectSSM`` (QuadSSM plus drag / wind
+    forces; imported late, as ``_is_full``)."""
+    from pinquad.discovery import EffectSSM
+
+    return type(model) is EffectSSM
 
 
 def _reset_mask(obs: Observations) -> NDArray[np.bool_]:
@@ -752,7 +810,7 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
     at the first and the last transition."""
     (dt, mass, inertia, inertia_inv, gravity, meas_var, state_of_row, is_angle, use_fixed,
      fixed_q, q_kin, s_f, q_tau, kinematic, resets, reset_var, full, m_inv, first_moment, i_o,
-     s_wrench) = consts
+     s_wrench, effect, drag, wind) = consts
     n_steps = model.obs.n
     x = np.asarray(model.obs.x0, dtype=float) + _PROBE
     x_next, jac, q = np.empty(_N), np.empty((_N, _N)), np.empty((_N, _N))
@@ -768,6 +826,8 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
             _transition(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
             if full:
                 _full_dynamics(x, u, dt, gravity, m_inv, first_moment, i_o, x_next, jac)
+            elif effect:
+                _effect_dynamics(x, dt, mass, drag, wind, x_next, jac)
         if full:
             _process_cov_full(x, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q)
         else:
@@ -805,7 +865,8 @@ def _code_key(model: QuadSSM, consts: tuple) -> tuple | None:
     cls = type(model)
     return (cls, cls.__init__, *(getattr(cls, name) for name in _MODEL_METHODS),
             _ssm.state_derivative_and_jacobian, _ssm.wrap_angle, model.obs.channels,
-            consts[8], consts[13], bool(consts[14].any()))
+            consts[8], consts[13], bool(consts[14].any()), bool(consts[22].any()),
+            bool(consts[23].any()))
 
 
 def _agrees_cached(model: QuadSSM, consts: tuple) -> bool:
@@ -822,7 +883,8 @@ def _agrees_cached(model: QuadSSM, consts: tuple) -> bool:
 def _prepared(model: StateSpaceModel, ys: Array) -> tuple[Array, tuple] | None:
     """(ys, kernel constants) if the kernels reproduce ``model``, else None (after a
     warning if the model is a QuadSSM the kernels no longer match)."""
-    if type(model) not in (QuadSSM, KinematicSSM) and not _is_full(model):
+    if type(model) not in (QuadSSM, KinematicSSM) and not _is_full(model) \
+            and not _is_effect(model):
         return None
     ys = np.ascontiguousarray(ys, dtype=float)
     obs = model.obs
@@ -902,11 +964,11 @@ def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = No
     A drop-in for ``estimators.rts.smooth`` (e.g. as ``run_em``'s smoother): ys (N, m)
     with NaN where not observed; returns the Posterior with method "rts", the filter's
     log-likelihood and no rejected rows. Anything the kernels do not reproduce (a model
-    that is not exactly a QuadSSM or its force-free warm-up KinematicSSM, another
-    subclass included, since it may override the dynamics; an outlier gate; a QuadSSM
-    whose behaviour no longer matches the kernels) is smoothed by the generic
-    ``estimators.rts.smooth``, so the answer is always the generic path's; the last case
-    also warns, as the fast path needs updating. A
+    that is not exactly a QuadSSM, its force-free warm-up KinematicSSM, the ten-parameter
+    FullQuadSSM or discovery's EffectSSM, other subclasses included, since they may
+    override the dynamics; an outlier gate; a model whose behaviour no longer matches the
+    kernels) is smoothed by the generic ``estimators.rts.smooth``, so the answer is always
+    the generic path's; the last case also warns, as the fast path needs updating. A
     covariance that stops being positive definite also hands over to the generic path,
     which then raises or copes as it always does.
 

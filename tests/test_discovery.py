@@ -135,6 +135,38 @@ def test_effect_ssm_and_corrections(clean):
     np.testing.assert_allclose(corr.inputs[:, 1] - obs.inputs[:, 1], 0.01 * obs.inputs[:, 0])
 
 
+def test_compiled_e_step_takes_the_effect_model(dragged, monkeypatch):
+    """``fast_smoother`` smooths an EffectSSM (drag and wind, drag alone, wind alone) with
+    its own kernels, never handing over to the generic path, and equals the generic
+    EKF + RTS to rounding."""
+    import warnings
+
+    from estimators.rts import smooth
+    from pinquad import fast_smoother
+
+    obs, res = dragged
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the compiled E-step fell back to the generic one")
+
+    for drag, wind in (([0.03, 0.02, 0.04], [0.01, -0.006]), ([0.03, 0.02, 0.04], None),
+                       (None, [0.01, -0.006])):
+        model = EffectSSM(obs, res.theta, None if drag is None else np.array(drag),
+                          None if wind is None else np.array(wind))
+        with monkeypatch.context() as m, warnings.catch_warnings():
+            warnings.simplefilter("error")
+            m.setattr(fast_smoother, "generic_smooth", refuse)
+            fast = fast_smoother.smooth_quad(model, obs.ys)
+        slow = smooth(model, obs.ys)
+        assert fast.loglik == pytest.approx(slow.loglik, rel=1e-9)
+        np.testing.assert_allclose(fast.mean, slow.mean, rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(fast.cov, slow.cov, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(fast.cross_cov, slow.cross_cov, rtol=1e-6, atol=1e-12)
+    # the lateral force really moves the smoothed velocities (the kernel is not a no-op)
+    plain = fast_smoother.smooth_quad(QuadSSM(obs, res.theta), obs.ys)
+    assert np.max(np.abs(fast.mean[:, 3:5] - plain.mean[:, 3:5])) > 1e-4
+
+
 # --------------------------------------------------------------------------------------
 # the user path: simulator -> CSV log that does not mention the effect -> offline --log
 # --------------------------------------------------------------------------------------
