@@ -247,6 +247,10 @@ def summarize(cases: list[CaseResult]) -> dict:
                     fl = np.array([c.rms_after.get(a, np.nan) for c in cs]) / tw
                     ex = np.array([c.rms_before.get(a, np.nan) for c in cs]) / tw
                     floor[a] = float(np.nanmedian(fl)) if np.isfinite(fl).any() else float("nan")
+                    if np.isfinite(ex).any():
+                        # a refit that leaves only the twin's floor drops by 1 - 1/ex:
+                        # 50 % is within reach only where the effect doubles the RMS
+                        row[f"{e}_reachable50_{a}"] = int(np.sum(ex >= 2.0))
                     excess[a] = float(np.nanmedian(ex)) if np.isfinite(ex).any() else float("nan")
                     d = np.array([1.0 - c.rms_after.get(a, np.nan) / c.rms_before.get(a, np.nan)
                                   for c in cs])
@@ -335,6 +339,20 @@ def markdown(summary: dict) -> str:
                                                             pr.items())
                   + f"; clean flights with every parameter within 2x that: "
                   f"{summary['clean_pooled_within']}/{summary['clean_pooled_n']}; refits: {rows}."]
+    counts = []
+    for cond, r in summary["conditions"].items():
+        for e in CONDITIONS.get(cond, ()):
+            axes = [a for a in AFFECTED_AXES[e] if f"{e}_drop50_{a}" in r]
+            if axes:
+                counts.append(f"{cond} ({e}): " + ", ".join(
+                    f"{a} {r[f'{e}_drop50_{a}']}/{r['n']}"
+                    + (f" ({r[f'{e}_reachable50_{a}']})" if f"{e}_reachable50_{a}" in r else "")
+                    for a in axes))
+    if counts:
+        lines += ["", "Seeds whose held-out RMS drops by >= 50 % on each affected axis (in "
+                  "brackets: seeds where the effect at least doubles the clean twin's RMS, so "
+                  "that a refit leaving exactly the twin's noise floor would drop by 50 %): "
+                  + "; ".join(counts) + "."]
     floors = []
     for cond, r in summary["conditions"].items():
         for e in CONDITIONS.get(cond, ()):

@@ -374,6 +374,7 @@ def test_clean_twin_has_the_same_noise_and_scores_one_sided():
     # before / after over the twin's floor, medians of (3, 2, 2) and (1.1, 1, 1)
     assert row["wind_median_before_over_twin"]["force_x"] == pytest.approx(2.0)
     assert row["wind_median_after_over_twin"]["force_x"] == pytest.approx(1.0)
+    assert row["wind_reachable50_force_x"] == 3 and row["wind_drop50_force_x"] == 3
     assert np.isnan(row["wind_median_after_over_twin"]["force_y"])
     back = _case_from_json(json.loads(json.dumps(cases[2].to_json())))
     np.testing.assert_allclose(back.twin_err, cases[2].twin_err)
