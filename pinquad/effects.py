@@ -18,7 +18,7 @@ name                  extra body wrench / effect                   coefficients 
 ====================  ===========================================  ==========================
 ``drag``              f = -diag(D) v_b                             D (3,) [N s/m]
 ``ground_effect``     f_z = k_ge F (r / (4 max(z, r/2)))^2         k_ge [-], r [m] fixed
-``com_offset``        tau = c x (F e3) = F [c_y, -c_x, 0]          c_x, c_y [m]
+``com_offset``        tau = (-c) x (F e3) = F [-c_y, c_x, 0]       c_x, c_y [m] (CoM)
 ``wind``              f = R^T [w_x, w_y, 0]                        w_x, w_y [N] (world)
 ``motor_lag``         tau_m du/dt = u_cmd - u  (all 4 channels)    tau_m [s]
 ``gyro_bias``         gyro = omega + b                             b (3,) [rad/s]
@@ -106,14 +106,17 @@ def ground_effect(gain: float = 1.0, radius: float = GROUND_EFFECT_RADIUS) -> Di
 
 
 def com_offset(offset: tuple[float, float] | Array = (0.003, -0.002)) -> Disturbance:
-    """Thrust torque about the CoM: tau = c x (F e3) = F [c_y, -c_x, 0] [N m], c [m].
+    """The CoM at c = (c_x, c_y, 0) [m] from the thrust centre (body frame, the sign of
+    ``Vehicle.com`` and of the ten-parameter model's CoM): the thrust, acting at the
+    thrust centre, has the torque about the CoM tau = (-c) x (F e3) = F [-c_y, c_x, 0]
+    [N m].
 
     Only this torque is modelled (the inertia shift of a few-mm offset is below 0.1 %).
     """
     cx, cy = (float(v) for v in np.asarray(offset, dtype=float)[:2])
 
     def wrench(x: Array, u: Array, t: float) -> Array:
-        return np.array([0.0, 0.0, 0.0, cy * u[0], -cx * u[0], 0.0])
+        return np.array([0.0, 0.0, 0.0, -cy * u[0], cx * u[0], 0.0])
 
     return _disturbance(name="com_offset", wrench=wrench)
 
@@ -248,8 +251,8 @@ def wrench_features(name: str, data: TransitionData,
         return phi
     if name == "com_offset":
         phi = np.zeros((k, 6, 2))
-        phi[:, 4, 0] = -data.inputs[:, 0]
-        phi[:, 3, 1] = data.inputs[:, 0]
+        phi[:, 4, 0] = data.inputs[:, 0]
+        phi[:, 3, 1] = -data.inputs[:, 0]
         return phi
     if name == "wind":
         rot = rotation_from_euler(data.x[:, 6:9])

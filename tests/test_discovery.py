@@ -102,8 +102,9 @@ def test_effect_library_forms():
     x[3:6] = [1.0, -2.0, 0.5]
     u = np.array([0.34, 0.0, 0.0, 0.0])
     np.testing.assert_allclose(effects.drag((0.1, 0.2, 0.3)).wrench(x, u, 0.0)[:3], [-0.1, 0.4, -0.15])
+    # the CoM at c from the thrust centre: the thrust's torque about the CoM, (-c) x F e3
     np.testing.assert_allclose(effects.com_offset((0.01, 0.02)).wrench(x, u, 0.0)[3:],
-                               [0.02 * 0.34, -0.01 * 0.34, 0.0])
+                               np.cross([-0.01, -0.02, 0.0], [0.0, 0.0, 0.34]))
     np.testing.assert_allclose(effects.wind((0.1, 0.2)).wrench(x, u, 0.0)[:3], [0.1, 0.2, 0.0])
     lag = effects.motor_lag(0.03).actuation(np.ones(4), np.zeros(4), 0.01)
     np.testing.assert_allclose(lag, np.full(4, 0.25))
@@ -132,7 +133,7 @@ def test_effect_ssm_and_corrections(clean):
                                                             "com_offset": np.array([0.0, 0.01])})
     gi = 3 * obs.channels.index("gyro")
     np.testing.assert_allclose(corr.ys[:, gi] - obs.ys[:, gi], -0.1)
-    np.testing.assert_allclose(corr.inputs[:, 1] - obs.inputs[:, 1], 0.01 * obs.inputs[:, 0])
+    np.testing.assert_allclose(corr.inputs[:, 1] - obs.inputs[:, 1], -0.01 * obs.inputs[:, 0])
 
 
 def test_compiled_e_step_takes_the_effect_model(dragged, monkeypatch):

@@ -105,6 +105,32 @@ def test_full_model_transition_is_pinocchios_aba():
                                atol=1e-20)
 
 
+def test_com_offset_effect_has_the_full_models_sign():
+    """Discovery's ``com_offset`` coefficient c is the CoM's position from the thrust
+    centre, as ``Vehicle.com`` and the ten-parameter model's CoM: from rest, under thrust
+    alone, the diagonal model with the effect's torque F [-c_y, c_x, 0] added to its
+    inputs starts turning as the full model with its CoM at c does (a rigid body's
+    angular acceleration from rest is I_C^-1 times the torque about its CoM, whatever
+    the reference point, so the rates after one step agree to rounding)."""
+    from pinquad import effects
+    from pinquad.discovery import corrected_observations
+
+    com = np.array([0.004, -0.003, 0.0])
+    inertia = np.diag(np.diag(INERTIA))
+    obs = _observations(3)
+    obs = replace(obs, inputs=np.tile([1.8, 0.0, 0.0, 0.0], (3, 1)))
+    x = np.zeros((obs.n, 12))
+    full = fi.FullQuadSSM(obs, _theta(obs, com, inertia))
+    shifted = corrected_observations(obs, x, {"com_offset": com[:2]})
+    plain = QuadSSM(shifted, _theta(shifted, np.zeros(3), inertia))
+    rate_full = full.transition(x[0], 0)[0][9:12]
+    rate_plain = plain.transition(x[0], 0)[0][9:12]
+    assert np.all(np.abs(rate_full[:2]) > 1e-3)
+    np.testing.assert_allclose(rate_plain, rate_full, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(effects.com_offset(com[:2]).wrench(x[0], obs.inputs[0], 0.0)[3:5],
+                               shifted.inputs[0, 1:3] - obs.inputs[0, 1:3], rtol=1e-12)
+
+
 def test_compiled_e_step_equals_the_generic_one_on_the_full_model():
     """The compiled EKF + RTS (pinquad.fast_smoother) takes FullQuadSSM too: on a
     simulated sensor-B log with the CoM off the thrust centre and products of inertia,
