@@ -277,17 +277,15 @@ def _simulated(log: FlightLog, args: argparse.Namespace) -> LogResult:
 
 def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity: float,
           args: argparse.Namespace):
-    """EM over all ten inertial parameters (``pinquad.full_inertia``) from the paper's
-    warm-up start: (LogRun, posterior, theta)."""
-    from estimators.rts import smooth
-    from pinquad.em import initial_theta
-    from pinquad.full_inertia import identify_full
+    """EM over all ten inertial parameters (``pinquad.full_inertia``) from the staged
+    start (``full_inertia.staged_start``: the diagonal model's EM from the paper's guess,
+    refitted with the horizontal CoM), compiled E-step throughout: (LogRun, posterior,
+    theta)."""
+    from pinquad.fast_smoother import smooth_quad
+    from pinquad.full_inertia import identify_full, staged_start
 
-    # the generic smoother, not the compiled one (equal per E-step to ~1e-9): over-relaxed
-    # EM in ten parameters from the paper's start has not converged after 40 E-steps, and
-    # where it stops then moves with such rounding differences (see the README)
-    res = identify_full(obs, initial_theta(obs, mass0, inertia0, gravity), smooth,
-                        max_iterations=args.max_iterations,
+    start = staged_start(obs, mass0, inertia0, gravity, smooth_quad)
+    res = identify_full(obs, start, smooth_quad, max_iterations=args.max_iterations,
                         information=not args.no_information)
     stderr = np.concatenate([[res.stderr_mass], np.diag(res.stderr_inertia)])
     run = LogRun(sensor, "full", res.mass, np.diag(res.inertia).copy(), stderr,
@@ -295,6 +293,10 @@ def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity
                  {"stderr_note": "observed information of the EKF likelihood over all ten "
                                  "parameters (delta method to CoM and inertia)",
                   "em_failure": res.failure, "e_steps": res.e_steps,
+                  "start": {"note": "diagonal EM from the paper's guess, refitted with the "
+                                    "horizontal CoM (full_inertia.staged_start)",
+                            "mass": start.mass, "com": start.com.tolist(),
+                            "inertia_diag": np.diag(start.inertia).tolist()},
                   "stderr_full": {"com": res.stderr_com.tolist(),
                                   "inertia": res.stderr_inertia.tolist()}},
                  full=res)
