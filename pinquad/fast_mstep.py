@@ -29,30 +29,13 @@ from numba import njit
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.fast_smoother import _wrap
+from pinquad.fast_smoother import _rotation_of_angles, _wrap
 from pinquad.identify import QuadraticSums, transition_mask
 from pinquad.ssm import Observations
 
 Array = NDArray[np.float64]
 
 _H = 1e-6  # central-difference step of dR/dTheta, as identify._rotation_derivatives
-
-
-@njit(cache=True)
-def _rotation(phi, theta, psi, rot):
-    """R = Rz(psi) Ry(theta) Rx(phi) (3, 3) into rot, as conventions.rotation_from_euler."""
-    cf, sf = math.cos(phi), math.sin(phi)
-    ct, st = math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
-    rot[0, 0] = ct * cp
-    rot[0, 1] = sf * st * cp - cf * sp
-    rot[0, 2] = cf * st * cp + sf * sp
-    rot[1, 0] = ct * sp
-    rot[1, 1] = sf * st * sp + cf * cp
-    rot[1, 2] = cf * st * sp - sf * cp
-    rot[2, 0] = -st
-    rot[2, 1] = sf * ct
-    rot[2, 2] = cf * ct
 
 
 @njit(cache=True)
@@ -80,7 +63,7 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
         k = idx[j]
         x0 = mean[k]
         x1 = mean[k + 1]
-        _rotation(x0[6], x0[7], x0[8], rot)
+        _rotation_of_angles(x0[6], x0[7], x0[8], rot)
         for i in range(3):
             acc[i] = (x1[3 + i] - x0[3 + i]) / dt
         acc[2] += gravity
@@ -114,9 +97,9 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
             for i in range(3):
                 e[i] = x0[6 + i]
             e[m] = x0[6 + m] + _H
-            _rotation(e[0], e[1], e[2], r_plus)
+            _rotation_of_angles(e[0], e[1], e[2], r_plus)
             e[m] = x0[6 + m] - _H
-            _rotation(e[0], e[1], e[2], r_minus)
+            _rotation_of_angles(e[0], e[1], e[2], r_minus)
             for r in range(3):
                 for s in range(3):
                     d_rot[r, s, m] = (r_plus[r, s] - r_minus[r, s]) / (2 * _H)

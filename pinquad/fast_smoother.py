@@ -260,11 +260,17 @@ def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
 
 @njit(cache=True)
 def _rotation(x, rot):
-    """R = Rz(psi) Ry(theta) Rx(phi) of the Euler angles x[6:9] into rot (3, 3), with the
-    expressions of ``_process_cov``."""
-    sf, cf = math.sin(x[6]), math.cos(x[6])
-    st, ct = math.sin(x[7]), math.cos(x[7])
-    sp, cp = math.sin(x[8]), math.cos(x[8])
+    """R = Rz(psi) Ry(theta) Rx(phi) of the Euler angles x[6:9] into rot (3, 3)."""
+    _rotation_of_angles(x[6], x[7], x[8], rot)
+
+
+@njit(cache=True)
+def _rotation_of_angles(phi, theta, psi, rot):
+    """R = Rz(psi) Ry(theta) Rx(phi) (3, 3) into rot, as conventions.rotation_from_euler
+    (also the compiled M-step's, ``fast_mstep``)."""
+    sf, cf = math.sin(phi), math.cos(phi)
+    st, ct = math.sin(theta), math.cos(theta)
+    sp, cp = math.sin(psi), math.cos(psi)
     rot[0, 0] = ct * cp
     rot[0, 1] = sf * st * cp - cf * sp
     rot[0, 2] = cf * st * cp + sf * sp
@@ -422,6 +428,18 @@ def _f_times_effect(f, p, out):
                 fj = f[r, j]
                 for c in range(_N):
                     out[r, c] += fj * p[j, c]
+
+
+@njit(cache=True)
+def _f_times_model(f, p, out, full, effect):
+    """out = F p with the block pattern of the model's Jacobian: the ten-parameter
+    model's (``_f_times_full``), EffectSSM's (``_f_times_effect``) or QuadSSM's."""
+    if full:
+        _f_times_full(f, p, out)
+    elif effect:
+        _f_times_effect(f, p, out)
+    else:
+        _f_times(f, p, out)
 
 
 @njit(cache=True)
@@ -637,24 +655,14 @@ def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, m
                                    x_next, jac)
                 elif effect:
                     _effect_dynamics(mean, dt, mass, drag, wind, x_next, jac)
-            if full:
-                _f_times_full(jac, cov, fp)
-            elif effect:
-                _f_times_effect(jac, cov, fp)
-            else:
-                _f_times(jac, cov, fp)
+            _f_times_model(jac, cov, fp, full, effect)
             if store:
                 _copy_mat(fp, fps[k])
             # F P F^T = F (F P)^T (P symmetric)
             for r in range(_N):
                 for c in range(_N):
                     fp_t[r, c] = fp[c, r]
-            if full:
-                _f_times_full(jac, fp_t, new_cov)
-            elif effect:
-                _f_times_effect(jac, fp_t, new_cov)
-            else:
-                _f_times(jac, fp_t, new_cov)
+            _f_times_model(jac, fp_t, new_cov, full, effect)
             for r in range(_N):
                 for c in range(_N):
                     new_cov[r, c] += q[r, c]
