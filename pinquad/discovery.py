@@ -110,6 +110,11 @@ class DiscoveryConfig:
     joint_tol: float = 1e-3
 
 
+def _window_steps(cfg: DiscoveryConfig, dt: float) -> int:
+    """Steps per averaging window of the residual RMS (``cfg.window_seconds`` / dt, >= 1)."""
+    return max(int(round(cfg.window_seconds / dt)), 1)
+
+
 @dataclass(frozen=True)
 class CandidateScore:
     """One candidate's test in one round.
@@ -436,7 +441,7 @@ def _score(res: _Residuals, current: Sequence[str], cand: str, pi0: Array, rnd: 
         var1 = np.array([np.var(res.gyro_res[tr[:, i], i]) for i in range(3)])
         n_tr = tr.sum(axis=0)
         n_te = (ok & ~train_steps[:, None]).sum(axis=0)
-        window = max(int(round(cfg.window_seconds / res.data.dt)), 1)
+        window = _window_steps(cfg, res.data.dt)
         steps = np.arange(res.gyro_res.shape[0])
         te_steps = ~train_steps
         w0 = np.array([_window_rms(res.gyro_res[te_steps, i], res.gyro_block[te_steps],
@@ -449,7 +454,7 @@ def _score(res: _Residuals, current: Sequence[str], cand: str, pi0: Array, rnd: 
         ll1 = -0.5 * np.sum(sse1 / var1 + n_te * np.log(var1))
         passed = gain >= cfg.min_heldout_gain and d_bic > 0 and ll1 > ll0
         return CandidateScore(cand, rnd, gain, float(ll1 - ll0), d_bic, tuple(bias), passed)
-    window = max(int(round(cfg.window_seconds / res.data.dt)), 1)
+    window = _window_steps(cfg, res.data.dt)
     base = _fit_model(res, current, train, pi0, window)
     ext = _fit_model(res, [*current, cand], train, pi0, window)
     rows = list(SPECS[cand].rows)
@@ -809,7 +814,7 @@ def base_heldout_rms(obs: Observations, theta: Theta, posterior: Posterior,
     fit on which discovery is not run: a clean flight's floor to compare "after" with."""
     res = _residuals(obs, posterior, theta.gravity, cfg.block_seconds)
     test = np.arange(res.n_blocks) % 2 == 1
-    window = max(int(round(cfg.window_seconds / obs.dt)), 1)
+    window = _window_steps(cfg, obs.dt)
     return _heldout_rms(res, np.r_[theta.mass, np.diag(theta.inertia)], {}, test, window)
 
 
@@ -830,7 +835,7 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
     train = np.arange(res0.n_blocks) % 2 == 0
     test = ~train
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
-    window = max(int(round(cfg.window_seconds / obs.dt)), 1)
+    window = _window_steps(cfg, obs.dt)
     before = _heldout_rms(res0, pi0, {}, test, window)
     selected: list[str] = []
     scores: list[CandidateScore] = []
