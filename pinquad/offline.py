@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pinquad.cli import HelpFormatter
-from pinquad.logs import LogFormatError
+from pinquad.cli.common import HelpFormatter
+from pinquad.io.logs import LogFormatError
 
 DESCRIPTION = __doc__.split("\n\n")[0].split(": ", 1)[1]
 
@@ -73,10 +73,11 @@ def _fail(message: str) -> int:
 def run_simulation(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from pinquad.experiment import CycleJob, run_cycle
-    from pinquad.logs import write_log
-    from pinquad.params import PAPER_SCENARIO
-    from pinquad.report import (
+    from pinquad.core.params import PAPER_SCENARIO
+    from pinquad.identification.experiment import CycleJob, run_cycle
+    from pinquad.io.logs import write_log
+    from pinquad.io.runs import RunWriter, atomic_write_json, new_run_dir
+    from pinquad.report.offline import (
         cycle_entries,
         offline_tables,
         plot_em_history,
@@ -84,7 +85,6 @@ def run_simulation(args: argparse.Namespace) -> int:
         stats_json,
         summarize,
     )
-    from pinquad.runs import RunWriter, atomic_write_json, new_run_dir
 
     if args.cycles < 1:
         return _fail("--cycles must be at least 1")
@@ -181,7 +181,7 @@ def _view(run_dir: Path) -> int:
 
 
 def run_log(args: argparse.Namespace) -> int:
-    from pinquad.logmode import identify_log
+    from pinquad.experiments.logmode import identify_log
 
     return identify_log(args)
 

@@ -40,8 +40,8 @@ def linear_case():
 def offline_on_csv(log, path: Path, out: Path, *options: str) -> subprocess.CompletedProcess:
     """Write ``log`` to the CSV ``path`` with the paper's initial guess (m0 = 1 g, I0) in
     its sidecar and run ``python -m pinquad.offline --log path --out out *options``."""
-    from pinquad.logs import write_log
-    from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
+    from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
+    from pinquad.io.logs import write_log
 
     written = write_log(log, path)
     sidecar_path = Path(f"{written}.json")

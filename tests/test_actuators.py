@@ -11,7 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinquad.actuators import (
+from pinquad.core.params import CRAZYFLIE21
+from pinquad.io.logs import FlightLog, LogMeta
+from pinquad.io.sdlog import read_sdlog
+from pinquad.vehicle.actuators import (
     KF_CRAZYFLIE,
     SPIN_CRAZYFLIE,
     ActuatorModel,
@@ -20,9 +23,6 @@ from pinquad.actuators import (
     fit_yaw,
     motor_positions,
 )
-from pinquad.logs import FlightLog, LogMeta
-from pinquad.params import CRAZYFLIE21
-from pinquad.sdlog import read_sdlog
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "crazyflie"

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinquad.axis_inertia import GAP_VAR, axis_loglik, fit_axis
+from pinquad.realdata.axis_inertia import GAP_VAR, axis_loglik, fit_axis
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "crazyflie"
@@ -76,7 +76,7 @@ def test_simulated_closed_loop_flight_read_as_a_measured_log():
     """The module's point: on a simulated closed-loop flight through the measured-log
     path, where realdata's band-passed M-step reads 11-21 % high, the direct likelihood
     is within 3 % and 3 standard errors of the truth on every axis."""
-    from pinquad.axis_inertia import simulated_axes
+    from pinquad.realdata.axis_inertia import simulated_axes
 
     fits, truth = simulated_axes(1.0, 0)
     for j, fit in enumerate(fits):
@@ -103,7 +103,7 @@ def test_command_on_a_measured_log_prints_the_table():
 
 
 def test_a_fit_without_a_usable_standard_error_is_flagged():
-    from pinquad.axis_inertia import UNRELIABLE_SE, AxisFit
+    from pinquad.realdata.axis_inertia import UNRELIABLE_SE, AxisFit
 
     def fit(se: float) -> AxisFit:
         return AxisFit(axis=0, inertia=2e-5, se=se, phi=0.9, q_white=1e-6, q_colour=1e-7,

@@ -17,8 +17,8 @@ import time
 import numpy as np
 import pytest
 
-from pinquad import bench
-from pinquad.bench_estep import (
+from pinquad.experiments import bench
+from pinquad.experiments.bench_estep import (
     CONTESTANTS,
     TOLERANCE,
     EStepCase,

@@ -18,21 +18,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinquad import effects
-from pinquad.discovery import (
+from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO
+from pinquad.discovery.discover import (
     DiscoveryConfig,
     EffectSSM,
     base_heldout_rms,
     corrected_observations,
     discover,
 )
-from pinquad.em import initial_theta, run_em
-from pinquad.experiment import get_smoother
-from pinquad.identify import regressor_mstep
-from pinquad.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO
-from pinquad.sim import SimConfig, flight_log, simulate
-from pinquad.sources import observations
-from pinquad.ssm import QuadSSM
+from pinquad.identification.em import initial_theta, run_em
+from pinquad.identification.experiment import get_smoother
+from pinquad.models.sources import observations
+from pinquad.models.ssm import QuadSSM
+from pinquad.mstep.updates import regressor_mstep
+from pinquad.sim import effects
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 DRAG = (0.03, 0.03, 0.03)
 FAST = DiscoveryConfig(refit_em=False)
@@ -143,7 +143,7 @@ def test_compiled_e_step_takes_the_effect_model(dragged, monkeypatch):
     import warnings
 
     from estimators.rts import smooth
-    from pinquad import fast_smoother
+    from pinquad.estep import fast_smoother
 
     obs, res = dragged
 
@@ -193,8 +193,8 @@ def test_csv_log_round_trip_names_com_offset(tmp_path):
     refit pulls the inertia from the base fit's orders-of-magnitude error to within 15 %
     (on this seed EM with even the true offset removed stops 12 % high on I_xx after 100
     E-steps: a known shortfall, see the Monte Carlo table)."""
-    from pinquad.discovery_mc import simulate_log
-    from pinquad.logs import write_log
+    from pinquad.experiments.discovery_mc import simulate_log
+    from pinquad.io.logs import write_log
 
     log, flight = simulate_log(("com_offset",), 7)
     assert not flight.crashed
@@ -248,8 +248,8 @@ def test_bad_log_gives_a_message_and_no_run(tmp_path):
 def test_gyro_bias_seeded_refit():
     """A gyro offset is named and solved within 10 % per axis after the refit; mass and
     inertia stay within 3 % (the clean flight's accuracy on this scenario is ~1-2 %)."""
-    from pinquad.discovery_mc import simulate_log
-    from pinquad.sources import observations as obs_of
+    from pinquad.experiments.discovery_mc import simulate_log
+    from pinquad.models.sources import observations as obs_of
 
     log, _ = simulate_log(("gyro_bias",), 3)
     obs = obs_of(log, "B")
@@ -278,7 +278,7 @@ def test_drag_and_wind_refit_reaches_the_clean_twins_floor(tmp_path):
     force residual is back at the clean twin's floor, within 25 % of it on every axis
     (the former 10-E-step refit from the base fit's inflated noise left 2.4-2.9x), and
     mass and inertia no worse than the twin's by more than 1 %."""
-    from pinquad.discovery_mc import run_case
+    from pinquad.experiments.discovery_mc import run_case
 
     case = run_case("drag+wind", 7000, tmp_path)
     assert set(case.selected) == {"drag", "wind"}
@@ -296,7 +296,7 @@ def test_ground_effect_coefficient_converges_in_the_joint_refinement():
     coefficient/EM passes alone leave k_ge at 0.93 (each E-step leans towards the model it
     was given); refined one E-step at a time with the parameters it reaches 1.00, and the
     held-out vertical force residual drops by more than half."""
-    from pinquad.discovery_mc import case_seed, simulate_log
+    from pinquad.experiments.discovery_mc import case_seed, simulate_log
 
     log, _ = simulate_log(("ground_effect",), case_seed(0, "ground_effect", 0))
     obs = observations(log, "B")
@@ -315,7 +315,7 @@ def test_ground_effect_coefficient_converges_in_the_joint_refinement():
 def test_real_circle_flight_names_drag():
     """The measured circle flight (jana10) names drag with a lateral coefficient between
     the rotor-drag value (0.006 N s/m) and five times it; fails if the data are missing."""
-    from pinquad.realdiscovery import fit_flight
+    from pinquad.experiments.realdiscovery import fit_flight
 
     path = FLIGHTS / "jana10"
     assert path.is_file(), f"the Crazyflie data are missing: expected {path}"
@@ -335,7 +335,7 @@ def test_real_circle_flight_names_drag():
     np.testing.assert_allclose(np.diag(fit.section["refit"]["inertia"]), fit.inertia, rtol=1e-12)
     # the near-floor evaluation: the circle at 0.45 m never comes below 12 cm, so the
     # near-floor residual has no sample; an all-true mask is the whole flight
-    from pinquad.realdiscovery import evaluate, near_floor
+    from pinquad.experiments.realdiscovery import evaluate, near_floor
 
     pi = np.r_[fit.mass, fit.inertia]
     assert not near_floor(fit).any()
@@ -350,7 +350,7 @@ def test_clean_twin_has_the_same_noise_and_scores_one_sided():
     simulator's noise draws do not depend on the (deterministic) effects, so the gyro
     noise (measured - true rate) is the same sample by sample, while the flights differ.
     The paired criterion counts a refit no worse than its twin by 2x the clean RMS."""
-    from pinquad.discovery_mc import CaseResult, _case_from_json, simulate_log, summarize
+    from pinquad.experiments.discovery_mc import CaseResult, _case_from_json, simulate_log, summarize
 
     with_wind, _ = simulate_log(("wind",), 4000)
     twin, _ = simulate_log((), 4000)
@@ -403,7 +403,7 @@ def test_clean_twin_has_the_same_noise_and_scores_one_sided():
 
 
 def test_laps_repeat_the_route_and_runs_of_two_lengths_do_not_merge(tmp_path, capsys):
-    from pinquad.discovery_mc import CaseResult, _case_from_json, discovery_scenario, main
+    from pinquad.experiments.discovery_mc import CaseResult, _case_from_json, discovery_scenario, main
 
     one, two = discovery_scenario(), discovery_scenario(2)
     np.testing.assert_array_equal(two.waypoints, np.vstack([one.waypoints, one.waypoints]))

@@ -10,11 +10,11 @@ import pytest
 from estimators.linear import LinearGaussianModel, linear_change, linear_em_mstep
 from estimators.protocol import Posterior
 from estimators.rts import smooth
-from pinquad.em import run_em
-from pinquad.identify import body_regressor, kinematic_floor, regressor_mstep
-from pinquad.sim import SimConfig, flight_log, simulate
-from pinquad.sources import observations
-from pinquad.ssm import NoiseModel, Theta
+from pinquad.identification.em import run_em
+from pinquad.models.sources import observations
+from pinquad.models.ssm import NoiseModel, Theta
+from pinquad.mstep.updates import body_regressor, kinematic_floor, regressor_mstep
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 
 @dataclass(frozen=True)
@@ -147,6 +147,6 @@ def test_regressor_mstep_equals_independent_least_squares(clean):
 
 
 def _rot(e):
-    from pinquad.conventions import rotation_from_euler
+    from pinquad.core.conventions import rotation_from_euler
 
     return rotation_from_euler(e)

@@ -1,6 +1,6 @@
 """The two E-steps against each other on the quadcopter (issue 4): the GTSAM batch
 smoother (MAP trajectory and its Laplace marginals, ``estimators.factor_graph``) and the
-EKF + RTS smoother (``estimators.rts``, compiled as ``pinquad.fast_smoother``), on
+EKF + RTS smoother (``estimators.rts``, compiled as ``pinquad.estep.fast_smoother``), on
 simulated flights of sensors A, B and C with the true mass and inertia and realistic
 structured noise; then EM with either E-step, and the offline command with
 ``--estep gtsam``.
@@ -63,10 +63,13 @@ from estimators import iterated, rts
 from estimators.factor_graph import SolveInfo
 from estimators.iterated import LinearisedAbout
 from estimators.protocol import Array, Posterior
-from pinquad import em, fisher, identify, sim, sources
-from pinquad.conventions import wrap_angle
-from pinquad.fast_smoother import smooth_quad
-from pinquad.ssm import NoiseModel, Observations, QuadSSM, Theta
+from pinquad.core.conventions import wrap_angle
+from pinquad.estep.fast_smoother import smooth_quad
+from pinquad.identification import em, fisher
+from pinquad.models import sources
+from pinquad.models.ssm import NoiseModel, Observations, QuadSSM, Theta
+from pinquad.mstep import updates as identify
+from pinquad.sim import simulator as sim
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -8,17 +8,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pinquad import identify
-from pinquad.em import initial_theta, run_em
-from pinquad.experiment import get_smoother
-from pinquad.fast_mstep import inertia_newton as fast_inertia_newton
-from pinquad.fast_mstep import measurement_variances as fast_measurement_variances
-from pinquad.fast_mstep import regressor_quadratics
-from pinquad.identify import _inertia_newton, inertia_newton, regressor_mstep, regressor_stats
-from pinquad.params import PAPER_VEHICLE
-from pinquad.sim import SimConfig, flight_log, simulate
-from pinquad.sources import observations
-from pinquad.ssm import QuadSSM
+from pinquad.core.params import PAPER_VEHICLE
+from pinquad.identification.em import initial_theta, run_em
+from pinquad.identification.experiment import get_smoother
+from pinquad.models.sources import observations
+from pinquad.models.ssm import QuadSSM
+from pinquad.mstep import updates as identify
+from pinquad.mstep.compiled import inertia_newton as fast_inertia_newton
+from pinquad.mstep.compiled import measurement_variances as fast_measurement_variances
+from pinquad.mstep.compiled import regressor_quadratics
+from pinquad.mstep.updates import _inertia_newton, inertia_newton, regressor_mstep, regressor_stats
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 TOL = 1e-11
 

@@ -28,13 +28,13 @@ import pytest
 from estimators.ekf import run_filter
 from estimators.protocol import Posterior
 from estimators.rts import smooth
-from pinquad import fast_smoother as fs
-from pinquad.em import initial_theta
-from pinquad.fast_smoother import loglik_quad, posterior_arrays, smooth_quad
-from pinquad.identify import kinematic_floor
-from pinquad.sim import SimConfig, flight_log, simulate
-from pinquad.sources import observations
-from pinquad.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
+from pinquad.estep import fast_smoother as fs
+from pinquad.estep.fast_smoother import loglik_quad, posterior_arrays, smooth_quad
+from pinquad.identification.em import initial_theta
+from pinquad.models.sources import observations
+from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
+from pinquad.mstep.updates import kinematic_floor
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 TOL = 1e-9
 N_STEPS = 600

@@ -8,17 +8,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinquad.actuators import ActuatorModel, rad_s_from_rpm
-from pinquad.faults import (
+from pinquad.core.params import CRAZYFLIE21
+from pinquad.io.logs import FlightLog, LogMeta
+from pinquad.io.sdlog import SdFlight, read_sdflight
+from pinquad.realdata.faults import (
     ActuationFaultReport,
     detect_actuation_faults,
     pulse_divided_readings,
     reconstruct_rpm,
     repair_log,
 )
-from pinquad.logs import FlightLog, LogMeta
-from pinquad.params import CRAZYFLIE21
-from pinquad.sdlog import SdFlight, read_sdflight
+from pinquad.vehicle.actuators import ActuatorModel, rad_s_from_rpm
 
 FLIGHTS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "crazyflie" / \
     "imrc_brushed"

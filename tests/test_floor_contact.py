@@ -14,11 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pinquad import ssm
-from pinquad.experiment import flight_seed, identify
-from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
-from pinquad.sim import SimConfig, flight_log, simulate
-from pinquad.sources import observations
+from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
+from pinquad.identification.experiment import flight_seed, identify
+from pinquad.models import ssm
+from pinquad.models.sources import observations
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 
 @pytest.fixture(scope="module")

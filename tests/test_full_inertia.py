@@ -12,12 +12,12 @@ import pytest
 from conftest import offline_on_csv
 
 from estimators.protocol import Posterior
-from pinquad import full_inertia as fi
-from pinquad.identify import kinematic_floor
-from pinquad.model import forward_dynamics, inertial_regressor, inverse_dynamics_wrench, load_model
-from pinquad.params import PAPER_VEHICLE
-from pinquad.sim import SimConfig, flight_log, simulate
-from pinquad.ssm import NoiseModel, Observations, QuadSSM, Theta
+from pinquad.core.params import PAPER_VEHICLE
+from pinquad.identification import full_inertia as fi
+from pinquad.models.ssm import NoiseModel, Observations, QuadSSM, Theta
+from pinquad.mstep.updates import kinematic_floor
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
+from pinquad.vehicle.model import forward_dynamics, inertial_regressor, inverse_dynamics_wrench, load_model
 
 COM = np.array([0.004, -0.003, 0.002])
 INERTIA = np.array([[2.5e-4, 1.2e-5, -8e-6], [1.2e-5, 3.1e-4, 5e-6], [-8e-6, 5e-6, 2.0e-4]])
@@ -112,8 +112,8 @@ def test_com_offset_effect_has_the_full_models_sign():
     inputs starts turning as the full model with its CoM at c does (a rigid body's
     angular acceleration from rest is I_C^-1 times the torque about its CoM, whatever
     the reference point, so the rates after one step agree to rounding)."""
-    from pinquad import effects
-    from pinquad.discovery import corrected_observations
+    from pinquad.discovery.discover import corrected_observations
+    from pinquad.sim import effects
 
     com = np.array([0.004, -0.003, 0.0])
     inertia = np.diag(np.diag(INERTIA))
@@ -140,8 +140,8 @@ def test_compiled_e_step_equals_the_generic_one_on_the_full_model():
 
     from estimators.ekf import run_filter
     from estimators.rts import smooth
-    from pinquad.fast_smoother import loglik_quad, smooth_quad
-    from pinquad.sources import observations
+    from pinquad.estep.fast_smoother import loglik_quad, smooth_quad
+    from pinquad.models.sources import observations
 
     flight = simulate(SimConfig(vehicle=VEHICLE, sensor="B"), np.random.default_rng(5))
     obs = observations(flight_log(flight).slice(0, 600), "B")

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pinquad.logs import LogFormatError, read_log, write_log
-from pinquad.sim import SimConfig, flight_log, simulate
+from pinquad.io.logs import LogFormatError, read_log, write_log
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 
 @pytest.fixture(scope="module")

@@ -6,14 +6,16 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pinquad.conventions import (
+from pinquad.core.conventions import (
     euler_from_quat_wxyz,
     euler_from_rotation,
     quat_wxyz_from_euler,
     rotation_from_euler,
 )
-from pinquad.identify import body_regressor
-from pinquad.model import (
+from pinquad.core.params import CRAZYFLIE21, PAPER_VEHICLE, Vehicle
+from pinquad.mstep.updates import body_regressor
+from pinquad.sim.navigation import NavTuning, SensorANavModel
+from pinquad.vehicle.model import (
     RigidBodyParams,
     dynamic_parameters,
     forward_dynamics,
@@ -23,8 +25,6 @@ from pinquad.model import (
     pinocchio_motion,
     state_derivative_and_jacobian,
 )
-from pinquad.navigation import NavTuning, SensorANavModel
-from pinquad.params import CRAZYFLIE21, PAPER_VEHICLE, Vehicle
 
 
 def random_state(rng: np.random.Generator) -> np.ndarray:
@@ -165,7 +165,7 @@ def test_conventions_round_trip():
 
 
 def test_cross3_is_numpy_cross_bit_for_bit():
-    from pinquad.model import cross3
+    from pinquad.vehicle.model import cross3
 
     rng = np.random.default_rng(0)
     for _ in range(2000):

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from conftest import offline_on_csv
 
-from pinquad.experiment import identify
-from pinquad.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
-from pinquad.sim import SimConfig, flight_log, simulate
-from pinquad.sources import observations
+from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
+from pinquad.identification.experiment import identify
+from pinquad.models.sources import observations
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 
 @pytest.fixture(scope="module")

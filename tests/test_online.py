@@ -17,14 +17,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinquad import online
-from pinquad.fast_smoother import smooth_quad
-from pinquad.identify import QuadraticSums, expected_quadratics, remember_leaving
-from pinquad.logs import write_log
-from pinquad.params import PAPER_VEHICLE
-from pinquad.sim import SimConfig, flight_log, simulate
-from pinquad.sources import observations
-from pinquad.ssm import NoiseModel, QuadSSM, Theta
+from pinquad.core.params import PAPER_VEHICLE
+from pinquad.estep.fast_smoother import smooth_quad
+from pinquad.experiments import online
+from pinquad.io.logs import write_log
+from pinquad.models.sources import observations
+from pinquad.models.ssm import NoiseModel, QuadSSM, Theta
+from pinquad.mstep.updates import QuadraticSums, expected_quadratics, remember_leaving
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 TRUTH = np.array([PAPER_VEHICLE.mass, *PAPER_VEHICLE.inertia_diag])
@@ -122,8 +122,8 @@ def test_replay_of_a_measured_flight_converges_to_the_offline_answer():
     through the online estimator with the measured-flight M-step: the last update's mass
     is within 1.5 % of the scale and its roll / pitch inertia within 10 % of the offline
     identification of the same log (``python -m pinquad.realdata``: 18.7, 16.9 e-6)."""
-    from pinquad.online_replay import stream_em
-    from pinquad.realdata import SCALE_MASS, default_guess, identify_real, load_real
+    from pinquad.experiments.online_replay import stream_em
+    from pinquad.realdata.flights import SCALE_MASS, default_guess, identify_real, load_real
 
     flight = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushed" / "jana02"
     assert flight.is_file(), f"the Crazyflie data are missing: expected {flight}"

@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pinquad.response import apparent_inertia
+from pinquad.realdata.response import apparent_inertia
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "crazyflie"
@@ -67,7 +67,7 @@ def test_closed_loop_disturbance_makes_the_gain_fall_while_em_keeps_the_inertia(
     apparent inertia is flat near the truth; with ten times that noise (torques the
     controller answers) it falls with frequency, the torque leading, as on the measured
     logs, while direct EM on the same flight still finds the inertia."""
-    from pinquad.response import simulated_response
+    from pinquad.realdata.response import simulated_response
 
     nominal = simulated_response(1.0, seed=0, sensor="A")
     loud = simulated_response(10.0, seed=0, sensor="A")
@@ -94,7 +94,7 @@ def test_measured_flight_pipeline_reads_a_closed_loop_flight_high():
     ``realdata`` on a simulated closed-loop flight (sensor B, the simulator's own torque
     noise) reads the inertia more than 8 % high on every axis, while direct EM on the
     same flight is within 2 %. If the pipeline is fixed, this fails: update the README."""
-    from pinquad.response import simulated_response
+    from pinquad.realdata.response import simulated_response
 
     sim = simulated_response(1.0, seed=0, sensor="B")
     assert np.max(np.abs(sim.em_rel_error)) < 0.02

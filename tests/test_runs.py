@@ -7,7 +7,7 @@ import stat
 
 import pytest
 
-from pinquad.runs import atomic_write_bytes, atomic_write_json
+from pinquad.io.runs import atomic_write_bytes, atomic_write_json
 
 
 def test_atomic_write_gives_an_ordinary_file_and_leaves_no_temporary(tmp_path):

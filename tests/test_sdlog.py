@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinquad.conventions import euler_from_quat_wxyz, wrap_angle
-from pinquad.logs import LogFormatError
-from pinquad.sdlog import SdFlight, is_sdlog, read_sdflight, read_sdlog, read_sdlog_raw
+from pinquad.core.conventions import euler_from_quat_wxyz, wrap_angle
+from pinquad.io.logs import LogFormatError
+from pinquad.io.sdlog import SdFlight, is_sdlog, read_sdflight, read_sdlog, read_sdlog_raw
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "crazyflie"
 FLIGHTS = DATA / "imrc_brushed"

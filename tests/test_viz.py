@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pinquad.conventions import rotation_from_quat_wxyz
+from pinquad.core.conventions import rotation_from_quat_wxyz
 
 WIDTH, HEIGHT = 1280, 800
 PANEL_LEFT = 860
@@ -333,7 +333,7 @@ def test_help() -> None:
 
 
 def test_urdf_geometry() -> None:
-    from pinquad.model import urdf_path
+    from pinquad.vehicle.model import urdf_path
     from viz.geometry import default_scale, vehicle_parts
 
     parts = vehicle_parts(urdf_path("paper"))
@@ -351,7 +351,7 @@ def test_recorded_log_run_without_truth(tmp_path: Path) -> None:
     with the drawn path decimated, its final estimate and its discovery outcome."""
     from PIL import Image
 
-    from pinquad.logs import FlightLog, write_log
+    from pinquad.io.logs import FlightLog, write_log
     from viz.app import MAX_LINE_POINTS, serve
 
     n = 30000  # 60 s at 500 Hz

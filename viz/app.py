@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.conventions import quat_wxyz_from_euler, rotation_from_euler
+from pinquad.core.conventions import quat_wxyz_from_euler, rotation_from_euler
 from viz.geometry import VisualPart, body_radius, default_scale, vehicle_parts
 from viz.run import CycleRecord, Flight, Run, decimate_indices, load_run
 
@@ -571,7 +571,7 @@ class Viewer:
 # ---------------------------------------------------------------------------- helpers
 
 def _urdf_for(vehicle: str) -> str:
-    from pinquad.model import urdf_path
+    from pinquad.vehicle.model import urdf_path
 
     try:
         return urdf_path(vehicle)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.conventions import quat_wxyz_from_rotation, rotation_from_euler
+from pinquad.core.conventions import quat_wxyz_from_rotation, rotation_from_euler
 
 Array = NDArray[np.float64]
 

@@ -4,7 +4,7 @@ The viewer only reads what a run wrote (``report.json``, ``logs/``, ``figures/``
 never recomputes an estimate. Everything the scene needs is loaded here once, so the
 GUI callbacks only index arrays.
 
-A run directory (DESIGN.md 4.3) holds ``report.json`` with schema ``pinquad.report/1``;
+A run directory (DESIGN.md 4.3) holds ``report.json`` with schema ``pinquad.report.offline/1``;
 ``run_logs`` maps a name (the sensor set, or the log's name for a recorded flight) to
 ``{"log": <parquet/csv>, "smoothed": <npy (N, 12)>}`` relative to the run directory.
 """
@@ -200,7 +200,7 @@ def _read_report(run_dir: Path) -> dict[str, Any]:
 
 
 def _load_flight(run_dir: Path, name: str, entry: Any, warnings: list[str]) -> Flight | None:
-    from pinquad.logs import LogFormatError, read_log
+    from pinquad.io.logs import LogFormatError, read_log
 
     if isinstance(entry, str):
         entry = {"log": entry}

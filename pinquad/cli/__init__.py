@@ -1,0 +1,1 @@
+"""pinquad.cli: see docs/architecture.md."""

@@ -1,0 +1,1 @@
+"""pinquad.core: see docs/architecture.md."""

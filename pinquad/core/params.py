@@ -1,0 +1,158 @@
+"""Typed, frozen parameter sets: vehicles, process noise, sensor noise, scenarios.
+
+The simulated noise levels below are chosen once and frozen (see README, "Noise
+levels"): every accuracy claim of the project is made at these levels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.core.conventions import GRAVITY
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """Rigid-body parameters of a quadcopter.
+
+    name: URDF stem in ``pinquad/data`` (``paper`` or ``crazyflie21``).
+    mass: total mass m [kg].
+    inertia: (3, 3) rotational inertia about the centre of mass, body axes [kg m^2].
+    arm: centre to motor axis [m].
+    com: (3,) centre of mass in the body (thrust) frame [m].
+    gravity: [m/s^2].
+    """
+
+    name: str
+    mass: float
+    inertia: Array
+    arm: float
+    com: Array = field(default_factory=lambda: np.zeros(3))
+    gravity: float = GRAVITY
+
+    @property
+    def inertia_diag(self) -> Array:
+        """(3,) Ixx, Iyy, Izz [kg m^2]."""
+        return np.diag(self.inertia).copy()
+
+    def with_mass_inertia(self, mass: float, inertia: Array) -> Vehicle:
+        """Copy with another mass [kg] and (3, 3) inertia [kg m^2]."""
+        return replace(self, mass=float(mass), inertia=np.array(inertia, dtype=float))
+
+
+PAPER_VEHICLE = Vehicle(
+    name="paper", mass=0.18, inertia=np.diag([2.5e-4, 3.1e-4, 2.0e-4]), arm=0.086
+)
+"""The paper's quadcopter (Section "Parameters for the quadcopter system")."""
+
+CRAZYFLIE21 = Vehicle(
+    name="crazyflie21", mass=0.0347, inertia=np.diag([16.57e-6, 16.66e-6, 29.26e-6]), arm=0.046
+)
+"""Crazyflie 2.x: inertia from Foerster's bifilar-pendulum measurement, 34.7 g on a scale."""
+
+VEHICLES = {"paper": PAPER_VEHICLE, "crazyflie21": CRAZYFLIE21}
+
+PAPER_INITIAL_MASS = 0.001
+"""The paper's initial mass guess m0 [kg]."""
+PAPER_INITIAL_INERTIA = np.diag([1e-4, 2e-4, 1e-4])
+"""The paper's initial inertia guess I0 [kg m^2]."""
+
+
+@dataclass(frozen=True)
+class ProcessNoise:
+    """White-noise intensities on the applied wrench (the paper's SDE noise n).
+
+    thrust: standard deviation of the thrust noise averaged over one step of length
+        ``reference_dt`` [N]; torque: (3,) the same for the body torques [N m].
+    The continuous-time intensity is sigma^2 * reference_dt, so a step of length dt
+    sees a wrench noise of standard deviation sigma * sqrt(reference_dt / dt).
+    """
+
+    thrust: float
+    torque: Array
+    reference_dt: float = 0.01
+
+    def wrench_intensity(self) -> Array:
+        """(6,) spectral densities of body force (x, y, z) and torque [N^2 s, N^2 m^2 s].
+
+        Only the thrust axis (body z) carries force noise, as in the paper's SDE.
+        """
+        s = np.zeros(6)
+        s[2] = self.thrust**2 * self.reference_dt
+        s[3:] = np.asarray(self.torque, dtype=float) ** 2 * self.reference_dt
+        return s
+
+    def scaled(self, factor_force: float, factor_torque: float) -> ProcessNoise:
+        """Copy with force and torque noise multiplied by the given factors."""
+        return replace(
+            self, thrust=self.thrust * factor_force, torque=np.asarray(self.torque) * factor_torque
+        )
+
+
+PAPER_PROCESS_NOISE = ProcessNoise(thrust=0.02, torque=np.full(3, 2.0e-4))
+"""About 1 % of hover thrust (1.77 N) and 1 % of full control torque, per 10 ms step."""
+
+
+def process_noise_for(vehicle: Vehicle) -> ProcessNoise:
+    """The frozen process-noise level scaled to a vehicle by weight and inertia."""
+    ref = PAPER_VEHICLE
+    return PAPER_PROCESS_NOISE.scaled(
+        vehicle.mass / ref.mass, float(np.mean(vehicle.inertia_diag / ref.inertia_diag))
+    )
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """Standard deviations of each measured quantity (white, Gaussian).
+
+    position [m] (motion capture), velocity [m/s], euler [rad], gyro [rad/s],
+    accel [m/s^2] (accelerometer specific force).
+    """
+
+    position: float = 0.005
+    velocity: float = 0.02
+    euler: float = 0.01
+    gyro: float = 0.015
+    accel: float = 0.08
+
+
+FROZEN_SENSOR_NOISE = SensorNoise()
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A flight: start point and waypoints [m, world], and the timing.
+
+    dt: simulation, control and logging step [s]; hover_time: time spent settling on
+    each waypoint before heading to the next [s]; cruise_speed: nominal speed [m/s].
+    """
+
+    start: Array
+    waypoints: Array
+    dt: float = 0.01
+    cruise_speed: float = 1.0
+    hover_time: float = 1.5
+    yaw: float = 0.0
+    scale: float = 1.0
+
+    def scaled(self, factor: float) -> Scenario:
+        """The same scenario with all positions (and speeds) scaled by ``factor``."""
+        return replace(
+            self,
+            start=np.asarray(self.start) * factor,
+            waypoints=np.asarray(self.waypoints) * factor,
+            cruise_speed=self.cruise_speed * factor,
+            scale=self.scale * factor,
+        )
+
+
+PAPER_SCENARIO = Scenario(
+    start=np.array([0.5, 1.0, 0.0]),
+    waypoints=np.array([[4, 3, 3], [3, 5, 4], [6, 4, 5], [4, 3, 4], [2, 1, 5]], dtype=float),
+)
+"""Start [0.5, 1, 0] and the paper's five waypoints."""

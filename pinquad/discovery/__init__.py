@@ -1,0 +1,1 @@
+"""pinquad.discovery: see docs/architecture.md."""

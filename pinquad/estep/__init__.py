@@ -1,0 +1,1 @@
+"""pinquad.estep: see docs/architecture.md."""

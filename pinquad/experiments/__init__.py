@@ -1,0 +1,1 @@
+"""pinquad.experiments: see docs/architecture.md."""

@@ -1,0 +1,177 @@
+"""``python -m pinquad.online --log PATH``: a recorded log replayed through the online
+estimator as a stream (no controller feedback): every ``every`` samples, EM
+(warm-started, one iteration) on the latest ``window`` samples, as in flight.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.protocol import Posterior
+from pinquad.cli.common import memory_label
+from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
+from pinquad.identification.em import initial_theta
+from pinquad.identification.experiment import get_smoother
+from pinquad.identification.window import window_em, window_prior
+from pinquad.io.logs import LogFormatError
+from pinquad.models.ssm import Observations, QuadSSM, Theta
+from pinquad.mstep.updates import regressor_mstep, remember_leaving
+
+Array = NDArray[np.float64]
+
+
+def window_of(obs: Observations, start: int, stop: int, x0: Array, p0: Array) -> Observations:
+    """Rows start..stop-1 of the observations with a given prior."""
+    return replace(obs, t=obs.t[start:stop], inputs=obs.inputs[start:stop],
+                   ys=obs.ys[start:stop], x0=x0, p0=p0,
+                   exclude=obs.exclude[start:stop] if obs.exclude.size else obs.exclude,
+                   resets=obs.resets[start:stop] if obs.resets.size else obs.resets)
+
+
+def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] | None,
+                    start: int, win: Observations, rotor_acc: Array) -> Theta:
+    """A measured flight's parameters moved onto the next window: the nuisance moment
+    tau_off = z moment_coef^T + [0, 0, J_r rotor_acc] (``realdata.RealMStep``) evaluated
+    on the new window's rows, with the features z from the previous posterior's means
+    (its last row repeated for the rows it has not seen yet)."""
+    from pinquad.realdata.flights import RealTheta, torque_features
+
+    if not isinstance(theta, RealTheta) or theta.moment_coef is None or previous is None:
+        return theta
+    prev_start, post, _ = previous
+    guess = post.mean[start - prev_start:]
+    guess = np.vstack([guess, np.repeat(guess[-1:], win.n - guess.shape[0], axis=0)])
+    offset = torque_features(guess, win.inputs[:, 0]) @ theta.moment_coef.T
+    if theta.rotor_inertia is not None:
+        offset[:, 2] += theta.rotor_inertia * rotor_acc
+    return replace(theta, torque_offset=offset)
+
+
+def _measured_model(win: Observations, theta: Theta) -> QuadSSM:
+    """The E-step model of a measured flight's window: the quadcopter with the nuisance
+    moment of ``theta`` added to the rotor torques (``realdata.corrected``)."""
+    from pinquad.realdata.flights import corrected
+
+    return QuadSSM(corrected(win, theta), theta)
+
+
+def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
+              window: int = 800, every: int = 4, min_samples: int = 50,
+              iterations: int = 1, memory_s: float | None = math.inf,
+              rotor_acc: Array | None = None) -> tuple[Array, Array]:
+    """History (U, 6) [k, t, m, Ixx, Iyy, Izz] and latencies (U,) [s] of the stream;
+    memory_s as ``online.OnlineConfig.memory_s``.
+
+    rotor_acc (N,) [rad/s^2]: given for a measured flight (``RealObservations``): each
+    window then gets the measured-flight M-step (``realdata.RealMStep``: band-passed
+    inertia, nuisance body moment and rotor inertia, fed back into the next window's
+    E-step as a torque offset), and the memory applies to the mass only (the inertia's
+    band-passed sums do not add across windows)."""
+    smoother = get_smoother("rts")
+    theta = None
+    previous = None
+    earlier = None
+    rows, lat = [], []
+    for k in range(min_samples - 1, obs.n, every):
+        t0 = time.perf_counter()
+        start = max(0, k + 1 - window)
+        x0, p0 = window_prior(previous, start, obs.x0, obs.p0)
+        if memory_s is not None and previous is not None:
+            prev_start, prev_post, prev_win = previous
+            earlier = remember_leaving(earlier, prev_post, prev_win, start - prev_start,
+                                       gravity, memory_s)
+        win = window_of(obs, start, k + 1, x0, p0)
+        warm_up = theta is None
+        if warm_up:
+            theta = initial_theta(win, mass0, inertia0, gravity)
+        mstep, model_of = regressor_mstep, QuadSSM
+        if rotor_acc is not None:
+            from pinquad.realdata.flights import RealMStep
+
+            theta = _measured_theta(theta, previous, start, win, rotor_acc[start:k + 1])
+            mstep, model_of = RealMStep(rotor_acc=rotor_acc[start:k + 1]), _measured_model
+        theta, post = window_em(win, theta, warm_up, iterations, smoother, mstep, earlier,
+                                model_of)
+        previous = (start, post, win)
+        lat.append(time.perf_counter() - t0)
+        rows.append([k, obs.t[k], theta.mass, *np.diag(theta.inertia)])
+    return np.asarray(rows), np.asarray(lat)
+
+
+def replay(args: argparse.Namespace) -> int:
+    from pinquad.io.logs import read_log
+    from pinquad.models.sources import observations
+
+    try:
+        path = args.log
+        from pinquad.io.sdlog import is_sdlog
+
+        if path.exists() and path.is_file() and is_sdlog(path):
+            from pinquad.io.sdlog import read_sdflight
+            from pinquad.realdata.flights import build_observations, default_guess, raw_from_sdflight
+
+            real = build_observations(raw_from_sdflight(read_sdflight(path)))
+            obs, gravity, rotor_acc = real.obs, real.log.meta.gravity, real.rotor_acc
+            mass0, inertia0, _ = default_guess("crazyflie21")
+        else:
+            rotor_acc = None
+            log = read_log(path)
+            sensor = (args.sensor or ["B" if not np.isnan(log.euler).all() else "C"])[0]
+            obs = observations(log, sensor)
+            gravity = log.meta.gravity
+            mass0 = log.meta.mass_guess or PAPER_INITIAL_MASS
+            inertia0 = (log.meta.inertia_guess if log.meta.inertia_guess is not None
+                        else PAPER_INITIAL_INERTIA)
+    except (LogFormatError, ValueError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    hist, lat = stream_em(obs, mass0, inertia0, gravity, memory_s=args.memory,
+                          rotor_acc=rotor_acc)
+    if hist.size == 0:
+        print(f"error: {args.log}: too short to replay (fewer than 50 samples)", file=sys.stderr)
+        return 2
+    memory = memory_label(args.memory)
+    mstep = "regressor"
+    if rotor_acc is not None:
+        mstep = "measured-flight (realdata.RealMStep)"
+        if args.memory is not None:
+            memory = f"mass: {memory}; inertia: each window's band-passed fit alone"
+    print(f"replayed {obs.n} samples of {args.log} in {hist.shape[0]} updates "
+          f"(window 800, every 4, {mstep} M-step, memory: {memory}); "
+          f"update p50 {1e3 * np.median(lat):.1f} ms, p99 {1e3 * np.percentile(lat, 99):.1f} ms")
+    print("| t [s] | mass [kg] | I_xx | I_yy | I_zz |\n|---|---|---|---|---|")
+    for i in np.unique(np.linspace(0, hist.shape[0] - 1, 12).astype(int)):
+        r = hist[i]
+        print(f"| {r[1]:.2f} | {r[2]:.5g} | {r[3]:.4g} | {r[4]:.4g} | {r[5]:.4g} |")
+    if args.out:
+        from pinquad.io.runs import RunWriter, atomic_write_json
+
+        writer = RunWriter(args.out)
+        try:
+            atomic_write_json(writer.path("report.json"), {
+                "schema": "pinquad.report/1",
+                "source": {"kind": "log", "path": str(args.log), "mode": "online-replay",
+                           "estep": "rts", "mstep": mstep, "memory": memory},
+                "estimates": {"mass": float(hist[-1, 2]), "inertia": np.diag(hist[-1, 3:6]).tolist(),
+                              "com": None},
+                "em": {"iterations": int(hist.shape[0]), "loglik": [], "converged": False},
+                "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+                              "validation": "not run in replay"},
+                "cycles": [{"sensor": "log", "mstep": mstep, "seed": None,
+                            "estimates": {"mass": float(hist[-1, 2]),
+                                          "inertia": np.diag(hist[-1, 3:6]).tolist()},
+                            "history": {"t": hist[:, 1].tolist(), "mass": hist[:, 2].tolist(),
+                                        "inertia_diag": hist[:, 3:6].tolist()}}],
+            })
+            writer.publish()
+        except BaseException:
+            writer.abort()
+            raise
+    return 0

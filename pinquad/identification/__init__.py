@@ -1,0 +1,1 @@
+"""pinquad.identification: see docs/architecture.md."""

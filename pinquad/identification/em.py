@@ -1,0 +1,194 @@
+"""The EM loop: alternate an E-step smoother and an M-step until the parameters settle.
+
+    theta_{i+1} = M(E(theta_i)),  stop when max relative change of (m, I) < tol
+    or after max_iterations. The E-step's log-likelihood log p(y | theta_i) is recorded
+    at every iteration; EM guarantees it never decreases for an exact E-step and M-step,
+    so any decrease (possible with the EKF's linearisation) is flagged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.protocol import Posterior, StateSpaceModel
+from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
+from pinquad.mstep.updates import MStepResult, relative_change
+
+Array = NDArray[np.float64]
+
+Smoother = Callable[[StateSpaceModel, Array], Posterior]
+MStep = Callable[[Posterior, Observations, Theta], MStepResult]
+
+PAPER_Q0 = 0.0707
+PAPER_R0 = 0.00707
+
+
+@dataclass(frozen=True)
+class EMResult:
+    """Outcome of one EM run.
+
+    theta: final parameters; posterior: the E-step at theta; mass (I,), inertia_diag
+    (I, 3): the iterates (index 0 = initial guess, last = theta); loglik (I,): log
+    p(y | iterate) [nats]; converged; decreases: iterations whose log-likelihood fell by
+    more than 1e-6 relative; e_steps: smoother runs used (over-relaxation may reject
+    some); failure: why EM stopped early if an E-step broke down (the result is then
+    the last iterate whose E-step worked, not converged), else None.
+    """
+
+    theta: Theta
+    posterior: Posterior
+    mass: Array
+    inertia_diag: Array
+    loglik: Array
+    converged: bool
+    decreases: tuple[int, ...]
+    e_steps: int = 0
+    failure: str | None = None
+
+    @property
+    def iterations(self) -> int:
+        return int(self.loglik.shape[0])
+
+
+def paper_noise(meas_dim: int) -> NoiseModel:
+    """The paper's fixed covariances: Q0 = 0.0707 I (12), R0 = 0.00707 I."""
+    return NoiseModel(wrench=np.zeros(6), q_kin=np.zeros(6), meas=np.full(meas_dim, PAPER_R0),
+                      fixed_q=np.full(12, PAPER_Q0))
+
+
+def initial_theta(obs: Observations, mass: float, inertia: Array, gravity: float) -> Theta:
+    """Start of EM: the given mass/inertia with the paper's Q0/R0 for the first E-step."""
+    return Theta(mass=float(mass), inertia=np.asarray(inertia, float),
+                 noise=paper_noise(3 * len(obs.channels)), gravity=gravity)
+
+
+def _pack(theta: Theta) -> Array:
+    """log-parameter vector [m, I diag (3), S (6), r (m)] for extrapolation."""
+    nz = theta.noise
+    return np.log(np.concatenate([[theta.mass], np.diag(theta.inertia), nz.wrench, nz.meas]))
+
+
+def _unpack(vec: Array, like: Theta) -> Theta:
+    v = np.exp(vec)
+    nz = like.noise
+    noise = NoiseModel(wrench=v[4:10], q_kin=nz.q_kin, meas=v[10:], fixed_q=None)
+    return Theta(mass=float(v[0]), inertia=np.diag(v[1:4]), noise=noise, gravity=like.gravity)
+
+
+def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
+           max_iterations: int = 100, tol: float = 1e-6, tol_loglik: float = 1e-6,
+           accelerate: bool = True,
+           on_iteration: Callable[[int, Theta], None] | None = None,
+           model_factory: Callable[[Any, Any], StateSpaceModel] = QuadSSM,
+           distance: Callable[[Any, Any], float] = relative_change,
+           extrapolate: Callable[[Theta, Theta, float], Theta] | None = None) -> EMResult:
+    """Run EM from theta0 (see module docstring).
+
+    With ``accelerate`` (the regressor M-step, or any M-step given its ``extrapolate``)
+    the steps are over-relaxed in log-parameter space (adaptive over-relaxed EM,
+    Salakhutdinov and Roweis 2003): theta_p = theta_t * (M(theta_t) / theta_t)^eta
+    (``extrapolate(theta_t, M(theta_t), eta)``); if log p(y | theta_p) >= log p(y |
+    theta_t) the step is taken and eta grows by 1.5x (at most 16), otherwise eta falls
+    back to 1 and the plain EM step M(theta_t) is taken. Every E-step counts towards
+    ``max_iterations``; the recorded history holds the accepted iterates only, so the
+    recorded log-likelihood is the EM sequence's.
+
+    When theta0 carries the paper's fixed Q0 (``initial_theta``) and the model is a
+    QuadSSM (or a subclass), the first E-step uses the force-free ``KinematicSSM`` (a
+    data-driven warm-up); every later one the full model. ``model_factory(obs, theta)``
+    builds the E-step's model and ``distance`` measures the
+    parameter change; the defaults are the quadcopter's, other models (the
+    linear-Gaussian test model) pass their own.
+    """
+    is_quad = isinstance(theta0, Theta)
+    warm_up = (is_quad and isinstance(model_factory, type) and issubclass(model_factory, QuadSSM)
+               and theta0.noise.fixed_q is not None)
+
+    def mass_of(theta: Any) -> float:
+        return theta.mass if is_quad else float("nan")
+
+    def inertia_of(theta: Any) -> Array:
+        return np.diag(theta.inertia).copy() if is_quad else np.full(3, np.nan)
+
+    masses = [mass_of(theta0)]
+    inertias = [inertia_of(theta0)]
+    logliks: list[float] = []
+    n_esteps = 0
+    over_relax = (accelerate and is_quad
+                  and (extrapolate is not None
+                       or getattr(mstep, "__name__", "") == "regressor_mstep"))
+
+    def e_step(theta: Theta) -> Posterior:
+        nonlocal n_esteps
+        n_esteps += 1
+        if warm_up and n_esteps == 1:
+            return smoother(KinematicSSM(obs, theta), obs.ys)
+        return smoother(model_factory(obs, theta), obs.ys)
+
+    def record(theta: Theta, post: Posterior) -> None:
+        logliks.append(post.loglik)
+        masses.append(mass_of(theta))
+        inertias.append(inertia_of(theta))
+
+    theta = theta0
+    post = e_step(theta)
+    eta = 1.0
+    converged = False
+    failure: str | None = None
+
+    def try_e_step(candidate: Theta) -> Posterior | None:
+        nonlocal failure
+        try:
+            return e_step(candidate)
+        except (np.linalg.LinAlgError, FloatingPointError) as exc:
+            # the filter broke down at these parameters (a covariance lost positive
+            # definiteness): an over-relaxed step is retried as a plain one, a plain
+            # step ends EM at the last iterate whose E-step worked
+            failure = (f"E-step {n_esteps} failed at m = {mass_of(candidate):.6g} kg, "
+                       f"I = {inertia_of(candidate)} kg m^2: {exc}")
+            return None
+
+    while n_esteps < max_iterations:
+        proposal = mstep(post, obs, theta).theta
+        step_theta = proposal
+        if over_relax and eta > 1.0 and theta.noise.fixed_q is None:
+            if extrapolate is not None:
+                step_theta = extrapolate(theta, proposal, eta)
+            else:
+                p_old, p_new = _pack(theta), _pack(proposal)
+                step_theta = _unpack(p_old + eta * (p_new - p_old), proposal)
+        new_post = try_e_step(step_theta)
+        if step_theta is not proposal and (new_post is None
+                                           or not (new_post.loglik >= post.loglik)):
+            eta = 1.0
+            step_theta = proposal
+            if n_esteps >= max_iterations:
+                break
+            new_post = try_e_step(step_theta)
+        elif over_relax and theta.noise.fixed_q is None:
+            eta = min(eta * 1.5, 16.0)
+        if new_post is None:
+            break
+        failure = None
+        ll_change = abs(new_post.loglik - post.loglik) / max(abs(post.loglik), 1.0)
+        change = distance(step_theta, theta)
+        # the posterior recorded with an iterate is the E-step at that iterate
+        record(theta, post)
+        if on_iteration is not None:
+            on_iteration(len(logliks) - 1, step_theta)
+        theta, post = step_theta, new_post
+        if change < tol and ll_change < tol_loglik:
+            converged = True
+            break
+    record(theta, post)
+    ll = np.asarray(logliks)
+    start = 1 if is_quad and theta0.noise.fixed_q is not None else 0
+    decreases = tuple(int(i) for i in range(start + 1, ll.size)
+                      if ll[i] < ll[i - 1] - 1e-6 * abs(ll[i - 1]))
+    return EMResult(theta, post, np.asarray(masses[1:]), np.vstack(inertias[1:]), ll,
+                    converged, decreases, n_esteps, failure)

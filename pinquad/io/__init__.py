@@ -1,0 +1,1 @@
+"""pinquad.io: see docs/architecture.md."""

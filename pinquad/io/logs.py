@@ -1,0 +1,353 @@
+"""FlightLog: the typed record of one flight, and its CSV / Parquet readers and writers.
+
+Columns (DESIGN.md 4.2, SI units, NaN where a sensor has no sample in that row):
+``t``; ``pos_*``, ``vel_*`` [world]; ``quat_w..z`` (body to world) or ``roll, pitch,
+yaw``; ``gyro_*`` [rad/s, body]; ``acc_*`` [m/s^2, body specific force]; actuation
+``thrust`` + ``torque_*`` or ``rpm_1..4``; optional ``vbat``, ``contact``; truth in
+``true_*`` columns, never read by estimators. A JSON sidecar ``<log>.json`` carries
+``vehicle``, ``mass_guess``, ``inertia_guess``, ``gravity``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.core.conventions import (
+    GRAVITY,
+    STATE_NAMES,
+    euler_from_quat_wxyz,
+    quat_wxyz_from_euler,
+)
+
+Array = NDArray[np.float64]
+
+
+class LogFormatError(ValueError):
+    """A log file that does not follow the format: the message names the file, the
+    column or byte offset, and what was expected."""
+
+
+@dataclass(frozen=True)
+class LogMeta:
+    """What the sidecar says about a log.
+
+    vehicle: vehicle name (``paper``, ``crazyflie21``); mass_guess [kg] and
+    inertia_guess (3, 3) [kg m^2]: initial values for identification (None if unknown);
+    gravity [m/s^2]; source: where the log came from (a path or "simulation");
+    notes: human-readable remarks (e.g. detected sensor faults).
+    """
+
+    vehicle: str = "paper"
+    mass_guess: float | None = None
+    inertia_guess: Array | None = None
+    gravity: float = GRAVITY
+    source: str = "simulation"
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class FlightLog:
+    """One flight, one row per time sample (N rows).
+
+    t (N,) [s] strictly increasing.
+    position (N, 3) [m, world]; velocity (N, 3) [m/s, world]; euler (N, 3) roll, pitch,
+    yaw [rad]; gyro (N, 3) [rad/s, body]; accel (N, 3) [m/s^2, body specific force].
+    Any of these may be NaN in rows without a sample, or entirely NaN.
+    thrust (N,) [N] and torque (N, 3) [N m, body]: the applied actuation (NaN-free when
+    present); rpm (N, 4) [rev/min]: measured rotor speeds, the alternative actuation.
+    vbat (N,) [V]; contact (N,) bool: the vehicle touches the floor (simulator flag).
+    truth (N, 12) or None: simulator state [p, v, Theta, omega], for scoring only.
+    onboard (N, 12) or None: the vehicle's own state estimate (columns ``est_*``), the
+    one its controller used.
+    """
+
+    t: Array
+    position: Array
+    velocity: Array
+    euler: Array
+    gyro: Array
+    accel: Array
+    thrust: Array | None = None
+    torque: Array | None = None
+    rpm: Array | None = None
+    vbat: Array | None = None
+    contact: NDArray[np.bool_] | None = None
+    truth: Array | None = None
+    onboard: Array | None = None
+    meta: LogMeta = field(default_factory=LogMeta)
+
+    @property
+    def n(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def dt(self) -> float:
+        """Median sample interval [s]."""
+        return float(np.median(np.diff(self.t))) if self.n > 1 else float("nan")
+
+    def slice(self, start: int, stop: int) -> FlightLog:
+        """Rows start..stop-1 as a new log."""
+        def cut(a):
+            return None if a is None else a[start:stop]
+        return replace(
+            self, t=self.t[start:stop], position=self.position[start:stop],
+            velocity=self.velocity[start:stop], euler=self.euler[start:stop],
+            gyro=self.gyro[start:stop], accel=self.accel[start:stop],
+            thrust=cut(self.thrust), torque=cut(self.torque), rpm=cut(self.rpm),
+            vbat=cut(self.vbat), contact=cut(self.contact), truth=cut(self.truth),
+            onboard=cut(self.onboard),
+        )
+
+
+def _nan3(n: int) -> Array:
+    return np.full((n, 3), np.nan)
+
+
+def empty_log(t: Array, meta: LogMeta | None = None) -> FlightLog:
+    """A log with time stamps and no measurement."""
+    n = t.shape[0]
+    return FlightLog(t=t, position=_nan3(n), velocity=_nan3(n), euler=_nan3(n),
+                     gyro=_nan3(n), accel=_nan3(n), meta=meta or LogMeta())
+
+
+# ----------------------------------------------------------------------------- writing
+
+def log_columns(log: FlightLog) -> dict[str, Array]:
+    """The log as named columns (DESIGN.md 4.2); attitude written as a quaternion and
+    as Euler angles."""
+    cols: dict[str, Array] = {"t": log.t}
+    for name, arr in (("pos", log.position), ("vel", log.velocity)):
+        for i, ax in enumerate("xyz"):
+            cols[f"{name}_{ax}"] = arr[:, i]
+    quat = np.full((log.n, 4), np.nan)
+    ok = ~np.isnan(log.euler).any(axis=1)
+    if ok.any():
+        quat[ok] = quat_wxyz_from_euler(log.euler[ok])
+    for i, ax in enumerate("wxyz"):
+        cols[f"quat_{ax}"] = quat[:, i]
+    for i, ax in enumerate(("roll", "pitch", "yaw")):
+        cols[ax] = log.euler[:, i]
+    for name, arr in (("gyro", log.gyro), ("acc", log.accel)):
+        for i, ax in enumerate("xyz"):
+            cols[f"{name}_{ax}"] = arr[:, i]
+    if log.thrust is not None:
+        cols["thrust"] = log.thrust
+    if log.torque is not None:
+        for i, ax in enumerate("xyz"):
+            cols[f"torque_{ax}"] = log.torque[:, i]
+    if log.rpm is not None:
+        for i in range(4):
+            cols[f"rpm_{i + 1}"] = log.rpm[:, i]
+    if log.vbat is not None:
+        cols["vbat"] = log.vbat
+    if log.contact is not None:
+        cols["contact"] = log.contact.astype(float)
+    if log.truth is not None:
+        for i, name in enumerate(STATE_NAMES):
+            cols[f"true_{name}"] = log.truth[:, i]
+    if log.onboard is not None:
+        for i, name in enumerate(STATE_NAMES):
+            cols[f"est_{name}"] = log.onboard[:, i]
+    return cols
+
+
+def sidecar(meta: LogMeta) -> dict:
+    """The JSON sidecar of a log."""
+    return {
+        "vehicle": meta.vehicle,
+        "mass_guess": meta.mass_guess,
+        "inertia_guess": None if meta.inertia_guess is None else np.asarray(meta.inertia_guess).tolist(),
+        "gravity": meta.gravity,
+    }
+
+
+def write_log(log: FlightLog, path: str | Path) -> Path:
+    """Write the log as CSV or Parquet (by suffix) plus its JSON sidecar, atomically."""
+    from pinquad.io.runs import atomic_write_bytes
+
+    path = Path(path)
+    cols = log_columns(log)
+    suffix = path.suffix.lower()
+    if suffix == ".parquet":
+        import io
+
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        buf = io.BytesIO()
+        pq.write_table(pa.table({k: np.asarray(v, dtype=float) for k, v in cols.items()}), buf)
+        atomic_write_bytes(path, buf.getvalue())
+    elif suffix == ".csv":
+        names = list(cols)
+        mat = np.column_stack([np.asarray(cols[k], dtype=float) for k in names])
+        lines = [",".join(names)]
+        for row in mat:
+            lines.append(",".join("" if math.isnan(v) else repr(float(v)) for v in row))
+        atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
+    else:
+        raise LogFormatError(f"{path}: unknown log format {suffix!r}; expected .csv or .parquet")
+    atomic_write_bytes(Path(str(path) + ".json"), json.dumps(sidecar(log.meta), indent=2).encode())
+    return path
+
+
+# ----------------------------------------------------------------------------- reading
+
+def _read_table(path: Path) -> dict[str, Array]:
+    suffix = path.suffix.lower()
+    if suffix == ".parquet":
+        import pyarrow.parquet as pq
+
+        try:
+            table = pq.read_table(path)
+        except Exception as exc:  # pyarrow raises several types for corrupt files
+            raise LogFormatError(f"{path}: not a readable Parquet file ({exc})") from None
+        out = {}
+        for name in table.column_names:
+            try:
+                out[name] = np.asarray(table.column(name).to_numpy(zero_copy_only=False), dtype=float)
+            except (TypeError, ValueError):
+                raise LogFormatError(
+                    f"{path}: column {name!r} is not numeric; expected numbers") from None
+        return out
+    if suffix == ".csv":
+        return _read_csv(path)
+    raise LogFormatError(f"{path}: unknown log format {suffix!r}; expected .csv, .parquet or a "
+                         "Crazyflie micro-SD binary log")
+
+
+def _read_csv(path: Path) -> dict[str, Array]:
+    text = path.read_text(errors="replace")
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        raise LogFormatError(f"{path}: empty file; expected a header row with column names")
+    header = [h.strip() for h in lines[0].split(",")]
+    if len(lines) < 2:
+        raise LogFormatError(f"{path}: no data rows after the header")
+    data = np.full((len(lines) - 1, len(header)), np.nan)
+    for r, line in enumerate(lines[1:]):
+        cells = line.split(",")
+        if len(cells) != len(header):
+            raise LogFormatError(
+                f"{path}: line {r + 2} has {len(cells)} fields; expected {len(header)} "
+                f"(one per header column)")
+        for c, cell in enumerate(cells):
+            cell = cell.strip()
+            if cell == "" or cell.lower() == "nan":
+                continue
+            try:
+                data[r, c] = float(cell)
+            except ValueError:
+                raise LogFormatError(
+                    f"{path}: line {r + 2}, column {header[c]!r}: {cell!r} is not a number"
+                ) from None
+    return {name: data[:, i] for i, name in enumerate(header)}
+
+
+def _cols3(cols: dict[str, Array], prefix: str, n: int) -> Array:
+    names = [f"{prefix}_{ax}" for ax in "xyz"]
+    if all(nm in cols for nm in names):
+        return np.column_stack([cols[nm] for nm in names])
+    return _nan3(n)
+
+
+def _read_sidecar(path: Path) -> LogMeta:
+    side = Path(str(path) + ".json")
+    if not side.exists():
+        return LogMeta(source=str(path))
+    try:
+        raw = json.loads(side.read_text())
+    except json.JSONDecodeError as exc:
+        raise LogFormatError(f"{side}: not valid JSON ({exc.msg} at byte {exc.pos})") from None
+    inertia = raw.get("inertia_guess")
+    try:
+        inertia_arr = None if inertia is None else np.asarray(inertia, dtype=float).reshape(3, 3)
+    except (ValueError, TypeError):
+        raise LogFormatError(f"{side}: 'inertia_guess' must be a 3x3 list of numbers") from None
+    mass = raw.get("mass_guess")
+    return LogMeta(
+        vehicle=str(raw.get("vehicle", "paper")),
+        mass_guess=None if mass is None else float(mass),
+        inertia_guess=inertia_arr,
+        gravity=float(raw.get("gravity", GRAVITY)),
+        source=str(path),
+    )
+
+
+def read_log(path: str | Path) -> FlightLog:
+    """Read a CSV or Parquet flight log (and its sidecar). Raises LogFormatError."""
+    path = Path(path)
+    if not path.exists():
+        raise LogFormatError(f"{path}: no such file")
+    if path.is_dir():
+        raise LogFormatError(f"{path}: is a directory; expected a log file")
+    cols = _read_table(path)
+    if "t" not in cols:
+        raise LogFormatError(f"{path}: missing required column 't' (time in seconds)")
+    t = cols["t"]
+    n = t.shape[0]
+    if n == 0:
+        raise LogFormatError(f"{path}: no data rows")
+    if not np.isfinite(t).all():
+        bad = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise LogFormatError(f"{path}: column 't', row {bad + 1}: not a finite number")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        bad = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise LogFormatError(
+            f"{path}: column 't' is not strictly increasing at row {bad + 1} "
+            f"(t = {t[bad - 1]!r} then {t[bad]!r})")
+    if all(f"quat_{a}" in cols for a in "wxyz"):
+        quat = np.column_stack([cols[f"quat_{a}"] for a in "wxyz"])
+        euler = np.full((n, 3), np.nan)
+        ok = np.isfinite(quat).all(axis=1) & (np.linalg.norm(np.nan_to_num(quat), axis=1) > 0)
+        if ok.any():
+            euler[ok] = euler_from_quat_wxyz(quat[ok])
+    elif all(a in cols for a in ("roll", "pitch", "yaw")):
+        euler = np.column_stack([cols["roll"], cols["pitch"], cols["yaw"]])
+    else:
+        euler = _nan3(n)
+
+    thrust = torque = rpm = None
+    if "thrust" in cols:
+        missing = [f"torque_{a}" for a in "xyz" if f"torque_{a}" not in cols]
+        if missing:
+            raise LogFormatError(f"{path}: has 'thrust' but lacks {', '.join(missing)}")
+        thrust = cols["thrust"]
+        torque = np.column_stack([cols[f"torque_{a}"] for a in "xyz"])
+        act = np.column_stack([thrust, torque])
+        names = ["thrust", "torque_x", "torque_y", "torque_z"]
+    elif all(f"rpm_{i}" in cols for i in range(1, 5)):
+        rpm = np.column_stack([cols[f"rpm_{i}"] for i in range(1, 5)])
+        act = rpm
+        names = [f"rpm_{i}" for i in range(1, 5)]
+    else:
+        raise LogFormatError(
+            f"{path}: no actuation columns; expected 'thrust' with 'torque_x/y/z', or "
+            "'rpm_1'..'rpm_4'")
+    bad_rows, bad_cols = np.nonzero(~np.isfinite(act))
+    if bad_rows.size:
+        raise LogFormatError(
+            f"{path}: column {names[bad_cols[0]]!r}, row {bad_rows[0] + 1}: actuation must be "
+            "a finite number in every row")
+
+    truth = None
+    true_names = [f"true_{nm}" for nm in STATE_NAMES]
+    if all(nm in cols for nm in true_names):
+        truth = np.column_stack([cols[nm] for nm in true_names])
+    onboard = None
+    est_names = [f"est_{nm}" for nm in STATE_NAMES]
+    if all(nm in cols for nm in est_names):
+        onboard = np.column_stack([cols[nm] for nm in est_names])
+    contact = cols["contact"] > 0.5 if "contact" in cols else None
+    return FlightLog(
+        t=t, position=_cols3(cols, "pos", n), velocity=_cols3(cols, "vel", n), euler=euler,
+        gyro=_cols3(cols, "gyro", n), accel=_cols3(cols, "acc", n), thrust=thrust,
+        torque=torque, rpm=rpm, vbat=cols.get("vbat"), contact=contact, truth=truth,
+        onboard=onboard, meta=_read_sidecar(path),
+    )

@@ -1,0 +1,1 @@
+"""pinquad.models: see docs/architecture.md."""

@@ -1,0 +1,235 @@
+"""The quadcopter as a StateSpaceModel for the E-step, with the parameters EM learns.
+
+Transition (explicit Euler of the paper's model, inputs u_k = [F, M] from the log):
+
+    x_{k+1} = x_k + dt f(x_k, u_k; m, I) + w_k
+
+Process noise, structured as the paper's SDE (noise on the applied wrench, intensity
+S = diag(S_f (3), S_tau (3)) [N^2 s, (N m)^2 s], body frame) plus small kinematic terms:
+
+    Cov(w_k) = blockdiag(q_pos I3, dt (R/m) S_f (R/m)^T, q_euler I3, dt I^{-1} S_tau I^{-1})
+
+or, for the paper's own configuration, a fixed diagonal ``fixed_q`` (Q0 = 0.0707 I).
+On a transition marked in ``Observations.resets`` (touch-down on the floor: an impulse
+the model does not have stops and levels the vehicle within a step) the covariance is
+widened by diag(RESET_VAR), so that the smoother does not carry the flight dynamics
+across the impulse and the states on either side follow their own data.
+
+Measurements y_k: the rows of ``channels`` (pos, vel, euler, gyro, each 3 rows, world
+or body as in the log), y = H x + v, v ~ N(0, diag(r)); Euler rows wrap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.core.conventions import wrap_angle
+from pinquad.vehicle.model import RigidBodyParams, state_derivative_and_jacobian
+
+Array = NDArray[np.float64]
+
+CHANNEL_SLICES = {"pos": slice(0, 3), "vel": slice(3, 6), "euler": slice(6, 9),
+                  "gyro": slice(9, 12)}
+
+RESET_VAR = np.array([1e-4] * 3 + [1.0] * 3 + [0.1] * 3 + [4.0] * 3)
+"""(12,) process variance added on a reset transition [m^2, (m/s)^2, rad^2, (rad/s)^2]:
+what a floor contact can change in one 10 ms step at take-off speeds, as standard
+deviations: position 1 cm (it is continuous), velocity 1 m/s, attitude 0.3 rad, body
+rates 2 rad/s (it stops them)."""
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Noise parameters EM updates alongside mass and inertia.
+
+    wrench (6,): S, body force and torque noise intensities [N^2 s, N^2 m^2 s];
+    q_kin (6,): per-step variances of the position (3) [m^2] and Euler (3) [rad^2]
+    rows; meas (m,): measurement variances, one per measurement row;
+    fixed_q (12,) or None: if set, the per-step process variances used instead of the
+    structured model (the paper's Q0).
+    """
+
+    wrench: Array
+    q_kin: Array
+    meas: Array
+    fixed_q: Array | None = None
+
+
+@dataclass(frozen=True)
+class Theta:
+    """Parameters of the E-step model: mass [kg], inertia (3, 3) about the centre of
+    mass [kg m^2], noise, gravity [m/s^2] and the centre of mass com (3,) in the body
+    frame [m] (zero except in ``pinquad.identification.full_inertia``'s ten-parameter model)."""
+
+    mass: float
+    inertia: Array
+    noise: NoiseModel
+    gravity: float = 9.81
+    com: Array = field(default_factory=lambda: np.zeros(3))
+
+    def body(self) -> RigidBodyParams:
+        inertia = np.asarray(self.inertia, dtype=float)
+        return RigidBodyParams(self.mass, inertia, np.linalg.inv(inertia), self.gravity)
+
+    def with_noise(self, noise: NoiseModel) -> Theta:
+        return replace(self, noise=noise)
+
+
+@dataclass(frozen=True)
+class Observations:
+    """What the E-step sees of a flight.
+
+    t (N,) [s]; dt [s] (uniform step); inputs (N, 4) [F (N), M (3, N m)];
+    channels: names of the measured 3-row blocks, in the order of the columns of ys;
+    ys (N, 3 * len(channels)) with NaN where not sampled; x0 (12,) prior mean and
+    p0 (12,) prior variances; exclude (N,) bool: transitions k -> k+1 the M-step must
+    not use (ground contact, implausible actuation); resets (N,) bool: transitions
+    k -> k+1 that the flight dynamics do not describe because something outside the
+    model changed the state (the floor stopping the vehicle as it touches down), whose
+    process covariance is widened by ``RESET_VAR`` (empty: none).
+    """
+
+    t: Array
+    dt: float
+    inputs: Array
+    channels: tuple[str, ...]
+    ys: Array
+    x0: Array
+    p0: Array
+    exclude: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    resets: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+    @property
+    def n(self) -> int:
+        return int(self.t.shape[0])
+
+    def measurement_matrix(self) -> Array:
+        """H (m, 12) selecting the measured state rows."""
+        h = np.zeros((3 * len(self.channels), 12))
+        for i, ch in enumerate(self.channels):
+            sl = CHANNEL_SLICES[ch]
+            h[3 * i:3 * i + 3, sl] = np.eye(3)
+        return h
+
+    def angle_rows(self) -> NDArray[np.int64]:
+        """Indices of Euler rows in y (wrapped residuals)."""
+        rows = [3 * i + j for i, ch in enumerate(self.channels) if ch == "euler" for j in range(3)]
+        return np.asarray(rows, dtype=np.int64)
+
+
+class QuadSSM:
+    """StateSpaceModel of the quadcopter for given observations and parameters."""
+
+    state_dim = 12
+
+    def __init__(self, obs: Observations, theta: Theta):
+        self.obs = obs
+        self.theta = theta
+        self.body = theta.body()
+        self.meas_dim = 3 * len(obs.channels)
+        self._h = obs.measurement_matrix()
+        self._r = np.diag(theta.noise.meas)
+        self._angle_rows = obs.angle_rows()
+        self._eye = np.eye(12)
+        nz = theta.noise
+        self._fixed_q = None if nz.fixed_q is None else np.diag(nz.fixed_q)
+        self._s_f = np.asarray(nz.wrench[0:3], dtype=float)
+        self._q_tau = obs.dt * self.body.inertia_inv @ np.diag(nz.wrench[3:6]) @ self.body.inertia_inv
+        self._resets = np.asarray(obs.resets, dtype=bool)
+        self._reset_q = np.diag(RESET_VAR)
+
+    def initial(self) -> tuple[Array, Array]:
+        return self.obs.x0, np.diag(self.obs.p0)
+
+    def transition(self, x: Array, k: int) -> tuple[Array, Array]:
+        f, jac = state_derivative_and_jacobian(x, self.obs.inputs[k], self.body)
+        dt = self.obs.dt
+        return x + dt * f, self._eye + dt * jac
+
+    def process_cov(self, x: Array, k: int) -> Array:
+        q = self._flight_process_cov(x)
+        return q + self._reset_q if self.is_reset(k) else q
+
+    def is_reset(self, k: int) -> bool:
+        """Whether transition k -> k+1 is a reset (``Observations.resets``)."""
+        return bool(k < self._resets.size and self._resets[k])
+
+    def _flight_process_cov(self, x: Array) -> Array:
+        if self._fixed_q is not None:
+            return self._fixed_q
+        dt = self.obs.dt
+        q = np.zeros((12, 12))
+        nz = self.theta.noise
+        q[0, 0], q[1, 1], q[2, 2] = nz.q_kin[0:3]
+        q[6, 6], q[7, 7], q[8, 8] = nz.q_kin[3:6]
+        phi, theta, psi = float(x[6]), float(x[7]), float(x[8])
+        sf, cf = math.sin(phi), math.cos(phi)
+        st, ct = math.sin(theta), math.cos(theta)
+        sp, cp = math.sin(psi), math.cos(psi)
+        rot = np.array([
+            [ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp],
+            [ct * sp, sf * st * sp + cf * cp, cf * st * sp - sf * cp],
+            [-st, sf * ct, cf * ct],
+        ])
+        g = rot / self.body.mass
+        q[3:6, 3:6] = dt * (g * self._s_f) @ g.T
+        q[9:12, 9:12] = self._q_tau
+        return q
+
+    def measure(self, x: Array, k: int) -> tuple[Array, Array]:
+        return self._h @ x, self._h
+
+    def meas_cov(self, k: int) -> Array:
+        return self._r
+
+    def residual(self, y: Array, y_pred: Array) -> Array:
+        res = y - y_pred
+        if self._angle_rows.size:
+            res[self._angle_rows] = wrap_angle(res[self._angle_rows])
+        return res
+
+
+class KinematicSSM(QuadSSM):
+    """The data-driven warm-up model of EM's first E-step: the same measurements, but a
+    transition without forces (p' = v, v' = 0, Theta' = E^{-1} omega, omega' = 0) and the
+    paper's process covariance, so the first posterior follows the data rather than a
+    dynamic model evaluated at a guess that may be two orders of magnitude off (with
+    m0 = 0.001 kg the force term alone is ~1800 m/s^2 and the EKF diverges)."""
+
+    def transition(self, x: Array, k: int) -> tuple[Array, Array]:
+        dt = self.obs.dt
+        phi, theta = float(x[6]), float(x[7])
+        wx, wy, wz = float(x[9]), float(x[10]), float(x[11])
+        sf, cf = math.sin(phi), math.cos(phi)
+        st, ct = math.sin(theta), math.cos(theta)
+        tt = st / ct
+        a = sf * wy + cf * wz
+        nxt = x.copy()
+        nxt[0:3] += dt * x[3:6]
+        nxt[6] += dt * (wx + tt * a)
+        nxt[7] += dt * (cf * wy - sf * wz)
+        nxt[8] += dt * a / ct
+        jac = np.eye(12)
+        jac[0, 3] = jac[1, 4] = jac[2, 5] = dt
+        jac[6, 6] += dt * tt * (cf * wy - sf * wz)
+        jac[6, 7] = dt * a / (ct * ct)
+        jac[6, 9] = dt
+        jac[6, 10] = dt * sf * tt
+        jac[6, 11] = dt * cf * tt
+        jac[7, 6] = dt * (-sf * wy - cf * wz)
+        jac[7, 10] = dt * cf
+        jac[7, 11] = -dt * sf
+        jac[8, 6] = dt * (cf * wy - sf * wz) / ct
+        jac[8, 7] = dt * a * st / (ct * ct)
+        jac[8, 10] = dt * sf / ct
+        jac[8, 11] = dt * cf / ct
+        return nxt, jac
+
+    def _flight_process_cov(self, x: Array) -> Array:
+        if self._fixed_q is None:
+            raise ValueError("the kinematic warm-up model needs a fixed process covariance")
+        return self._fixed_q

@@ -1,0 +1,1 @@
+"""pinquad.mstep: see docs/architecture.md."""

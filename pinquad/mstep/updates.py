@@ -1,0 +1,501 @@
+"""M-steps: mass and inertia (and the noise covariances) from a smoothed posterior.
+
+Complete-data model of one transition k -> k+1 (explicit Euler, noise on the applied
+wrench as in the paper's SDE): the body-frame wrench residual
+
+    rho_k = Y_k pi - tau_k ~ N(0, S / dt),      tau_k = [0, 0, F_k, M_k]
+
+where Y_k is the inertial regressor at (x_k, x_{k+1}) (``body_regressor``; equal to
+Pinocchio's joint-torque regressor columns for a CoM at the thrust centre) and pi the
+dynamic parameters. In state coordinates the density picks up the Jacobian
+|d rho / d(v_{k+1}, omega_{k+1})| = m^3 det(I) / dt^6, so with S diagonal and profiled
+out the M-step minimises over pi
+
+    J(pi) = sum_j (N/2) log E[sum_k rho_kj^2] - N (3 log m + log det I)
+
+with E[sum_k rho_kj^2] = pi^T A_j pi - 2 b_j^T pi + c_j built from the posterior means,
+covariances and lag-one cross-covariances (first order in the state uncertainty, exact in
+the finite-difference accelerations, whose variance dominates). The minimiser over the
+mass alone is closed form; the inertia is found by quasi-Newton on log-parameters that
+keep it physically consistent (I_xx = d_y + d_z etc. with d > 0: positive definite and
+the triangle inequalities hold by construction).
+
+``paper_mstep`` is the paper's closed form (mass from vertical velocity increments,
+I_xx, I_yy, I_zz per axis, point estimates only).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.protocol import Posterior
+from pinquad.core.conventions import rotation_from_euler, wrap_angle
+from pinquad.models.ssm import CHANNEL_SLICES, NoiseModel, Observations, Theta
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RegressorStats:
+    """Per-transition regressor quantities at the posterior mean.
+
+    y (K, 6, 4): regressor of pi = [m, I_xx, I_yy, I_zz]; tau (K, 6): applied wrench;
+    a (4, 4, 6)... see ``quadratic``: a (6, 4, 4), b (6, 4), c (6,) the per-row
+    expected quadratic forms; n: number of transitions used.
+    """
+
+    y: Array
+    tau: Array
+    a: Array
+    b: Array
+    c: Array
+    n: int
+
+
+def _rotation_derivatives(euler: Array) -> Array:
+    """dR/dTheta_j (K, 3, 3, 3) with the last axis j, by central differences (h = 1e-6,
+    error ~1e-12)."""
+    h = 1e-6
+    out = np.empty(euler.shape[:-1] + (3, 3, 3))
+    for j in range(3):
+        step = np.zeros(3)
+        step[j] = h
+        out[..., j] = (rotation_from_euler(euler + step) - rotation_from_euler(euler - step)) / (2 * h)
+    return out
+
+
+def body_regressor(x_now: Array, x_next: Array, dt: float, gravity: float) -> Array:
+    """Y (K, 6, 4) with body wrench = Y @ [m, I_xx, I_yy, I_zz] for diagonal inertia and
+    the CoM at the thrust centre.
+
+    Force rows: m R^T ((v_{k+1} - v_k)/dt + g e3). Torque rows: I omega' + omega x I omega
+    with omega' = (omega_{k+1} - omega_k)/dt, omega = omega_k.
+    """
+    rot = rotation_from_euler(x_now[:, 6:9])
+    acc = (x_next[:, 3:6] - x_now[:, 3:6]) / dt
+    acc[:, 2] += gravity
+    w = x_now[:, 9:12]
+    wd = (x_next[:, 9:12] - x_now[:, 9:12]) / dt
+    wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
+    y = np.zeros((x_now.shape[0], 6, 4))
+    y[:, 0:3, 0] = np.einsum("kji,kj->ki", rot, acc)
+    y[:, 3, 1], y[:, 4, 1], y[:, 5, 1] = wd[:, 0], wx * wz, -wx * wy
+    y[:, 3, 2], y[:, 4, 2], y[:, 5, 2] = -wy * wz, wd[:, 1], wx * wy
+    y[:, 3, 3], y[:, 4, 3], y[:, 5, 3] = wy * wz, -wx * wz, wd[:, 2]
+    return y
+
+
+def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float
+                        ) -> tuple[Array, Array]:
+    """Non-zero blocks of the regressor's derivative w.r.t. the states.
+
+    Returns d_force (K, 3, 9): derivative of the mass column's force rows w.r.t.
+    (Theta_k, v_k, v_{k+1}); d_torque (K, 3, 3, 6): derivative of the inertia columns
+    (p = Ixx, Iyy, Izz) torque rows w.r.t. (omega_k, omega_{k+1}). All other entries of
+    dY/d(x_k, x_{k+1}) are zero.
+    """
+    k = x_now.shape[0]
+    rot = rotation_from_euler(x_now[:, 6:9])
+    d_rot = _rotation_derivatives(x_now[:, 6:9])
+    acc = (x_next[:, 3:6] - x_now[:, 3:6]) / dt
+    acc[:, 2] += gravity
+    w = x_now[:, 9:12]
+    wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
+    rot_t = np.transpose(rot, (0, 2, 1))
+    d_force = np.empty((k, 3, 9))
+    # d(R^T a)/dTheta_j = (dR/dTheta_j)^T a
+    d_force[:, :, 0:3] = np.einsum("kbaj,kb->kaj", d_rot, acc)
+    d_force[:, :, 3:6] = -rot_t / dt
+    d_force[:, :, 6:9] = rot_t / dt
+    inv = 1.0 / dt
+    d = np.zeros((k, 3, 3, 6))
+    # Ixx column [wd_x, wx wz, -wx wy]
+    d[:, 0, 0, 0], d[:, 0, 0, 3] = -inv, inv
+    d[:, 0, 1, 0], d[:, 0, 1, 2] = wz, wx
+    d[:, 0, 2, 0], d[:, 0, 2, 1] = -wy, -wx
+    # Iyy column [-wy wz, wd_y, wx wy]
+    d[:, 1, 0, 1], d[:, 1, 0, 2] = -wz, -wy
+    d[:, 1, 1, 1], d[:, 1, 1, 4] = -inv, inv
+    d[:, 1, 2, 0], d[:, 1, 2, 1] = wy, wx
+    # Izz column [wy wz, -wx wz, wd_z]
+    d[:, 2, 0, 1], d[:, 2, 0, 2] = wz, wy
+    d[:, 2, 1, 0], d[:, 2, 1, 2] = -wz, -wx
+    d[:, 2, 2, 2], d[:, 2, 2, 5] = -inv, inv
+    return d_force, d
+
+
+def transition_mask(obs: Observations) -> NDArray[np.bool_]:
+    """(N-1,) transitions the M-step uses (not excluded)."""
+    use = np.ones(obs.n - 1, dtype=bool)
+    if obs.exclude.size:
+        use &= ~obs.exclude[: obs.n - 1]
+    return use
+
+
+def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> RegressorStats:
+    """Expected sufficient statistics of the wrench residuals over used transitions."""
+    use = transition_mask(obs)
+    idx = np.flatnonzero(use)
+    x_now, x_next = post.mean[idx], post.mean[idx + 1]
+    dt = obs.dt
+    y = body_regressor(x_now, x_next, dt, gravity)
+    tau = np.zeros((idx.size, 6))
+    tau[:, 2] = obs.inputs[idx, 0]
+    tau[:, 3:6] = obs.inputs[idx, 1:4]
+    d_force, d_torque = _regressor_jacobian(x_now, x_next, dt, gravity)
+    p_now, p_next, cross = post.cov[idx], post.cov[idx + 1], post.cross_cov[idx]
+    # Covariance of (Theta_k, v_k, v_{k+1}) and of (omega_k, omega_{k+1});
+    # cross = Cov(x_{k+1}, x_k).
+    sig_f = np.empty((idx.size, 9, 9))
+    sig_f[:, 0:3, 0:3] = p_now[:, 6:9, 6:9]
+    sig_f[:, 0:3, 3:6] = p_now[:, 6:9, 3:6]
+    sig_f[:, 3:6, 0:3] = p_now[:, 3:6, 6:9]
+    sig_f[:, 3:6, 3:6] = p_now[:, 3:6, 3:6]
+    sig_f[:, 6:9, 0:3] = cross[:, 3:6, 6:9]
+    sig_f[:, 6:9, 3:6] = cross[:, 3:6, 3:6]
+    sig_f[:, 0:6, 6:9] = np.transpose(sig_f[:, 6:9, 0:6], (0, 2, 1))
+    sig_f[:, 6:9, 6:9] = p_next[:, 3:6, 3:6]
+    sig_w = np.empty((idx.size, 6, 6))
+    sig_w[:, 0:3, 0:3] = p_now[:, 9:12, 9:12]
+    sig_w[:, 3:6, 0:3] = cross[:, 9:12, 9:12]
+    sig_w[:, 0:3, 3:6] = np.transpose(cross[:, 9:12, 9:12], (0, 2, 1))
+    sig_w[:, 3:6, 3:6] = p_next[:, 9:12, 9:12]
+    a = np.einsum("kaq,kap->apq", y, y)
+    a[0:3, 0, 0] += np.einsum("kai,kij,kaj->a", d_force, sig_f, d_force, optimize=True)
+    a[3:6, 1:4, 1:4] += np.einsum("kpai,kij,kqaj->apq", d_torque, sig_w, d_torque,
+                                  optimize=True)
+    b = np.einsum("kap,ka->ap", y, tau)
+    c = np.einsum("ka,ka->a", tau, tau)
+    return RegressorStats(y, tau, a, b, c, int(idx.size))
+
+
+def expected_quadratics(post: Posterior, obs: Observations, gravity: float):
+    """The a, b, c, n of ``regressor_stats`` (what the M-step needs of it): the compiled
+    ``pinquad.mstep.compiled.regressor_quadratics`` (equal up to rounding; it skips the
+    per-transition arrays) when available, else ``regressor_stats`` itself."""
+    try:
+        from pinquad.mstep.compiled import regressor_quadratics
+    except ImportError:  # the compiled path is optional
+        return regressor_stats(post, obs, gravity)
+    return regressor_quadratics(post, obs, gravity)
+
+
+def _row_sums(stats, pi: Array) -> Array:
+    """E[sum_k rho_kj^2] for each of the 6 rows."""
+    return np.einsum("p,apq,q->a", pi, stats.a, pi) - 2.0 * stats.b @ pi + stats.c
+
+
+@dataclass(frozen=True)
+class MStepResult:
+    """New parameters and what the M-step knows about them.
+
+    theta: updated parameters; objective: J(pi) at the optimum (per transition);
+    wrench_var (6,): profiled wrench residual variances S_j / dt per row.
+    """
+
+    theta: Theta
+    objective: float
+    wrench_var: Array
+
+
+def _physical(i_diag: Array) -> bool:
+    """Positive and satisfying the triangle inequalities (I_xx <= I_yy + I_zz, ...)."""
+    i = np.asarray(i_diag)
+    return bool(np.all(i > 0) and np.all(2.0 * i < i.sum()))
+
+
+def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array
+                    ) -> Array:
+    """Minimise J(I) = 1/2 sum_j log q_j(I) - sum_i log I_i over diagonal inertias.
+
+    q_j(I) = pi^T A_j pi - 2 b_j^T pi + c_j with pi = [m, I]; gradient
+    g = 1/2 sum_j q_j'/q_j - 1/I and Hessian H = 1/2 sum_j (2 A_j/q_j - q_j' q_j'^T/q_j^2)
+    + diag(1/I^2). Damped Newton from the better of the previous inertia and the
+    unweighted least-squares solution, with backtracking that keeps the inertia
+    physically consistent (positive, triangle inequalities). For noise-free data the
+    least-squares solution makes every q_j vanish and is returned as is.
+    """
+    def parts(i_diag: Array) -> tuple[float, Array, Array]:
+        pi = np.concatenate([[mass], i_diag])
+        q = np.einsum("p,apq,q->a", pi, a_t, pi) - 2.0 * b_t @ pi + c_t
+        if np.any(q <= 0):
+            return np.inf, np.zeros(3), np.eye(3)
+        dq = (2.0 * np.einsum("apq,q->ap", a_t, pi) - 2.0 * b_t)[:, 1:4]
+        val = 0.5 * float(np.sum(np.log(q))) - float(np.sum(np.log(i_diag)))
+        grad = 0.5 * np.sum(dq / q[:, None], axis=0) - 1.0 / i_diag
+        hess = (0.5 * np.einsum("apq,a->pq", 2.0 * a_t[:, 1:4, 1:4], 1.0 / q)
+                - 0.5 * np.einsum("ap,aq,a->pq", dq, dq, 1.0 / q**2) + np.diag(1.0 / i_diag**2))
+        return val, grad, hess
+
+    a_sum = a_t[:, 1:4, 1:4].sum(axis=0)
+    rhs = (b_t[:, 1:4] - a_t[:, 1:4, 0] * mass).sum(axis=0)
+    candidates = [np.asarray(previous, dtype=float)]
+    try:
+        i_ls = np.linalg.solve(a_sum, rhs)
+        if _physical(i_ls):
+            pi_ls = np.concatenate([[mass], i_ls])
+            q_ls = np.einsum("p,apq,q->a", pi_ls, a_t, pi_ls) - 2.0 * b_t @ pi_ls + c_t
+            if np.all(q_ls <= 1e-12 * c_t):
+                return i_ls
+            candidates.append(i_ls)
+    except np.linalg.LinAlgError:
+        pass
+    candidates = [c for c in candidates if _physical(c)] or [np.full(3, np.mean(previous))]
+    current = min(candidates, key=lambda c: parts(c)[0])
+    val, grad, hess = parts(current)
+    for _ in range(100):
+        try:
+            step = -np.linalg.solve(hess, grad)
+            if grad @ step >= 0:  # not a descent direction: fall back to gradient
+                step = -grad * float(np.min(current)) ** 2
+        except np.linalg.LinAlgError:
+            step = -grad * float(np.min(current)) ** 2
+        t = 1.0
+        while t > 1e-12:
+            trial = current + t * step
+            if _physical(trial):
+                v_new = parts(trial)[0]
+                if v_new <= val + 1e-4 * t * (grad @ step):
+                    break
+            t *= 0.5
+        else:
+            break
+        rel = float(np.max(np.abs(trial - current) / current))
+        current = trial
+        val, grad, hess = parts(current)
+        if rel < 1e-12:
+            break
+    return current
+
+
+def inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array) -> Array:
+    """``_inertia_newton``, compiled (``pinquad.mstep.compiled.inertia_newton``: the same
+    algorithm, so the same minimiser up to rounding, in ~1 % of the time) when available."""
+    try:
+        from pinquad.mstep.compiled import inertia_newton as compiled
+    except ImportError:  # the compiled path is optional
+        return _inertia_newton(mass, a_t, b_t, c_t, previous)
+    return compiled(float(mass), np.ascontiguousarray(a_t, dtype=float),
+                    np.ascontiguousarray(b_t, dtype=float), np.ascontiguousarray(c_t, dtype=float),
+                    np.array(previous, dtype=float))
+
+
+def _inertia_from_d(d: Array) -> Array:
+    return np.array([d[1] + d[2], d[0] + d[2], d[0] + d[1]])
+
+
+def _d_from_inertia(i_diag: Array) -> Array:
+    half = 0.5 * np.sum(i_diag)
+    d = half - np.asarray(i_diag)
+    return np.maximum(d, 1e-6 * half)
+
+
+@dataclass(frozen=True)
+class QuadraticSums:
+    """Sums over transitions of the M-step's expected quadratic forms (the a, b, c of
+    ``regressor_stats``: a (6, 4, 4), b (6, 4), c (6,)) and the number of transitions n
+    they cover (a float once down-weighted): the complete-data sufficient statistics of
+    mass and inertia, which add over disjoint sets of transitions. The compiled
+    ``fast_mstep.regressor_quadratics`` returns this type."""
+
+    a: Array
+    b: Array
+    c: Array
+    n: float
+
+    @classmethod
+    def of(cls, stats) -> QuadraticSums:
+        return cls(np.asarray(stats.a), np.asarray(stats.b), np.asarray(stats.c),
+                   float(stats.n))
+
+    def plus(self, other) -> QuadraticSums:
+        return QuadraticSums(self.a + other.a, self.b + other.b, self.c + other.c,
+                             self.n + float(other.n))
+
+    def scaled(self, weight: float) -> QuadraticSums:
+        return QuadraticSums(weight * self.a, weight * self.b, weight * self.c,
+                             weight * self.n)
+
+
+def remember_leaving(earlier: QuadraticSums | None, post: Posterior, obs: Observations,
+                     n_left: int, gravity: float, memory_s: float) -> QuadraticSums | None:
+    """The online estimator's memory after its window slid by ``n_left`` samples:
+
+        S <- exp(-n_left dt / memory_s) S + (sums over transitions 0 .. n_left-1 of
+                                              ``obs``, with ``post``'s moments)
+
+    ``post``, ``obs``: the previous window's posterior and observations (the last ones
+    in which the leaving samples were smoothed); memory_s [s]: time constant of the
+    forgetting (inf: keep every transition, incremental EM in the sense of Neal and
+    Hinton 1998). Transitions excluded in ``obs`` stay excluded."""
+    n_left = min(n_left, obs.n - 1)
+    if n_left <= 0:
+        return earlier
+    leaving = np.ones(obs.n, dtype=bool)
+    leaving[:n_left] = False
+    left = QuadraticSums.of(expected_quadratics(
+        post, replace(obs, exclude=(obs.exclude if obs.exclude.size else False) | leaving),
+        gravity))
+    if earlier is None:
+        return left
+    return earlier.scaled(math.exp(-n_left * obs.dt / memory_s)).plus(left)
+
+
+def closed_form_mass(stats, fallback: float) -> float:
+    """The M-step's mass [kg] from the body-z force row of ``stats`` (a, b, c sums):
+    the x and y rows cancel against two of the three log m terms, the z row gives
+
+        m = c_z / b_z = sum F^2 / sum E[a_z] F
+
+    (``fallback`` when b_z <= 0, e.g. no used transition)."""
+    return float(stats.c[2] / stats.b[2, 0]) if stats.b[2, 0] > 0 else fallback
+
+
+def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
+                    earlier: QuadraticSums | None = None) -> MStepResult:
+    """Joint ML update of mass, diagonal inertia and all noise variances (see module).
+
+    ``earlier``: statistics of transitions no longer in ``obs`` (the online estimator's
+    memory of samples that left its window), added to this posterior's for mass and
+    inertia and the wrench noise; the measurement variances stay this posterior's own."""
+    stats = expected_quadratics(post, obs, theta.gravity)
+    if earlier is not None:
+        stats = QuadraticSums.of(stats).plus(earlier)
+    n = stats.n
+    mass = closed_form_mass(stats, theta.mass)
+
+    a_t, b_t, c_t = stats.a[3:6], stats.b[3:6], stats.c[3:6]
+    inertia = inertia_newton(mass, a_t, b_t, c_t, np.diag(theta.inertia))
+    pi = np.concatenate([[mass], inertia])
+    row_var = np.maximum(_row_sums(stats, pi) / n, 0.0)
+    noise = update_noise(post, obs, theta, row_var)
+    new = Theta(mass=mass, inertia=np.diag(inertia), noise=noise, gravity=theta.gravity)
+    q = np.maximum(_row_sums(stats, pi), 1e-300)
+    objective = float(0.5 * np.sum(np.log(q[2:6])) - np.log(mass) - np.sum(np.log(inertia)))
+    return MStepResult(new, objective, row_var)
+
+
+def update_noise(post: Posterior, obs: Observations, theta: Theta, wrench_row_var: Array
+                 ) -> NoiseModel:
+    """ML noise variances: S = dt E[rho rho^T] (diag), measurement variances
+    r_i = mean over observed rows of (y - H m)^2 + (H P H^T)_ii, and kinematic
+    variances of the position and Euler rows of the transition residual."""
+    dt = obs.dt
+    floor_f = 1e-6 * max(wrench_row_var[2], 1e-30)
+    floor_t = 1e-6 * max(wrench_row_var[3:6].max(), 1e-30)
+    wrench = dt * wrench_row_var
+    wrench[0:3] = np.maximum(wrench[0:3], dt * floor_f)
+    wrench[3:6] = np.maximum(wrench[3:6], dt * floor_t)
+    try:
+        from pinquad.mstep.compiled import measurement_variances as compiled_meas
+    except ImportError:  # the compiled path is optional
+        compiled_meas = measurement_variances
+    meas = compiled_meas(post, obs, theta.noise.meas)
+    q_kin = kinematic_floor(dt)
+    return NoiseModel(wrench=wrench, q_kin=q_kin, meas=meas, fixed_q=None)
+
+
+def kinematic_floor(dt: float, accel: float = 1.0, angular_accel: float = 10.0) -> Array:
+    """Fixed per-step variances (6,) of the position and Euler rows.
+
+    The SDE has no noise there (p' = v, Theta' = E^{-1} omega are identities); what is
+    left is the explicit-Euler truncation error (dt^2 / 2) x'' for accelerations of
+    ``accel`` [m/s^2] and ``angular_accel`` [rad/s^2]. Keeping them fixed rather than
+    estimated removes six slowly converging EM parameters.
+    """
+    return np.concatenate([np.full(3, (0.5 * dt * dt * accel) ** 2),
+                           np.full(3, (0.5 * dt * dt * angular_accel) ** 2)])
+
+
+def measurement_variances(post: Posterior, obs: Observations, previous: Array) -> Array:
+    """r_i = mean_k [(y_ki - m_k,s(i))^2 + P_k,s(i)s(i)] over steps where row i is observed
+    (and not rejected as an outlier), floored at 1e-12."""
+    h = obs.measurement_matrix()
+    state_idx = np.argmax(h, axis=1)
+    pred = post.mean[:, state_idx]
+    var = post.cov[:, state_idx, state_idx]
+    res = obs.ys - pred
+    angle = obs.angle_rows()
+    if angle.size:
+        res[:, angle] = wrap_angle(res[:, angle])
+    ok = ~np.isnan(obs.ys) & ~post.rejected
+    out = np.array(previous, dtype=float)
+    for i in range(obs.ys.shape[1]):
+        if ok[:, i].any():
+            out[i] = max(float(np.mean(res[ok[:, i], i] ** 2 + var[ok[:, i], i])), 1e-12)
+    return out
+
+
+def kinematic_variances(post: Posterior, obs: Observations) -> Array:
+    """Per-step variances of p_{k+1} - p_k - dt v_k and Theta_{k+1} - Theta_k -
+    dt E^{-1} omega_k (first order), floored at 1e-14."""
+    from pinquad.core.conventions import euler_rate_matrix_inv
+
+    use = np.flatnonzero(transition_mask(obs))
+    mu0, mu1 = post.mean[use], post.mean[use + 1]
+    dt = obs.dt
+    out = np.empty(6)
+    r_pos = mu1[:, 0:3] - mu0[:, 0:3] - dt * mu0[:, 3:6]
+    # Var(p1 - p0 - dt v0) = P1 + P0 + dt^2 Pv0 - C - C^T - ... (position rows)
+    p0, p1, c = post.cov[use], post.cov[use + 1], post.cross_cov[use]
+    for i in range(3):
+        var = (p1[:, i, i] + p0[:, i, i] + dt**2 * p0[:, 3 + i, 3 + i]
+               - 2 * c[:, i, i] + 2 * dt * c[:, i, 3 + i] - 2 * dt * p0[:, i, 3 + i])
+        out[i] = max(float(np.mean(r_pos[:, i] ** 2 + var)), 1e-14)
+    rates = np.einsum("kij,kj->ki", euler_rate_matrix_inv(mu0[:, 6:9]), mu0[:, 9:12])
+    r_eul = np.asarray(wrap_angle(mu1[:, 6:9] - mu0[:, 6:9])) - dt * rates
+    for i in range(3):
+        var = p1[:, 6 + i, 6 + i] + p0[:, 6 + i, 6 + i] - 2 * c[:, 6 + i, 6 + i]
+        out[3 + i] = max(float(np.mean(r_eul[:, i] ** 2 + np.maximum(var, 0.0))), 1e-14)
+    return out
+
+
+def paper_mstep(post: Posterior, obs: Observations, theta: Theta) -> MStepResult:
+    """The paper's closed-form updates from the smoothed means (noise kept fixed):
+
+        m    = sum (r F)^2 dt / sum [r F g dt + (v_z,k - v_z,k-1) r F],  r = cos(phi) cos(theta)
+        I_xx = sum (M_x + (I_yy - I_zz) w_y w_z)^2 dt
+               / sum (w_x,k - w_x,k-1)(M_x + (I_yy - I_zz) w_y w_z)     (and cyclic)
+
+    with the other two inertias at their current values.
+    """
+    use = np.flatnonzero(transition_mask(obs))
+    mu0, mu1 = post.mean[use], post.mean[use + 1]
+    dt = obs.dt
+    g = theta.gravity
+    u = obs.inputs[use]
+    r = np.cos(mu0[:, 6]) * np.cos(mu0[:, 7])
+    rf = r * u[:, 0]
+    den = np.sum(rf * g * dt + (mu1[:, 5] - mu0[:, 5]) * rf)
+    mass = float(np.sum(rf**2) * dt / den) if den > 0 else theta.mass
+    i_old = np.diag(theta.inertia).copy()
+    w = mu0[:, 9:12]
+    dw = mu1[:, 9:12] - mu0[:, 9:12]
+    new_i = i_old.copy()
+    for ax, (b, c) in enumerate(((1, 2), (2, 0), (0, 1))):
+        term = u[:, 1 + ax] + (i_old[b] - i_old[c]) * w[:, b] * w[:, c]
+        den_i = float(np.sum(dw[:, ax] * term))
+        if den_i > 0:
+            new_i[ax] = float(np.sum(term**2) * dt / den_i)
+    new = Theta(mass=mass, inertia=np.diag(new_i), noise=theta.noise, gravity=theta.gravity)
+    return MStepResult(new, float("nan"), np.full(6, np.nan))
+
+
+def state_index(channel: str) -> slice:
+    """The state rows a measurement channel observes."""
+    return CHANNEL_SLICES[channel]
+
+
+def relative_change(a: Theta, b: Theta) -> float:
+    """max relative change of mass and inertia diagonal between two parameter sets."""
+    pa = np.concatenate([[a.mass], np.diag(a.inertia)])
+    pb = np.concatenate([[b.mass], np.diag(b.inertia)])
+    return float(np.max(np.abs(pa - pb) / np.maximum(np.abs(pb), 1e-300)))
+
+
+def log10_safe(x: float) -> float:
+    return math.log10(x) if x > 0 else float("-inf")

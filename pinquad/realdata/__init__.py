@@ -1,0 +1,1 @@
+"""pinquad.realdata: see docs/architecture.md."""

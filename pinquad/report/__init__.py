@@ -1,0 +1,1 @@
+"""pinquad.report: see docs/architecture.md."""

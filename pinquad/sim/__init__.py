@@ -1,0 +1,1 @@
+"""pinquad.sim: see docs/architecture.md."""

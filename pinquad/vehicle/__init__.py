@@ -1,0 +1,1 @@
+"""pinquad.vehicle: see docs/architecture.md."""
