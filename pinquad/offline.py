@@ -74,7 +74,7 @@ def run_simulation(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from pinquad.core.params import PAPER_SCENARIO
-    from pinquad.identification.experiment import CycleJob, run_cycle
+    from pinquad.experiments.offline_mc import CycleJob, run_cycle
     from pinquad.io.logs import write_log
     from pinquad.io.runs import RunWriter, atomic_write_json, new_run_dir
     from pinquad.report.offline import (

@@ -27,7 +27,7 @@ from pinquad.discovery.discover import (
     discover,
 )
 from pinquad.identification.em import initial_theta, run_em
-from pinquad.identification.experiment import get_smoother
+from pinquad.identification.identify import get_smoother
 from pinquad.models.sources import observations
 from pinquad.models.ssm import QuadSSM
 from pinquad.mstep.updates import regressor_mstep

@@ -12,8 +12,8 @@ from estimators.protocol import Posterior
 from estimators.rts import smooth
 from pinquad.identification.em import run_em
 from pinquad.models.sources import observations
-from pinquad.models.ssm import NoiseModel, Theta
-from pinquad.mstep.updates import body_regressor, kinematic_floor, regressor_mstep
+from pinquad.models.ssm import NoiseModel, Theta, kinematic_floor
+from pinquad.mstep.updates import body_regressor, regressor_mstep
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 

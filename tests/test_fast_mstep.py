@@ -10,7 +10,7 @@ import pytest
 
 from pinquad.core.params import PAPER_VEHICLE
 from pinquad.identification.em import initial_theta, run_em
-from pinquad.identification.experiment import get_smoother
+from pinquad.identification.identify import get_smoother
 from pinquad.models.sources import observations
 from pinquad.models.ssm import QuadSSM
 from pinquad.mstep import updates as identify

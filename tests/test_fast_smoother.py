@@ -32,8 +32,7 @@ from pinquad.estep import fast_smoother as fs
 from pinquad.estep.fast_smoother import loglik_quad, posterior_arrays, smooth_quad
 from pinquad.identification.em import initial_theta
 from pinquad.models.sources import observations
-from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
-from pinquad.mstep.updates import kinematic_floor
+from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta, kinematic_floor
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 TOL = 1e-9

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
-from pinquad.identification.experiment import flight_seed, identify
+from pinquad.experiments.offline_mc import flight_seed
+from pinquad.identification.identify import identify
 from pinquad.models import ssm
 from pinquad.models.sources import observations
 from pinquad.sim.simulator import SimConfig, flight_log, simulate

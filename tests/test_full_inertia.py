@@ -14,8 +14,8 @@ from conftest import offline_on_csv
 from estimators.protocol import Posterior
 from pinquad.core.params import PAPER_VEHICLE
 from pinquad.identification import full_inertia as fi
-from pinquad.models.ssm import NoiseModel, Observations, QuadSSM, Theta
-from pinquad.mstep.updates import kinematic_floor
+from pinquad.models import full as full_model
+from pinquad.models.ssm import NoiseModel, Observations, QuadSSM, Theta, kinematic_floor
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 from pinquad.vehicle.model import forward_dynamics, inertial_regressor, inverse_dynamics_wrench, load_model
 
@@ -36,7 +36,7 @@ def test_spatial_regressor_is_pinocchios():
     rng = np.random.default_rng(0)
     model = load_model(VEHICLE)
     data = model.createData()
-    pi = fi.dynamic_parameters(VEHICLE.mass, COM, INERTIA)
+    pi = full_model.dynamic_parameters(VEHICLE.mass, COM, INERTIA)
     dt = 0.01
     x_now = _random_states(rng, 5)
     x_next = x_now + dt * rng.normal(size=(5, 12))
@@ -51,7 +51,7 @@ def test_spatial_regressor_is_pinocchios():
 
 
 def test_log_cholesky_round_trip():
-    pi = fi.dynamic_parameters(VEHICLE.mass, COM, INERTIA)
+    pi = full_model.dynamic_parameters(VEHICLE.mass, COM, INERTIA)
     theta = fi.log_cholesky(pi)
     back, jac = fi.from_log_cholesky(theta)
     np.testing.assert_allclose(back, pi, rtol=1e-12, atol=1e-18)
@@ -62,7 +62,7 @@ def test_log_cholesky_round_trip():
         fd = (fi.from_log_cholesky(theta + e)[0] - fi.from_log_cholesky(theta - e)[0]) / (2 * h)
         np.testing.assert_allclose(jac[:, i], fd, rtol=1e-5, atol=1e-9 * np.abs(pi).max())
     with pytest.raises(ValueError, match="physically consistent"):
-        fi.log_cholesky(fi.dynamic_parameters(0.18, np.zeros(3), np.diag([1e-4, 1e-4, 3e-4])))
+        fi.log_cholesky(full_model.dynamic_parameters(0.18, np.zeros(3), np.diag([1e-4, 1e-4, 3e-4])))
 
 
 def _observations(n: int, dt: float = 0.01) -> Observations:
@@ -83,7 +83,7 @@ def test_full_model_transition_is_pinocchios_aba():
     its Jacobian equals finite differences; with c = 0 it is the diagonal model."""
     rng = np.random.default_rng(2)
     obs = _observations(4)
-    model = fi.FullQuadSSM(obs, _theta(obs, COM, INERTIA))
+    model = full_model.FullQuadSSM(obs, _theta(obs, COM, INERTIA))
     pin_model = load_model(VEHICLE)
     data = pin_model.createData()
     for x in _random_states(rng, 4):
@@ -97,7 +97,7 @@ def test_full_model_transition_is_pinocchios_aba():
             fd = (model.transition(x + e, 1)[0] - model.transition(x - e, 1)[0]) / (2 * h)
             np.testing.assert_allclose(jac[:, i], fd, rtol=1e-6, atol=1e-8)
     diag = _theta(obs, np.zeros(3), np.diag(np.diag(INERTIA)))
-    full, plain = fi.FullQuadSSM(obs, diag), QuadSSM(obs, diag)
+    full, plain = full_model.FullQuadSSM(obs, diag), QuadSSM(obs, diag)
     x = _random_states(rng, 1)[0]
     for a, b in zip(full.transition(x, 2), plain.transition(x, 2), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
@@ -120,7 +120,7 @@ def test_com_offset_effect_has_the_full_models_sign():
     obs = _observations(3)
     obs = replace(obs, inputs=np.tile([1.8, 0.0, 0.0, 0.0], (3, 1)))
     x = np.zeros((obs.n, 12))
-    full = fi.FullQuadSSM(obs, _theta(obs, com, inertia))
+    full = full_model.FullQuadSSM(obs, _theta(obs, com, inertia))
     shifted = corrected_observations(obs, x, {"com_offset": com[:2]})
     plain = QuadSSM(shifted, _theta(shifted, np.zeros(3), inertia))
     rate_full = full.transition(x[0], 0)[0][9:12]
@@ -147,7 +147,7 @@ def test_compiled_e_step_equals_the_generic_one_on_the_full_model():
     obs = observations(flight_log(flight).slice(0, 600), "B")
     theta = _theta(obs, COM, INERTIA)
     theta = replace(theta, noise=replace(theta.noise, meas=np.full(obs.ys.shape[1], 1e-4)))
-    model = fi.FullQuadSSM(obs, theta)
+    model = full_model.FullQuadSSM(obs, theta)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         fast = smooth_quad(model, obs.ys)
@@ -174,7 +174,7 @@ def test_full_mstep_recovers_all_ten_parameters_from_noise_free_transitions():
     obs = replace(obs, inputs=np.column_stack([thrust, offset_moment
                                                + 5e-4 * rng.normal(size=(n, 3))]))
     truth = _theta(obs, COM, INERTIA)
-    model = fi.FullQuadSSM(obs, truth)
+    model = full_model.FullQuadSSM(obs, truth)
     xs = np.zeros((n, 12))
     xs[0, 9:12] = [0.3, -0.2, 0.5]
     for k in range(n - 1):
@@ -192,8 +192,8 @@ def test_full_mstep_recovers_all_ten_parameters_from_noise_free_transitions():
 
 
 def test_spatial_inertia_is_linear_in_pi():
-    pi = fi.dynamic_parameters(VEHICLE.mass, COM, INERTIA)
-    np.testing.assert_allclose(np.einsum("p,pij->ij", pi, fi._M_BASIS), fi.spatial_inertia(pi),
+    pi = full_model.dynamic_parameters(VEHICLE.mass, COM, INERTIA)
+    np.testing.assert_allclose(np.einsum("p,pij->ij", pi, fi._M_BASIS), full_model.spatial_inertia(pi),
                                rtol=1e-12, atol=1e-18)
 
 
@@ -205,13 +205,13 @@ def test_standard_errors_recover_the_information_of_a_quadratic_log_likelihood()
     rng = np.random.default_rng(7)
     obs = _observations(3)
     theta = _theta(obs, COM, INERTIA)
-    pi0 = fi.dynamic_parameters(theta.mass, theta.com, theta.inertia)
+    pi0 = full_model.dynamic_parameters(theta.mass, theta.com, theta.inertia)
     scale = np.abs(pi0) + 1e-3 * np.abs(pi0).max()
     root = rng.normal(size=(10, 10))
     a = (root @ root.T + 10 * np.eye(10)) / np.outer(scale, scale) * 1e6
     calls = []
 
-    def quadratic(model: fi.FullQuadSSM, ys: np.ndarray) -> float:
+    def quadratic(model: full_model.FullQuadSSM, ys: np.ndarray) -> float:
         calls.append(1)
         d = model.pi - pi0
         return -0.5 * float(d @ a @ d)

@@ -13,8 +13,8 @@ from pinquad.core.conventions import (
     rotation_from_euler,
 )
 from pinquad.core.params import CRAZYFLIE21, PAPER_VEHICLE, Vehicle
+from pinquad.models.navigation import NavTuning, SensorANavModel
 from pinquad.mstep.updates import body_regressor
-from pinquad.sim.navigation import NavTuning, SensorANavModel
 from pinquad.vehicle.model import (
     RigidBodyParams,
     dynamic_parameters,

@@ -11,7 +11,7 @@ import pytest
 from conftest import offline_on_csv
 
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
-from pinquad.identification.experiment import identify
+from pinquad.identification.identify import identify
 from pinquad.models.sources import observations
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 

@@ -23,7 +23,8 @@ from pinquad.experiments import online
 from pinquad.io.logs import write_log
 from pinquad.models.sources import observations
 from pinquad.models.ssm import NoiseModel, QuadSSM, Theta
-from pinquad.mstep.updates import QuadraticSums, expected_quadratics, remember_leaving
+from pinquad.mstep.stats import QuadraticSums
+from pinquad.mstep.updates import expected_quadratics, remember_leaving
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -62,6 +62,31 @@ def rotation_from_euler(euler: Array) -> Array:
     return rot
 
 
+def rotation_and_derivatives(euler: Array) -> tuple[Array, Array]:
+    """R = Rz(psi) Ry(theta) Rx(phi) (..., 3, 3) and dR/d(phi, theta, psi) (..., 3, 3, 3),
+    last axis the angle, for Euler angles euler (..., 3) [rad]:
+
+        dR/dphi = Rz Ry dRx,  dR/dtheta = Rz dRy Rx,  dR/dpsi = dRz Ry Rx.
+    """
+    e = np.asarray(euler, dtype=float)
+    sf, cf = np.sin(e[..., 0]), np.cos(e[..., 0])
+    st, ct = np.sin(e[..., 1]), np.cos(e[..., 1])
+    sp, cp = np.sin(e[..., 2]), np.cos(e[..., 2])
+    zero, one = np.zeros_like(sf), np.ones_like(sf)
+
+    def mat(*rows: tuple) -> Array:
+        return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+    rx = mat((one, zero, zero), (zero, cf, -sf), (zero, sf, cf))
+    ry = mat((ct, zero, st), (zero, one, zero), (-st, zero, ct))
+    rz = mat((cp, -sp, zero), (sp, cp, zero), (zero, zero, one))
+    drx = mat((zero, zero, zero), (zero, -sf, -cf), (zero, cf, -sf))
+    dry = mat((-st, zero, ct), (zero, zero, zero), (-ct, zero, -st))
+    drz = mat((-sp, -cp, zero), (cp, -sp, zero), (zero, zero, zero))
+    d = np.stack([rz @ ry @ drx, rz @ dry @ rx, drz @ ry @ rx], axis=-1)
+    return rz @ ry @ rx, d
+
+
 def euler_from_rotation(rot: Array) -> Array:
     """Inverse of :func:`rotation_from_euler` (paper's flatness extraction).
 

@@ -50,9 +50,11 @@ from numpy.typing import NDArray
 from scipy.optimize import minimize, minimize_scalar
 
 from estimators.protocol import Posterior
-from pinquad.core.conventions import euler_rate_matrix_inv, rotation_from_euler, wrap_angle
+from pinquad.core.conventions import euler_rate_matrix_inv, wrap_angle
+from pinquad.models.effect import EffectSSM
 from pinquad.models.ssm import Observations, QuadSSM, Theta
-from pinquad.mstep.updates import regressor_mstep, regressor_stats, transition_mask
+from pinquad.mstep.stats import transition_mask
+from pinquad.mstep.updates import regressor_mstep, regressor_stats
 from pinquad.sim.effects import (
     EFFECT_NAMES,
     SPECS,
@@ -506,40 +508,6 @@ def corrected_observations(obs: Observations, state: Array, coefficients: dict[s
     return replace(obs, inputs=inputs, ys=ys)
 
 
-class EffectSSM(QuadSSM):
-    """QuadSSM whose transition includes the body x/y forces of drag and wind:
-
-        f_b = -diag(D) R^T v + R^T [w_x, w_y, 0],
-        v_{k+1} = v_k + dt [f(x_k, u_k) + R P f_b / m],   P = diag(1, 1, 0)
-
-    D (3,) [N s/m] or None, wind (2,) [N, world] or None. The body z part travels in the
-    thrust input (``corrected_observations``), where the M-step sees it too. The Jacobian
-    adds -dt R P diag(D) R^T / m on the velocity block (the attitude dependence is left
-    out). ``pinquad.estep.fast_smoother`` has a compiled kernel for it (``_effect_dynamics``)."""
-
-    def __init__(self, obs: Observations, theta: Theta, drag: Array | None = None,
-                 wind: Array | None = None):
-        super().__init__(obs, theta)
-        self._drag = np.zeros(3) if drag is None else np.asarray(drag, dtype=float)
-        self._wind = np.zeros(3)
-        if wind is not None:
-            self._wind[:2] = np.asarray(wind, dtype=float)[:2]
-
-    def transition(self, x: Array, k: int) -> tuple[Array, Array]:
-        nxt, jac = super().transition(x, k)
-        dt, m = self.obs.dt, self.body.mass
-        rot = rotation_from_euler(x[6:9])
-        f_b = -self._drag * (rot.T @ x[3:6]) + rot.T @ self._wind
-        f_b[2] = 0.0
-        nxt = nxt.copy()
-        nxt[3:6] += dt * rot @ f_b / m
-        jac = jac.copy()
-        d = self._drag.copy()
-        d[2] = 0.0
-        jac[3:6, 3:6] -= dt * (rot * d) @ rot.T / m
-        return nxt, jac
-
-
 def effect_mstep(coefficients: dict[str, Array]):
     """The regressor M-step (``pinquad.mstep.updates.regressor_mstep``) with the lateral wrench
     noise of an ``EffectSSM``: the body x/y force rows' variance is re-estimated from the
@@ -828,7 +796,7 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
     save one figure per selected effect (none if None).
     """
     if smoother is None:
-        from pinquad.identification.experiment import get_smoother
+        from pinquad.identification.identify import get_smoother
 
         smoother = get_smoother("rts")
     res0 = _residuals(obs, posterior, theta.gravity, cfg.block_seconds)

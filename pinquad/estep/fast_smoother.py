@@ -64,7 +64,10 @@ from numpy.typing import NDArray
 from estimators.ekf import run_filter
 from estimators.protocol import Posterior, StateSpaceModel
 from estimators.rts import smooth as generic_smooth
+from pinquad.core.kernels import rotation, rotation_derivatives, wrap
 from pinquad.models import ssm as _ssm
+from pinquad.models.effect import EffectSSM
+from pinquad.models.full import FullQuadSSM
 from pinquad.models.ssm import KinematicSSM, Observations, QuadSSM
 
 Array = NDArray[np.float64]
@@ -94,15 +97,6 @@ def _copy_mat(src, dst):
     for r in range(src.shape[0]):
         for c in range(src.shape[1]):
             dst[r, c] = src[r, c]
-
-
-@njit(cache=True)
-def _wrap(a):
-    # Same arithmetic as conventions.wrap_angle (Python and NumPy float modulo agree).
-    w = (a + math.pi) % _TWO_PI - math.pi
-    if w == -math.pi:
-        return math.pi
-    return w
 
 
 @njit(cache=True)
@@ -245,7 +239,7 @@ def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
     if _process_cov_start(use_fixed, fixed_q, q_kin, q):
         return
     g = np.empty((3, 3))
-    _rotation(x, g)
+    rotation(x, g)
     for r in range(3):
         for c in range(3):
             g[r, c] = g[r, c] / mass
@@ -256,55 +250,6 @@ def _process_cov(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
                 acc += (g[r, j] * s_f[j]) * g[c, j]
             q[3 + r, 3 + c] = dt * acc
             q[9 + r, 9 + c] = q_tau[r, c]
-
-
-@njit(cache=True)
-def _rotation(x, rot):
-    """R = Rz(psi) Ry(theta) Rx(phi) of the Euler angles x[6:9] into rot (3, 3)."""
-    _rotation_of_angles(x[6], x[7], x[8], rot)
-
-
-@njit(cache=True)
-def _rotation_of_angles(phi, theta, psi, rot):
-    """R = Rz(psi) Ry(theta) Rx(phi) (3, 3) into rot, as conventions.rotation_from_euler
-    (also the compiled M-step's, ``fast_mstep``)."""
-    sf, cf = math.sin(phi), math.cos(phi)
-    st, ct = math.sin(theta), math.cos(theta)
-    sp, cp = math.sin(psi), math.cos(psi)
-    rot[0, 0] = ct * cp
-    rot[0, 1] = sf * st * cp - cf * sp
-    rot[0, 2] = cf * st * cp + sf * sp
-    rot[1, 0] = ct * sp
-    rot[1, 1] = sf * st * sp + cf * cp
-    rot[1, 2] = cf * st * sp - sf * cp
-    rot[2, 0] = -st
-    rot[2, 1] = sf * ct
-    rot[2, 2] = cf * ct
-
-
-@njit(cache=True)
-def _rotation_derivatives(phi, theta, psi, rot, d_rot):
-    """R = Rz(psi) Ry(theta) Rx(phi) into rot (3, 3) and dR/d(phi, theta, psi) into
-    d_rot (3, 3, 3), last axis the angle (``full_inertia._rotation_and_derivatives``)."""
-    sf, cf = math.sin(phi), math.cos(phi)
-    st, ct = math.sin(theta), math.cos(theta)
-    sp, cp = math.sin(psi), math.cos(psi)
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cf, -sf], [0.0, sf, cf]])
-    ry = np.array([[ct, 0.0, st], [0.0, 1.0, 0.0], [-st, 0.0, ct]])
-    rz = np.array([[cp, -sp, 0.0], [sp, cp, 0.0], [0.0, 0.0, 1.0]])
-    drx = np.array([[0.0, 0.0, 0.0], [0.0, -sf, -cf], [0.0, cf, -sf]])
-    dry = np.array([[-st, 0.0, ct], [0.0, 0.0, 0.0], [-ct, 0.0, -st]])
-    drz = np.array([[-sp, -cp, 0.0], [cp, -sp, 0.0], [0.0, 0.0, 0.0]])
-    zy = rz @ ry
-    rot[:, :] = zy @ rx
-    d0 = zy @ drx
-    d1 = rz @ dry @ rx
-    d2 = drz @ ry @ rx
-    for r in range(3):
-        for c in range(3):
-            d_rot[r, c, 0] = d0[r, c]
-            d_rot[r, c, 1] = d1[r, c]
-            d_rot[r, c, 2] = d2[r, c]
 
 
 @njit(cache=True)
@@ -341,7 +286,7 @@ def _full_dynamics(x, u, dt, gravity, m_inv, h, i_o, x_next, jac):
     d_acc = -(m_inv @ d_bias)
     rot = np.empty((3, 3))
     d_rot = np.empty((3, 3, 3))
-    _rotation_derivatives(x[6], x[7], x[8], rot, d_rot)
+    rotation_derivatives(x[6], x[7], x[8], rot, d_rot)
     for r in range(3):
         fv = rot[r, 0] * acc[0] + rot[r, 1] * acc[1] + rot[r, 2] * acc[2]
         if r == 2:
@@ -368,7 +313,7 @@ def _process_cov_full(x, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q):
     if _process_cov_start(use_fixed, fixed_q, q_kin, q):
         return
     rot = np.empty((3, 3))
-    _rotation(x, rot)
+    rotation(x, rot)
     g = m_inv.copy()
     for r in range(3):
         for c in range(6):
@@ -401,7 +346,7 @@ def _effect_dynamics(x, dt, mass, drag, wind, x_next, jac):
     v_{k+1} += dt R f_b / m, and jac[3:6, 3:6] -= dt R diag(drag) R^T / m (as EffectSSM,
     without the attitude dependence)."""
     rot = np.empty((3, 3))
-    _rotation(x, rot)
+    rotation(x, rot)
     f_b = np.empty(3)
     for j in range(3):
         v_b = rot[0, j] * x[3] + rot[1, j] * x[4] + rot[2, j] * x[5]
@@ -593,7 +538,7 @@ def _forward_into(x0, p0, inputs, ys, dt, mass, inertia, inertia_inv, gravity, m
             for a in range(p):
                 i = idx[a]
                 res = y[i] - mean[sidx[a]]
-                nu[a] = _wrap(res) if is_angle[i] else res
+                nu[a] = wrap(res) if is_angle[i] else res
                 for b in range(p):
                     s_mat[a, b] = cov[sidx[a], sidx[b]]
                 s_mat[a, a] += meas_var[i]
@@ -783,18 +728,13 @@ def _kernel_inputs(model: QuadSSM, meas_dim: int) -> tuple | None:
 
 
 def _is_full(model: StateSpaceModel) -> bool:
-    """Whether ``model`` is exactly ``full_inertia.FullQuadSSM`` (imported here, late:
-    that module imports the EM machinery this one serves)."""
-    from pinquad.identification.full_inertia import FullQuadSSM
-
+    """Whether ``model`` is exactly ``models.full.FullQuadSSM``."""
     return type(model) is FullQuadSSM
 
 
 def _is_effect(model: StateSpaceModel) -> bool:
-    """Whether ``model`` is exactly ``discovery.EffectSSM`` (QuadSSM plus drag / wind
-    forces; imported late, as ``_is_full``)."""
-    from pinquad.discovery.discover import EffectSSM
-
+    """Whether ``model`` is exactly ``models.effect.EffectSSM`` (QuadSSM plus drag / wind
+    forces)."""
     return type(model) is EffectSSM
 
 
@@ -853,7 +793,7 @@ def _agrees_with_model(model: QuadSSM, consts: tuple) -> bool:
             return False
     y = y_pred + np.linspace(-7.0, 7.0, y_pred.shape[0])
     res = y - y_pred
-    ours = np.array([_wrap(r) if a else r for r, a in zip(res, is_angle, strict=True)])
+    ours = np.array([wrap(r) if a else r for r, a in zip(res, is_angle, strict=True)])
     return bool(np.array_equal(model.residual(y, y_pred), ours))
 
 

@@ -143,7 +143,7 @@ def default_sensor(log: FlightLog) -> str:
 # ----------------------------------------------------------------------------- measured
 
 def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
-    from pinquad.identification.experiment import identify
+    from pinquad.identification.identify import identify
     from pinquad.realdata.flights import (
         build_observations,
         corrected,
@@ -239,7 +239,7 @@ def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
 # ----------------------------------------------------------------------------- simulated
 
 def _simulated(log: FlightLog, args: argparse.Namespace) -> LogResult:
-    from pinquad.identification.experiment import identify
+    from pinquad.identification.identify import identify
     from pinquad.models.sources import observations
 
     mass0, inertia0, guess = _guess(log)
@@ -281,8 +281,9 @@ def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity
     start (``full_inertia.staged_start``: the diagonal model's EM from the paper's guess,
     refitted with the horizontal CoM), compiled E-step throughout: (LogRun, posterior,
     theta)."""
+    from pinquad.discovery.staged import staged_start
     from pinquad.estep.fast_smoother import smooth_quad
-    from pinquad.identification.full_inertia import identify_full, staged_start
+    from pinquad.identification.full_inertia import identify_full
 
     start = staged_start(obs, mass0, inertia0, gravity, smooth_quad)
     res = identify_full(obs, start, smooth_quad, max_iterations=args.max_iterations,

@@ -49,12 +49,14 @@ from numpy.typing import NDArray
 from estimators.protocol import Posterior
 from pinquad.cli.common import HelpFormatter, memory_arg, memory_label
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
+from pinquad.experiments.offline_mc import SENSOR_INDEX
 from pinquad.identification.em import initial_theta
-from pinquad.identification.experiment import SENSOR_INDEX, get_smoother
+from pinquad.identification.identify import get_smoother
 from pinquad.identification.window import window_em, window_prior
 from pinquad.models.sources import SOURCE_CHANNELS
 from pinquad.models.ssm import Observations, QuadSSM, Theta
-from pinquad.mstep.updates import QuadraticSums, regressor_mstep, remember_leaving
+from pinquad.mstep.stats import QuadraticSums
+from pinquad.mstep.updates import regressor_mstep, remember_leaving
 from pinquad.sim.simulator import ControllerUpdate, FlightSoFar, SimConfig, flight_log, simulate
 
 Array = NDArray[np.float64]

@@ -18,7 +18,7 @@ from estimators.protocol import Posterior
 from pinquad.cli.common import memory_label
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
 from pinquad.identification.em import initial_theta
-from pinquad.identification.experiment import get_smoother
+from pinquad.identification.identify import get_smoother
 from pinquad.identification.window import window_em, window_prior
 from pinquad.io.logs import LogFormatError
 from pinquad.models.ssm import Observations, QuadSSM, Theta

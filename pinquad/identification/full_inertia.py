@@ -44,9 +44,14 @@ from scipy.optimize import minimize
 from estimators.protocol import Posterior
 from pinquad.core.conventions import rotation_from_euler, skew
 from pinquad.identification.em import run_em
-from pinquad.models.ssm import Observations, QuadSSM, Theta
-from pinquad.mstep.updates import MStepResult, transition_mask, update_noise
-from pinquad.vehicle.model import cross3, state_derivative_and_jacobian
+from pinquad.models.full import (
+    FullQuadSSM,
+    dynamic_parameters,
+    from_dynamic_parameters,
+)
+from pinquad.models.ssm import Observations, Theta
+from pinquad.mstep.stats import transition_mask
+from pinquad.mstep.updates import MStepResult, update_noise
 
 Array = NDArray[np.float64]
 
@@ -58,24 +63,6 @@ _FD_STEP = 1e-6
 
 
 # ----------------------------------------------------------------------------- parameters
-
-def dynamic_parameters(mass: float, com: Array, inertia_c: Array) -> Array:
-    """pi (10,) of a body with mass [kg], CoM (3,) [m] and inertia (3, 3) about the CoM."""
-    body = pin.Inertia(float(mass), np.asarray(com, dtype=float),
-                       np.asarray(inertia_c, dtype=float))
-    return np.asarray(body.toDynamicParameters(), dtype=float).copy()
-
-
-def from_dynamic_parameters(pi: Array) -> tuple[float, Array, Array]:
-    """(mass [kg], CoM (3,) [m], inertia about the CoM (3, 3) [kg m^2]) of pi."""
-    body = pin.Inertia.FromDynamicParameters(np.asarray(pi, dtype=float))
-    return float(body.mass), np.array(body.lever), np.array(body.inertia)
-
-
-def spatial_inertia(pi: Array) -> Array:
-    """M_O (6, 6) [[m 1, -[h]x], [[h]x, I_O]] (Pinocchio's linear-then-angular order)."""
-    return np.asarray(pin.Inertia.FromDynamicParameters(np.asarray(pi, float)).matrix())
-
 
 def log_cholesky(pi: Array) -> Array:
     """Pinocchio's log-Cholesky parameters theta (10,) of a physically consistent pi:
@@ -135,82 +122,6 @@ def spatial_regressor(x_now: Array, x_next: Array, dt: float, gravity: float) ->
 
 
 # ----------------------------------------------------------------------------- E-step model
-
-def _rotation_and_derivatives(euler: Array) -> tuple[Array, Array]:
-    """R = Rz(psi) Ry(theta) Rx(phi) (3, 3) and dR/d(phi, theta, psi) (3, 3, 3), last
-    axis the angle."""
-    phi, theta, psi = (float(a) for a in euler)
-    sf, cf = math.sin(phi), math.cos(phi)
-    st, ct = math.sin(theta), math.cos(theta)
-    sp, cp = math.sin(psi), math.cos(psi)
-    rx = np.array([[1, 0, 0], [0, cf, -sf], [0, sf, cf]])
-    ry = np.array([[ct, 0, st], [0, 1, 0], [-st, 0, ct]])
-    rz = np.array([[cp, -sp, 0], [sp, cp, 0], [0, 0, 1]])
-    drx = np.array([[0, 0, 0], [0, -sf, -cf], [0, cf, -sf]])
-    dry = np.array([[-st, 0, ct], [0, 0, 0], [-ct, 0, -st]])
-    drz = np.array([[-sp, -cp, 0], [cp, -sp, 0], [0, 0, 0]])
-    d = np.stack([rz @ ry @ drx, rz @ dry @ rx, drz @ ry @ rx], axis=-1)
-    return rz @ ry @ rx, d
-
-
-# the velocity and body-rate rows of the state, where the wrench noise enters
-_DYNAMIC_ROWS = np.r_[3:6, 9:12]
-
-
-class FullQuadSSM(QuadSSM):
-    """The quadcopter with all ten inertial parameters (``theta.com``, a full
-    ``theta.inertia`` about the CoM) as a StateSpaceModel: explicit Euler of the module
-    docstring's dynamics, the same state, measurements and kinematic noise as
-    :class:`~pinquad.models.ssm.QuadSSM` (which it equals when c = 0)."""
-
-    def __init__(self, obs: Observations, theta: Theta):
-        super().__init__(obs, theta)
-        self.pi = dynamic_parameters(theta.mass, theta.com, theta.inertia)
-        self._m_o = spatial_inertia(self.pi)
-        self._m_inv = np.linalg.inv(self._m_o)
-        self._first_moment = self.pi[1:4].copy()
-        self._i_o = self._m_o[3:6, 3:6].copy()
-
-    def _accelerations(self, x: Array, u: Array) -> tuple[Array, Array]:
-        """[a_O; omega'] (6,) and its derivative w.r.t. omega (6, 3)."""
-        w = x[9:12]
-        h, i_o = self._first_moment, self._i_o
-        i_w = i_o @ w
-        bias = np.concatenate([cross3(w, cross3(w, h)), cross3(w, i_w)])
-        tau = np.array([0.0, 0.0, float(u[0]), float(u[1]), float(u[2]), float(u[3])])
-        d_bias = np.vstack([np.outer(w, h) + float(w @ h) * np.eye(3) - 2.0 * np.outer(h, w),
-                            skew(w) @ i_o - skew(i_w)])
-        return self._m_inv @ (tau - bias), -self._m_inv @ d_bias
-
-    def transition(self, x: Array, k: int) -> tuple[Array, Array]:
-        u = self.obs.inputs[k]
-        # the kinematic rows (p' = v, Theta' = E^{-1} omega) and their Jacobian are the
-        # diagonal model's; the dynamic rows are replaced
-        f, jac = state_derivative_and_jacobian(x, u, self.body)
-        acc, d_acc = self._accelerations(x, u)
-        rot, d_rot = _rotation_and_derivatives(x[6:9])
-        f[3:6] = rot @ acc[0:3] - np.array([0.0, 0.0, self.theta.gravity])
-        f[9:12] = acc[3:6]
-        jac[3:6, :] = 0.0
-        jac[9:12, :] = 0.0
-        jac[3:6, 6:9] = np.einsum("ijk,j->ik", d_rot, acc[0:3])
-        jac[3:6, 9:12] = rot @ d_acc[0:3]
-        jac[9:12, 9:12] = d_acc[3:6]
-        dt = self.obs.dt
-        return x + dt * f, self._eye + dt * jac
-
-    def _flight_process_cov(self, x: Array) -> Array:
-        q = super()._flight_process_cov(x)
-        if self._fixed_q is not None:
-            return q
-        rot = rotation_from_euler(x[6:9])
-        g = self._m_inv.copy()
-        g[0:3] = rot @ g[0:3]
-        s = np.asarray(self.theta.noise.wrench, dtype=float)
-        dyn = self.obs.dt * (g * s) @ g.T
-        q[_DYNAMIC_ROWS[:, None], _DYNAMIC_ROWS] = dyn
-        return q
-
 
 # ----------------------------------------------------------------------------- M-step
 
@@ -497,36 +408,6 @@ def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = N
     var = np.diag(jac @ cov_pi @ jac.T)
     se = np.where(var > 0, np.sqrt(np.abs(var)), math.nan)
     return float(se[0]), se[1:4], se[4:13].reshape(3, 3), info
-
-
-def staged_start(obs: Observations, mass0: float, inertia0: Array, gravity: float,
-                 smoother: Callable) -> Theta:
-    """A start for ``identify_full`` near the ten-parameter optimum, from the paper's
-    guess (mass0 [kg], inertia0 (3, 3) [kg m^2]) in two cheap stages:
-
-    1. EM of the diagonal model (regressor M-step) from the paper's warm-up;
-    2. its refit with the horizontal CoM as discovery's ``com_offset`` effect (thrust
-       torque F [-c_y, c_x, 0] about the CoM; ``discovery.refit``), which undoes what
-       the unmodelled CoM torque does to the diagonal inertia (on the test vehicle with
-       the CoM 5 mm off: I_xx 1198 e-6 kg m^2 without it, 249 with it; truth 250).
-
-    Returns Theta with that mass, diagonal inertia and noise and the CoM (c_x, c_y, 0) [m].
-    From the paper's start itself the over-relaxed ten-parameter EM first inflates the
-    inertia some thirty-fold to absorb the CoM torque and leaves that region after about
-    twenty E-steps either towards the optimum or towards a local maximum several hundred
-    nats lower; which one changed with 1e-13 relative perturbations of the data (two of
-    four) and with the E-step's rounding, so that start made the answer a coin toss."""
-    from pinquad.discovery.discover import DiscoveryConfig, refit
-    from pinquad.identification.em import initial_theta, run_em
-    from pinquad.mstep.updates import regressor_mstep
-
-    diag = run_em(obs, initial_theta(obs, mass0, inertia0, gravity), smoother, regressor_mstep,
-                  max_iterations=100)
-    theta, _, coefficients = refit(obs, diag.theta, diag.posterior, ["com_offset"], smoother,
-                                   DiscoveryConfig(refit_passes=1, joint_iterations=0))
-    c_x, c_y = (float(v) for v in coefficients["com_offset"])
-    return Theta(mass=theta.mass, inertia=np.asarray(theta.inertia), noise=theta.noise,
-                 gravity=gravity, com=np.array([c_x, c_y, 0.0]))
 
 
 def identify_full(obs: Observations, start: Theta, smoother: Callable, max_iterations: int = 100,

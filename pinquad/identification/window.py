@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior, StateSpaceModel
 from pinquad.models.ssm import KinematicSSM, Observations, QuadSSM, Theta
-from pinquad.mstep.updates import QuadraticSums
+from pinquad.mstep.stats import QuadraticSums
 
 Array = NDArray[np.float64]
 

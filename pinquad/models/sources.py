@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 
 from estimators.ekf import run_filter
 from pinquad.io.logs import FlightLog
+from pinquad.models.navigation import NavTuning, SensorANavModel
 from pinquad.models.ssm import Observations
-from pinquad.sim.navigation import NavTuning, SensorANavModel
 
 Array = NDArray[np.float64]
 

@@ -233,3 +233,15 @@ class KinematicSSM(QuadSSM):
         if self._fixed_q is None:
             raise ValueError("the kinematic warm-up model needs a fixed process covariance")
         return self._fixed_q
+
+
+def kinematic_floor(dt: float, accel: float = 1.0, angular_accel: float = 10.0) -> Array:
+    """Fixed per-step variances (6,) of the position and Euler rows.
+
+    The SDE has no noise there (p' = v, Theta' = E^{-1} omega are identities); what is
+    left is the explicit-Euler truncation error (dt^2 / 2) x'' for accelerations of
+    ``accel`` [m/s^2] and ``angular_accel`` [rad/s^2]. Keeping them fixed rather than
+    estimated removes six slowly converging EM parameters.
+    """
+    return np.concatenate([np.full(3, (0.5 * dt * dt * accel) ** 2),
+                           np.full(3, (0.5 * dt * dt * angular_accel) ** 2)])

@@ -29,13 +29,12 @@ from numba import njit
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.estep.fast_smoother import _rotation_of_angles, _wrap
+from pinquad.core.kernels import rotation_derivatives, rotation_of_angles, wrap
 from pinquad.models.ssm import Observations
-from pinquad.mstep.updates import QuadraticSums, transition_mask
+from pinquad.mstep.stats import QuadraticSums, transition_mask
 
 Array = NDArray[np.float64]
 
-_H = 1e-6  # central-difference step of dR/dTheta, as identify._rotation_derivatives
 
 
 @njit(cache=True)
@@ -45,8 +44,7 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
     b = np.zeros((6, 4))
     c = np.zeros(6)
     rot = np.empty((3, 3))
-    r_plus = np.empty((3, 3))
-    r_minus = np.empty((3, 3))
+    rot_scratch = np.empty((3, 3))
     d_rot = np.empty((3, 3, 3))
     acc = np.empty(3)
     y = np.empty((6, 4))
@@ -55,7 +53,6 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
     sig_f = np.empty((9, 9))
     sig_w = np.empty((6, 6))
     d_t = np.zeros((3, 3, 6))
-    e = np.empty(3)
     inv = 1.0 / dt
     # state rows of (Theta_k, v_k) and (omega_k): 6..8, 3..5; 9..11
     rows_f = np.array([6, 7, 8, 3, 4, 5])
@@ -63,7 +60,7 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
         k = idx[j]
         x0 = mean[k]
         x1 = mean[k + 1]
-        _rotation_of_angles(x0[6], x0[7], x0[8], rot)
+        rotation_of_angles(x0[6], x0[7], x0[8], rot)
         for i in range(3):
             acc[i] = (x1[3 + i] - x0[3 + i]) / dt
         acc[2] += gravity
@@ -92,17 +89,8 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
                 for q in range(4):
                     a[r, p, q] += y[r, q] * yp
             c[r] += tau[r] * tau[r]
-        # dR/dTheta_m by central differences, as the reference
-        for m in range(3):
-            for i in range(3):
-                e[i] = x0[6 + i]
-            e[m] = x0[6 + m] + _H
-            _rotation_of_angles(e[0], e[1], e[2], r_plus)
-            e[m] = x0[6 + m] - _H
-            _rotation_of_angles(e[0], e[1], e[2], r_minus)
-            for r in range(3):
-                for s in range(3):
-                    d_rot[r, s, m] = (r_plus[r, s] - r_minus[r, s]) / (2 * _H)
+        # dR/dTheta_m, analytic (the rotation it also returns is not used: rot above)
+        rotation_derivatives(x0[6], x0[7], x0[8], rot_scratch, d_rot)
         # d(R^T acc)/dTheta_m = (dR/dTheta_m)^T acc; d/dv_k = -R^T/dt; d/dv_{k+1} = R^T/dt
         for i in range(3):
             for m in range(3):
@@ -371,7 +359,7 @@ def _measurement_variances(mean, cov, ys, rejected, state_of_row, is_angle, prev
             if not math.isnan(y) and not rejected[k, i]:
                 res = y - mean[k, s]
                 if is_angle[i]:
-                    res = _wrap(res)
+                    res = wrap(res)
                 total += res * res + cov[k, s, s]
                 count += 1
         if count > 0:

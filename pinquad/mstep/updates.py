@@ -33,8 +33,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.core.conventions import rotation_from_euler, wrap_angle
-from pinquad.models.ssm import CHANNEL_SLICES, NoiseModel, Observations, Theta
+from pinquad.core.conventions import rotation_and_derivatives, rotation_from_euler, wrap_angle
+from pinquad.models.ssm import CHANNEL_SLICES, NoiseModel, Observations, Theta, kinematic_floor
+from pinquad.mstep import compiled
+from pinquad.mstep.stats import QuadraticSums, transition_mask
 
 Array = NDArray[np.float64]
 
@@ -54,18 +56,6 @@ class RegressorStats:
     b: Array
     c: Array
     n: int
-
-
-def _rotation_derivatives(euler: Array) -> Array:
-    """dR/dTheta_j (K, 3, 3, 3) with the last axis j, by central differences (h = 1e-6,
-    error ~1e-12)."""
-    h = 1e-6
-    out = np.empty(euler.shape[:-1] + (3, 3, 3))
-    for j in range(3):
-        step = np.zeros(3)
-        step[j] = h
-        out[..., j] = (rotation_from_euler(euler + step) - rotation_from_euler(euler - step)) / (2 * h)
-    return out
 
 
 def body_regressor(x_now: Array, x_next: Array, dt: float, gravity: float) -> Array:
@@ -100,7 +90,7 @@ def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float
     """
     k = x_now.shape[0]
     rot = rotation_from_euler(x_now[:, 6:9])
-    d_rot = _rotation_derivatives(x_now[:, 6:9])
+    d_rot = rotation_and_derivatives(x_now[:, 6:9])[1]
     acc = (x_next[:, 3:6] - x_now[:, 3:6]) / dt
     acc[:, 2] += gravity
     w = x_now[:, 9:12]
@@ -126,14 +116,6 @@ def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float
     d[:, 2, 1, 0], d[:, 2, 1, 2] = -wz, -wx
     d[:, 2, 2, 2], d[:, 2, 2, 5] = -inv, inv
     return d_force, d
-
-
-def transition_mask(obs: Observations) -> NDArray[np.bool_]:
-    """(N-1,) transitions the M-step uses (not excluded)."""
-    use = np.ones(obs.n - 1, dtype=bool)
-    if obs.exclude.size:
-        use &= ~obs.exclude[: obs.n - 1]
-    return use
 
 
 def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> RegressorStats:
@@ -176,12 +158,8 @@ def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> Regre
 def expected_quadratics(post: Posterior, obs: Observations, gravity: float):
     """The a, b, c, n of ``regressor_stats`` (what the M-step needs of it): the compiled
     ``pinquad.mstep.compiled.regressor_quadratics`` (equal up to rounding; it skips the
-    per-transition arrays) when available, else ``regressor_stats`` itself."""
-    try:
-        from pinquad.mstep.compiled import regressor_quadratics
-    except ImportError:  # the compiled path is optional
-        return regressor_stats(post, obs, gravity)
-    return regressor_quadratics(post, obs, gravity)
+    per-transition arrays)."""
+    return compiled.regressor_quadratics(post, obs, gravity)
 
 
 def _row_sums(stats, pi: Array) -> Array:
@@ -274,12 +252,8 @@ def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: A
 
 def inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array) -> Array:
     """``_inertia_newton``, compiled (``pinquad.mstep.compiled.inertia_newton``: the same
-    algorithm, so the same minimiser up to rounding, in ~1 % of the time) when available."""
-    try:
-        from pinquad.mstep.compiled import inertia_newton as compiled
-    except ImportError:  # the compiled path is optional
-        return _inertia_newton(mass, a_t, b_t, c_t, previous)
-    return compiled(float(mass), np.ascontiguousarray(a_t, dtype=float),
+    algorithm, so the same minimiser up to rounding, in ~1 % of the time)."""
+    return compiled.inertia_newton(float(mass), np.ascontiguousarray(a_t, dtype=float),
                     np.ascontiguousarray(b_t, dtype=float), np.ascontiguousarray(c_t, dtype=float),
                     np.array(previous, dtype=float))
 
@@ -294,31 +268,6 @@ def _d_from_inertia(i_diag: Array) -> Array:
     return np.maximum(d, 1e-6 * half)
 
 
-@dataclass(frozen=True)
-class QuadraticSums:
-    """Sums over transitions of the M-step's expected quadratic forms (the a, b, c of
-    ``regressor_stats``: a (6, 4, 4), b (6, 4), c (6,)) and the number of transitions n
-    they cover (a float once down-weighted): the complete-data sufficient statistics of
-    mass and inertia, which add over disjoint sets of transitions. The compiled
-    ``fast_mstep.regressor_quadratics`` returns this type."""
-
-    a: Array
-    b: Array
-    c: Array
-    n: float
-
-    @classmethod
-    def of(cls, stats) -> QuadraticSums:
-        return cls(np.asarray(stats.a), np.asarray(stats.b), np.asarray(stats.c),
-                   float(stats.n))
-
-    def plus(self, other) -> QuadraticSums:
-        return QuadraticSums(self.a + other.a, self.b + other.b, self.c + other.c,
-                             self.n + float(other.n))
-
-    def scaled(self, weight: float) -> QuadraticSums:
-        return QuadraticSums(weight * self.a, weight * self.b, weight * self.c,
-                             weight * self.n)
 
 
 def remember_leaving(earlier: QuadraticSums | None, post: Posterior, obs: Observations,
@@ -390,25 +339,11 @@ def update_noise(post: Posterior, obs: Observations, theta: Theta, wrench_row_va
     wrench = dt * wrench_row_var
     wrench[0:3] = np.maximum(wrench[0:3], dt * floor_f)
     wrench[3:6] = np.maximum(wrench[3:6], dt * floor_t)
-    try:
-        from pinquad.mstep.compiled import measurement_variances as compiled_meas
-    except ImportError:  # the compiled path is optional
-        compiled_meas = measurement_variances
-    meas = compiled_meas(post, obs, theta.noise.meas)
+    meas = compiled.measurement_variances(post, obs, theta.noise.meas)
     q_kin = kinematic_floor(dt)
     return NoiseModel(wrench=wrench, q_kin=q_kin, meas=meas, fixed_q=None)
 
 
-def kinematic_floor(dt: float, accel: float = 1.0, angular_accel: float = 10.0) -> Array:
-    """Fixed per-step variances (6,) of the position and Euler rows.
-
-    The SDE has no noise there (p' = v, Theta' = E^{-1} omega are identities); what is
-    left is the explicit-Euler truncation error (dt^2 / 2) x'' for accelerations of
-    ``accel`` [m/s^2] and ``angular_accel`` [rad/s^2]. Keeping them fixed rather than
-    estimated removes six slowly converging EM parameters.
-    """
-    return np.concatenate([np.full(3, (0.5 * dt * dt * accel) ** 2),
-                           np.full(3, (0.5 * dt * dt * angular_accel) ** 2)])
 
 
 def measurement_variances(post: Posterior, obs: Observations, previous: Array) -> Array:

@@ -1002,7 +1002,8 @@ class RealMStep:
     def band_stats(self, post, obs: Observations, gravity: float) -> BandStats:
         from scipy.signal import butter, sosfiltfilt
 
-        from pinquad.mstep.updates import body_regressor, transition_mask
+        from pinquad.mstep.stats import transition_mask
+        from pinquad.mstep.updates import body_regressor
 
         mean = post.mean
         n_tr = obs.n - 1
@@ -1033,13 +1034,8 @@ class RealMStep:
     def __call__(self, post, obs: Observations, theta: Theta, earlier=None):
         """The update; ``earlier`` (``identify.QuadraticSums``): statistics of transitions
         no longer in ``obs`` (the online stream's memory), added to the mass row's."""
-        from pinquad.mstep.updates import (
-            MStepResult,
-            QuadraticSums,
-            closed_form_mass,
-            regressor_stats,
-            update_noise,
-        )
+        from pinquad.mstep.stats import QuadraticSums
+        from pinquad.mstep.updates import MStepResult, closed_form_mass, regressor_stats, update_noise
 
         g = theta.gravity
         stats = regressor_stats(post, obs, g)
@@ -1050,7 +1046,7 @@ class RealMStep:
         inertia, objective = _profiled_inertia(a, b, c, np.diag(theta.inertia))
         pi = np.concatenate([[mass], inertia])
 
-        from pinquad.mstep.updates import transition_mask
+        from pinquad.mstep.stats import transition_mask
 
         idx = np.flatnonzero(transition_mask(obs))
         z_all = torque_features(post.mean, obs.inputs[:, 0])
@@ -1082,7 +1078,8 @@ class RealMStep:
         blocks left out. It counts the correlation of neighbouring residuals (slow
         unmodelled effects) that the white-noise information ignores; the posterior is
         held fixed, so it leaves out the E-step's share of the uncertainty."""
-        from pinquad.mstep.updates import body_regressor, transition_mask
+        from pinquad.mstep.stats import transition_mask
+        from pinquad.mstep.updates import body_regressor
 
         g = theta.gravity
         idx = np.flatnonzero(transition_mask(obs))
@@ -1285,8 +1282,8 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     log-likelihood change below tol / 10, or after ``max_iterations`` E-steps.
     """
     from pinquad.identification.em import initial_theta, run_em
-    from pinquad.identification.experiment import get_smoother, loglik_function
     from pinquad.identification.fisher import observed_information, standard_errors
+    from pinquad.identification.identify import get_smoother, loglik_function
 
     t0 = time.perf_counter()
     obs = real.obs

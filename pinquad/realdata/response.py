@@ -234,7 +234,7 @@ def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
     with sensor B, with the measured-flight pipeline (``realdata.identify_real`` on
     ``realdata.raw_from_simulated``, started at the truth)."""
     from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_MASS
-    from pinquad.identification.experiment import identify
+    from pinquad.identification.identify import identify
     from pinquad.models.sources import observations
     from pinquad.realdata.flights import identify_real, simulated_crazyflie, simulated_observations
     from pinquad.sim.simulator import flight_log

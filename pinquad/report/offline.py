@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core import paper_results as paper
-from pinquad.identification.experiment import CycleResult
+from pinquad.experiments.offline_mc import CycleResult
 
 Array = NDArray[np.float64]
 

@@ -42,15 +42,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler  # noqa: F401 (re-exported for tests)
-
-if TYPE_CHECKING:  # the estimator side never imports the simulator at run time
-    from pinquad.sim.simulator import Disturbance
+from pinquad.sim.simulator import Disturbance
 
 Array = NDArray[np.float64]
 
@@ -72,8 +69,6 @@ footprint of the four rotors together (a single rotor's 0.0235 m reaches only ~1
 
 
 def _disturbance(**kwargs) -> Disturbance:
-    from pinquad.sim.simulator import Disturbance
-
     return Disturbance(**kwargs)
 
 

@@ -32,14 +32,14 @@ from pinquad.core.params import (
     process_noise_for,
 )
 from pinquad.io.logs import FlightLog, LogMeta
-from pinquad.models.sources import SOURCE_CHANNELS
-from pinquad.sim.control import ControllerGains, Reference, build_reference, control_step, design_gains
-from pinquad.sim.navigation import (
+from pinquad.models.navigation import (
     ModelBasedNavFilter,
     NavTuning,
     SensorANavModel,
     StreamingNavFilter,
 )
+from pinquad.models.sources import SOURCE_CHANNELS
+from pinquad.sim.control import ControllerGains, Reference, build_reference, control_step, design_gains
 from pinquad.sim.sensors import SENSORS, measure_one
 from pinquad.vehicle.model import forward_dynamics, load_model
 

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from estimators.ekf import predict, update
 from pinquad.core.conventions import GRAVITY
 from pinquad.core.params import FROZEN_SENSOR_NOISE, SensorNoise
+from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta, kinematic_floor
 
 Array = NDArray[np.float64]
 
@@ -211,8 +212,6 @@ class ModelBasedNavFilter:
         self._rebuild()
 
     def _rebuild(self) -> None:
-        from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
-        from pinquad.mstep.updates import kinematic_floor
 
         n = self.inputs.shape[0]
         obs = Observations(t=np.arange(n) * self.dt, dt=self.dt, inputs=self.inputs,

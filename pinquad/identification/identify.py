@@ -1,32 +1,23 @@
-"""One Monte Carlo cycle of the offline experiment: fly, log, identify with EM.
-
-A cycle flies the paper's scenario once with a given sensor set (A, B or C), then runs
-EM from the paper's initial guess with each requested M-step on that same log, and
-(optionally) the observed information at the estimate and at the truth.
-"""
+"""EM on one set of observations by E-step and M-step name, with standard errors from
+the observed information (and the information at the truth, when a simulation gives it)."""
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, VEHICLES
 from pinquad.identification.em import EMResult, Smoother, initial_theta, run_em
 from pinquad.identification.fisher import observed_information, standard_errors
-from pinquad.io.logs import FlightLog
-from pinquad.models.sources import observations
 from pinquad.models.ssm import Observations, Theta
 from pinquad.mstep.updates import paper_mstep, regressor_mstep
-from pinquad.sim.simulator import SimConfig, flight_log, simulate, waypoint_report
 
 Array = NDArray[np.float64]
 
 MSTEPS = {"regressor": regressor_mstep, "paper": paper_mstep}
-SENSOR_INDEX = {"A": 0, "B": 1, "C": 2}
 ESTEPS = ("rts", "ieks", "gtsam")
 """E-step smoothers by name (:func:`get_smoother`)."""
 
@@ -68,26 +59,6 @@ def loglik_function(estep: str):
         return ekf_loglik
 
 
-def flight_seed(seed: int, sensor: str, cycle: int) -> int:
-    """The seed of cycle ``cycle`` for ``sensor`` under base seed ``seed``."""
-    return int(seed) * 100_000 + SENSOR_INDEX[sensor] * 1000 + int(cycle)
-
-
-@dataclass(frozen=True)
-class CycleJob:
-    """What one worker does: sensor, cycle index, base seed, vehicle, E-step, M-steps."""
-
-    sensor: str
-    cycle: int
-    seed: int
-    vehicle: str = "paper"
-    estep: str = "rts"
-    msteps: tuple[str, ...] = ("regressor", "paper")
-    max_iterations: int = 100
-    information: bool = True
-    keep_log: bool = False
-
-
 @dataclass(frozen=True)
 class Identification:
     """One EM run's outcome on one log.
@@ -113,23 +84,6 @@ class Identification:
     info_truth: Array | None = None
     noise: Theta | None = None
     failure: str | None = None
-
-
-@dataclass(frozen=True)
-class CycleResult:
-    """A cycle: the flight's figures and each M-step's identification."""
-
-    sensor: str
-    cycle: int
-    seed: int
-    truth_mass: float
-    truth_inertia: Array
-    flight: dict
-    runs: tuple[Identification, ...]
-    log: FlightLog | None = None
-    smoothed: Array | None = None
-    seconds: float = 0.0
-    excluded: dict = field(default_factory=dict)
 
 
 def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, estep: str,
@@ -158,34 +112,3 @@ def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, e
     return out, res.posterior
 
 
-def run_cycle(job: CycleJob) -> CycleResult:
-    """Fly one seeded flight with the job's sensor and identify it with each M-step."""
-    t0 = time.perf_counter()
-    vehicle = VEHICLES[job.vehicle]
-    seed = flight_seed(job.seed, job.sensor, job.cycle)
-    config = SimConfig(vehicle=vehicle, sensor=job.sensor)
-    if job.vehicle != "paper":
-        config = SimConfig(vehicle=vehicle, sensor=job.sensor,
-                           scenario=config.scenario.scaled(0.3))
-    flight = simulate(config, np.random.default_rng(seed))
-    log = flight_log(flight)
-    obs = observations(log, job.sensor)
-    mass0, inertia0 = PAPER_INITIAL_MASS, PAPER_INITIAL_INERTIA
-    if job.vehicle != "paper":
-        mass0, inertia0 = vehicle.mass * PAPER_INITIAL_MASS / 0.18, vehicle.inertia * 0.5
-    runs = []
-    smoothed = None
-    for mstep in job.msteps:
-        ident, post = identify(obs, mass0, inertia0, vehicle.gravity, job.estep, mstep,
-                               job.max_iterations, job.information,
-                               truth=(vehicle.mass, vehicle.inertia))
-        runs.append(ident)
-        if mstep == job.msteps[0]:
-            smoothed = post.mean
-    return CycleResult(
-        sensor=job.sensor, cycle=job.cycle, seed=seed, truth_mass=vehicle.mass,
-        truth_inertia=np.asarray(vehicle.inertia), flight=waypoint_report(flight),
-        runs=tuple(runs), log=log if job.keep_log else None,
-        smoothed=smoothed if job.keep_log else None, seconds=time.perf_counter() - t0,
-        excluded={"contact_transitions": int(obs.exclude.sum())},
-    )
