@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pinquad.cli.common import HelpFormatter
+from pinquad.cli.help import HelpFormatter
 from pinquad.io.logs import LogFormatError
 
 DESCRIPTION = __doc__.split("\n\n")[0].split(": ", 1)[1]

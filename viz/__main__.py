@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from pinquad.cli.common import HelpFormatter
+from pinquad.cli.help import HelpFormatter
 
 
 def build_parser() -> argparse.ArgumentParser:

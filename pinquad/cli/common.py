@@ -1,4 +1,4 @@
-"""What the command lines share: a ``--help`` formatter, the online commands'
+"""What the command lines share: the online commands'
 ``--memory`` value and its description, and the measured-flight diagnostics' log
 arguments."""
 
@@ -7,18 +7,6 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
-
-
-class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Appends "(default: ...)" to an option's help only where it says something: not
-    when the default is None or False (the help then says what happens), nor when the
-    help already names its default."""
-
-    def _get_help_string(self, action: argparse.Action) -> str | None:
-        text = action.help or ""
-        if action.default is None or action.default is False or "(default" in text:
-            return text
-        return super()._get_help_string(action)
 
 
 def memory_arg(text: str) -> float | None:

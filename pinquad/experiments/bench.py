@@ -58,7 +58,7 @@ from typing import Any
 
 import numpy as np
 
-from pinquad.cli.common import HelpFormatter
+from pinquad.cli.help import HelpFormatter
 
 RESULT_TAG = "BENCH-RESULT "
 DEFAULT_N = (1_000, 10_000, 100_000)

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
-from pinquad.cli.common import HelpFormatter
+from pinquad.cli.help import HelpFormatter
 from pinquad.core import paper_results as paper
 from pinquad.core.conventions import wrap_angle
 from pinquad.core.params import PAPER_SCENARIO, VEHICLES

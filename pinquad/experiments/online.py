@@ -47,7 +47,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.cli.common import HelpFormatter, memory_arg, memory_label
+from pinquad.cli.common import memory_arg, memory_label
+from pinquad.cli.help import HelpFormatter
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.experiments.offline_mc import SENSOR_INDEX
 from pinquad.identification.em import initial_theta
