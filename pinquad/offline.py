@@ -76,7 +76,7 @@ def run_simulation(args: argparse.Namespace) -> int:
     from pinquad.core.params import PAPER_SCENARIO
     from pinquad.experiments.offline_mc import CycleJob, run_cycle
     from pinquad.io.logs import write_log
-    from pinquad.io.runs import RunWriter, atomic_write_json, new_run_dir
+    from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json, new_run_dir
     from pinquad.report.offline import (
         cycle_entries,
         offline_tables,
@@ -142,7 +142,7 @@ def run_simulation(args: argparse.Namespace) -> int:
         first = results[0]
         best = next((r for r in first.runs if r.mstep == msteps[0]), first.runs[0])
         report = {
-            "schema": "pinquad.report/1",
+            "schema": REPORT_SCHEMA,
             "source": {"kind": "simulation", "path": None, "sensor": "".join(sensors),
                        "estep": args.estep, "vehicle": args.vehicle,
                        "seed": args.seed, "cycles": args.cycles, "msteps": list(msteps)},

@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.io.runs import REPORT_SCHEMA
+
 Array = NDArray[np.float64]
 
-SCHEMA = "pinquad.report/1"
 
 
 class RunError(ValueError):
@@ -194,8 +195,8 @@ def _read_report(run_dir: Path) -> dict[str, Any]:
         raise RunError(f"{report_path}: not valid JSON ({exc.msg} at byte {exc.pos})") from None
     if not isinstance(report, dict):
         raise RunError(f"{report_path}: expected a JSON object at the top level")
-    if report.get("schema") != SCHEMA:
-        raise RunError(f"{report_path}: schema is {report.get('schema')!r}; expected {SCHEMA!r}")
+    if report.get("schema") != REPORT_SCHEMA:
+        raise RunError(f"{report_path}: schema is {report.get('schema')!r}; expected {REPORT_SCHEMA!r}")
     return report
 
 

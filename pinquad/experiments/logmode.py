@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.io.logs import FlightLog, LogFormatError
+from pinquad.io.runs import REPORT_SCHEMA
 from pinquad.models.ssm import Observations
 
 if TYPE_CHECKING:
@@ -42,7 +43,6 @@ if TYPE_CHECKING:
 
 Array = NDArray[np.float64]
 
-SCHEMA = "pinquad.report/1"
 
 
 @dataclass(frozen=True)
@@ -401,7 +401,7 @@ def _report(result: LogResult, args: argparse.Namespace, seconds: float) -> dict
     main = result.runs[0]
     se = main.stderr
     return {
-        "schema": SCHEMA,
+        "schema": REPORT_SCHEMA,
         "source": {"kind": "log", "path": str(args.log), "sensor": main.sensor,
                    "estep": args.estep, "log_type": result.kind,
                    "vehicle": result.log.meta.vehicle, "mstep": main.mstep},

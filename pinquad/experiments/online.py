@@ -54,6 +54,7 @@ from pinquad.experiments.offline_mc import SENSOR_INDEX
 from pinquad.identification.em import initial_theta
 from pinquad.identification.identify import get_smoother
 from pinquad.identification.window import window_em, window_prior
+from pinquad.io.runs import REPORT_SCHEMA
 from pinquad.models.sources import SOURCE_CHANNELS
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.stats import QuadraticSums
@@ -464,7 +465,7 @@ def online_report(results: list[OnlineCycle], truth: Array, stats: dict,
         })
     first = cycles[0]
     return {
-        "schema": "pinquad.report/1",
+        "schema": REPORT_SCHEMA,
         "source": {"kind": "simulation", "path": None, "sensor": "".join(sorted(stats)),
                    "estep": "rts", "mode": "online", "vehicle": "paper",
                    "window": OnlineConfig().window, "every": OnlineConfig().every,

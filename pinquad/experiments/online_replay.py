@@ -151,12 +151,12 @@ def replay(args: argparse.Namespace) -> int:
         r = hist[i]
         print(f"| {r[1]:.2f} | {r[2]:.5g} | {r[3]:.4g} | {r[4]:.4g} | {r[5]:.4g} |")
     if args.out:
-        from pinquad.io.runs import RunWriter, atomic_write_json
+        from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 
         writer = RunWriter(args.out)
         try:
             atomic_write_json(writer.path("report.json"), {
-                "schema": "pinquad.report/1",
+                "schema": REPORT_SCHEMA,
                 "source": {"kind": "log", "path": str(args.log), "mode": "online-replay",
                            "estep": "rts", "mstep": mstep, "memory": memory},
                 "estimates": {"mass": float(hist[-1, 2]), "inertia": np.diag(hist[-1, 3:6]).tolist(),

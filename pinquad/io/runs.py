@@ -9,6 +9,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+REPORT_SCHEMA = "pinquad.report/1"
+"""The ``schema`` of every report.json (DESIGN 4.3)."""
+
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` whole or not at all, with the permissions an ordinary

@@ -169,8 +169,9 @@ def regressor_quadratics(post: Posterior, obs: Observations, gravity: float
 
 
 @njit(cache=True)
-def _physical(i_diag):
-    """identify._physical: positive and the triangle inequalities (2 I_i < sum I)."""
+def physical(i_diag):
+    """Whether a diagonal inertia (3,) [kg m^2] is physical: positive and satisfying the
+    triangle inequalities 2 I_i < I_xx + I_yy + I_zz (the Python M-step uses it too)."""
     total = i_diag[0] + i_diag[1] + i_diag[2]
     for i in range(3):
         if not (i_diag[i] > 0.0 and 2.0 * i_diag[i] < total):
@@ -289,12 +290,12 @@ def inertia_newton(mass, a_t, b_t, c_t, previous):
     current = np.empty(3)
     have = False
     best = np.inf
-    if _physical(prev):
+    if physical(prev):
         current[:] = prev
         best = _parts(mass, a_t, b_t, c_t, prev, grad, hess, False)
         have = True
     i_ls = np.empty(3)
-    if _solve3(a_sum, rhs, i_ls) and _physical(i_ls):
+    if _solve3(a_sum, rhs, i_ls) and physical(i_ls):
         q_ls = np.empty(3)
         _q_rows(mass, a_t, b_t, c_t, i_ls, q_ls)
         if q_ls[0] <= 1e-12 * c_t[0] and q_ls[1] <= 1e-12 * c_t[1] and q_ls[2] <= 1e-12 * c_t[2]:
@@ -328,7 +329,7 @@ def inertia_newton(mass, a_t, b_t, c_t, previous):
         while t > 1e-12:
             for i in range(3):
                 trial[i] = current[i] + t * step[i]
-            if _physical(trial):
+            if physical(trial):
                 v_new = _parts(mass, a_t, b_t, c_t, trial, grad, hess, False)
                 if v_new <= val + 1e-4 * t * slope:
                     accepted = True

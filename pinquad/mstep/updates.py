@@ -180,12 +180,6 @@ class MStepResult:
     wrench_var: Array
 
 
-def _physical(i_diag: Array) -> bool:
-    """Positive and satisfying the triangle inequalities (I_xx <= I_yy + I_zz, ...)."""
-    i = np.asarray(i_diag)
-    return bool(np.all(i > 0) and np.all(2.0 * i < i.sum()))
-
-
 def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array
                     ) -> Array:
     """Minimise J(I) = 1/2 sum_j log q_j(I) - sum_i log I_i over diagonal inertias.
@@ -214,7 +208,7 @@ def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: A
     candidates = [np.asarray(previous, dtype=float)]
     try:
         i_ls = np.linalg.solve(a_sum, rhs)
-        if _physical(i_ls):
+        if compiled.physical(np.asarray(i_ls, dtype=float)):
             pi_ls = np.concatenate([[mass], i_ls])
             q_ls = np.einsum("p,apq,q->a", pi_ls, a_t, pi_ls) - 2.0 * b_t @ pi_ls + c_t
             if np.all(q_ls <= 1e-12 * c_t):
@@ -222,7 +216,8 @@ def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: A
             candidates.append(i_ls)
     except np.linalg.LinAlgError:
         pass
-    candidates = [c for c in candidates if _physical(c)] or [np.full(3, np.mean(previous))]
+    candidates = ([c for c in candidates if compiled.physical(np.asarray(c, dtype=float))]
+                  or [np.full(3, np.mean(previous))])
     current = min(candidates, key=lambda c: parts(c)[0])
     val, grad, hess = parts(current)
     for _ in range(100):
@@ -235,7 +230,7 @@ def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: A
         t = 1.0
         while t > 1e-12:
             trial = current + t * step
-            if _physical(trial):
+            if compiled.physical(np.asarray(trial, dtype=float)):
                 v_new = parts(trial)[0]
                 if v_new <= val + 1e-4 * t * (grad @ step):
                     break
