@@ -1,1 +1,63 @@
-"""pinquad: EM identification of a quadcopter's mass and inertia."""
+"""pinquad: EM identification of a quadcopter's mass and inertia, and discovery of what the
+identified model still gets wrong.
+
+    import pinquad
+
+    log = pinquad.read_log("flight.csv")        # CSV, Parquet or Crazyflie micro-SD log
+    fit = pinquad.identify(log)                 # fit.mass [kg], fit.inertia (3, 3), fit.stderr
+    found = pinquad.discover(log, fit)          # found.selected, found.rms_before / rms_after
+
+The names below are loaded on first use (``import pinquad`` stays cheap for the command
+lines, whose entry modules live in this package too).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+_EXPORTS = {
+    "read_log": "pinquad.api",
+    "identify": "pinquad.api",
+    "discover": "pinquad.api",
+    "simulate": "pinquad.api",
+    "FlightLog": "pinquad.io.logs",
+    "LogFormatError": "pinquad.io.logs",
+    "Identification": "pinquad.identification.identify",
+    "Discovery": "pinquad.discovery.discover",
+    "DiscoveryConfig": "pinquad.discovery.discover",
+    "SimConfig": "pinquad.sim.simulator",
+    "Vehicle": "pinquad.core.params",
+    "VEHICLES": "pinquad.core.params",
+    "PAPER_VEHICLE": "pinquad.core.params",
+    "CRAZYFLIE21": "pinquad.core.params",
+    "PAPER_SCENARIO": "pinquad.core.params",
+}
+_RENAMED = {"Discovery": "DiscoveryResult"}
+
+__all__ = [
+    "CRAZYFLIE21", "PAPER_SCENARIO", "PAPER_VEHICLE", "VEHICLES", "Discovery", "DiscoveryConfig",
+    "FlightLog", "Identification", "LogFormatError", "SimConfig", "Vehicle", "discover",
+    "identify", "read_log", "simulate",
+]
+
+if TYPE_CHECKING:
+    from pinquad.api import discover, identify, read_log, simulate
+    from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO, PAPER_VEHICLE, VEHICLES, Vehicle
+    from pinquad.discovery.discover import DiscoveryConfig
+    from pinquad.discovery.discover import DiscoveryResult as Discovery
+    from pinquad.identification.identify import Identification
+    from pinquad.io.logs import FlightLog, LogFormatError
+    from pinquad.sim.simulator import SimConfig
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'pinquad' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), _RENAMED.get(name, name))
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

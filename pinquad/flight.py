@@ -1,9 +1,9 @@
 """``python -m pinquad.flight``: entry point; the command is
-``pinquad.experiments.flight.main``."""
+``pinquad.cli.flight.main``."""
 
 import sys
 
-from pinquad.experiments.flight import main
+from pinquad.cli.flight import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -1,9 +1,9 @@
 """``python -m pinquad.online``: entry point; the command is
-``pinquad.experiments.online.main``."""
+``pinquad.cli.online.main``."""
 
 import sys
 
-from pinquad.experiments.online import main
+from pinquad.cli.online import main
 
 if __name__ == "__main__":
     sys.exit(main())

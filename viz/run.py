@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.io.logs import LogFormatError, read_log
 from pinquad.io.runs import REPORT_SCHEMA
 
 Array = NDArray[np.float64]
@@ -201,8 +202,6 @@ def _read_report(run_dir: Path) -> dict[str, Any]:
 
 
 def _load_flight(run_dir: Path, name: str, entry: Any, warnings: list[str]) -> Flight | None:
-    from pinquad.io.logs import LogFormatError, read_log
-
     if isinstance(entry, str):
         entry = {"log": entry}
     if not isinstance(entry, dict) or not isinstance(entry.get("log"), str):

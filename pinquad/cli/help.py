@@ -16,3 +16,14 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         if action.default is None or action.default is False or "(default" in text:
             return text
         return super()._get_help_string(action)
+
+
+def positive_int(text: str) -> int:
+    """An argument that must be a whole number >= 1 (cycles, iterations, workers)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value

@@ -8,8 +8,8 @@ coefficient from ``pinquad.sim.effects``, and drag + wind together) and each see
    B, a 40 rad/s attitude-rate loop) with the effect injected into the true vehicle;
 2. write its log to CSV (the log does not mention the effect; ``true_*`` columns are
    never read by estimators) and read it back with ``pinquad.io.logs.read_log``;
-3. identify it exactly as ``python -m pinquad.offline --log`` does (``logmode``'s simulated
-   path, regressor M-step) and run discovery (``pinquad.experiments.logmode.run_discovery``);
+3. identify it exactly as ``python -m pinquad.offline --log`` does (``pinquad.experiments.recorded``,
+   regressor M-step) and run discovery (``recorded.run_discovery``);
 4. score: the names selected; the coefficients against the injected ones (relative
    error per coefficient, ``|c - c0| / |c0|``); mass and inertia after the refit against
    the truth; the held-out residual RMS per affected axis before and after.
@@ -155,7 +155,7 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
     """Simulate, write CSV, read back, identify and discover as ``offline --log`` does."""
     from pinquad.core.params import CRAZYFLIE21
     from pinquad.discovery.discover import base_heldout_rms
-    from pinquad.experiments.logmode import _simulated, run_discovery
+    from pinquad.experiments.recorded import LogOptions, identify_log, run_discovery
     from pinquad.io.logs import read_log, write_log
     from pinquad.sim import effects
 
@@ -164,15 +164,15 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
     log, flight = simulate_log(injected, seed, laps)
     path = write_log(log, workdir / f"{condition}-{seed}.csv")
     back = read_log(path)
-    args = argparse.Namespace(sensor=None, mstep="regressor", estep="rts", max_iterations=100,
-                              no_information=True)
-    result = _simulated(back, args)
+    options = LogOptions(msteps=("regressor",), estep="rts", max_iterations=100,
+                         information=False)
+    result = identify_log(back, options)
     figs = workdir / f"figs-{condition}-{seed}"
     section = run_discovery(result, figs)
     truth = np.r_[CRAZYFLIE21.mass, np.diag(CRAZYFLIE21.inertia)]
     refit = section.get("refit", {})
     main = result.runs[0]
-    base = np.r_[main.mass, main.inertia]
+    base = np.r_[main.mass, np.diag(main.inertia)]
     est = (np.r_[refit["mass"], np.diag(np.asarray(refit["inertia"]))] if section["selected"]
            else base)
     coef_err: dict[str, float] = {}
@@ -190,11 +190,11 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
     if injected:
         twin_log, _ = simulate_log((), seed, laps)
         twin_back = read_log(write_log(twin_log, workdir / f"twin-{condition}-{seed}.csv"))
-        twin_result = _simulated(twin_back, args)
+        twin_result = identify_log(twin_back, options)
         twin_run = twin_result.runs[0]
-        twin = np.r_[twin_run.mass, twin_run.inertia] / truth - 1.0
-        twin_rms = base_heldout_rms(twin_result.disc_obs, twin_result.disc_theta,
-                                    twin_result.disc_posterior)
+        twin = np.r_[twin_run.mass, np.diag(twin_run.inertia)] / truth - 1.0
+        start = twin_result.discovery_start
+        twin_rms = base_heldout_rms(start.obs, start.theta, start.posterior)
     return CaseResult(condition, seed, tuple(s["effect"] for s in section["selected"]), coef_err,
                       coefs, est / truth - 1.0, base / truth - 1.0,
                       section["residual_rms_before"], section["residual_rms_after"],

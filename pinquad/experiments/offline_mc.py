@@ -7,11 +7,15 @@ EM from the paper's initial guess with each requested M-step on that same log, a
 
 from __future__ import annotations
 
+import sys
 import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from tqdm import tqdm
 
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, VEHICLES
 from pinquad.identification.identify import Identification, identify
@@ -92,3 +96,23 @@ def run_cycle(job: CycleJob) -> CycleResult:
         smoothed=smoothed if job.keep_log else None, seconds=time.perf_counter() - t0,
         excluded={"contact_transitions": int(obs.exclude.sum())},
     )
+
+
+def run_cycles(jobs: Sequence[CycleJob], workers: int = 1, progress: bool = True
+               ) -> list[CycleResult]:
+    """Every job's cycle, in job order, on ``workers`` processes (1: in this process), with
+    a progress bar on stderr unless ``progress`` is False."""
+    bar = tqdm(total=len(jobs), desc="cycles", unit="cycle", file=sys.stderr,
+               disable=not progress)
+    results: list[CycleResult] = []
+    with bar:
+        if workers > 1:
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                for res in pool.map(run_cycle, jobs):
+                    results.append(res)
+                    bar.update()
+        else:
+            for job in jobs:
+                results.append(run_cycle(job))
+                bar.update()
+    return results

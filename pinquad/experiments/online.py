@@ -1,4 +1,4 @@
-"""``python -m pinquad.online``: online EM in the closed loop (the paper's online scheme).
+"""Online EM in the closed loop (the paper's online scheme; ``python -m pinquad.online``).
 
 During the flight, every ``every`` control steps (4), EM runs on the latest ``window``
 (800) airborne observations and hands the new mass and inertia to the LQG controller
@@ -33,13 +33,9 @@ offline one).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import os
-import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -47,14 +43,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.cli.common import memory_arg, memory_label
-from pinquad.cli.help import HelpFormatter
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
+from pinquad.estep.fast_smoother import posterior_arrays, smooth_quad
 from pinquad.experiments.offline_mc import SENSOR_INDEX
 from pinquad.identification.em import initial_theta
 from pinquad.identification.identify import get_smoother
 from pinquad.identification.window import window_em, window_prior
-from pinquad.io.runs import REPORT_SCHEMA
 from pinquad.models.sources import SOURCE_CHANNELS
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.stats import QuadraticSums
@@ -123,10 +117,6 @@ class OnlineEstimator:
 
     def _smooth(self, model: QuadSSM, ys: Array) -> Posterior:
         """The E-step, into the posterior arrays of this update's turn when compiled."""
-        try:
-            from pinquad.estep.fast_smoother import posterior_arrays, smooth_quad
-        except ImportError:  # the compiled path is optional
-            return self._smoother(model, ys)
         if self._smoother is not smooth_quad:
             return self._smoother(model, ys)
         out = self._out[self._turn]
@@ -247,86 +237,6 @@ def measure_update_latency(n_updates: int = 200, window: int = 800) -> Array:
     return np.asarray(est.latencies[5:])
 
 
-def main(argv: list[str] | None = None) -> int:
-    from pinquad.core import paper_results as paper
-
-    p = argparse.ArgumentParser(prog="python -m pinquad.online",
-                                description="Online EM in the closed loop (paper's online "
-                                "experiment): sliding window, estimates fed to the controller.",
-                                formatter_class=HelpFormatter)
-    p.add_argument("--sensor", choices=["A", "B", "C"], action="append",
-                   help="observation source(s) (default: A, B and C)")
-    p.add_argument("--cycles", type=int, default=20, help="seeded cycles per sensor")
-    p.add_argument("--seed", type=int, default=0, help="base seed")
-    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
-    p.add_argument("--out", type=Path, help="output run directory (default runs/online-<time>)")
-    p.add_argument("--log", type=Path, help="replay a recorded log through the online "
-                   "estimator as a stream (no controller feedback)")
-    p.add_argument("--offline-report", type=Path,
-                   help="an offline report.json whose ranges the online ranges are compared with "
-                   "(default: the newest runs/offline-*/report.json, if any)")
-    p.add_argument("--memory", type=memory_arg, default=math.inf, metavar="SECONDS",
-                   help="time constant [s] with which the M-step forgets samples that left "
-                        "the window; inf keeps them all (incremental EM), none uses the "
-                        "window alone (the paper's scheme)")
-    p.add_argument("--view", action="store_true", help="open the browser view of the run")
-    args = p.parse_args(argv)
-    if args.log is not None:
-        from pinquad.experiments.online_replay import replay
-
-        return replay(args)
-    if args.cycles < 1:
-        print("error: --cycles must be at least 1", file=sys.stderr)
-        return 2
-    from tqdm import tqdm
-
-    from pinquad.io.runs import RunWriter, atomic_write_json, new_run_dir
-
-    offline_path = args.offline_report or newest_offline_report()
-    offline = None
-    if offline_path is not None:
-        try:
-            offline = offline_ranges(offline_path)
-        except ValueError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-    sensors = args.sensor or ["A", "B", "C"]
-    jobs = [(s, i, args.seed, args.memory) for s in sensors for i in range(args.cycles)]
-    out_dir = args.out or new_run_dir("online")
-    writer = RunWriter(out_dir)
-    t0 = time.perf_counter()
-    try:
-        with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            results = list(tqdm(pool.map(run_online_cycle, jobs), total=len(jobs),
-                                desc="online cycles", file=sys.stderr))
-        elapsed = time.perf_counter() - t0
-        truth = np.array([PAPER_VEHICLE.mass, *PAPER_VEHICLE.inertia_diag])
-        text, stats = online_tables(results, truth, paper, offline)
-        text += ("\n\nOffline ranges from " + str(offline_path) if offline is not None else
-                 "\n\nNo offline report to compare with (run python -m pinquad.offline first, "
-                 "or pass --offline-report)")
-        print(text)
-        print(f"\n{len(results)} closed-loop flights, seeds "
-              f"{min(r.seed for r in results)}..{max(r.seed for r in results)}; {elapsed:.1f} s; "
-              f"M-step memory: {memory_label(args.memory)}")
-        report = online_report(results, truth, stats, args, elapsed)
-        atomic_write_json(writer.path("report.json"), report)
-        writer.path("report.md").write_text("# pinquad online experiment\n\n" + text + "\n")
-        _online_figures(results, truth, writer.path("figures"))
-        report["run_logs"] = _write_logs(results, writer)
-        atomic_write_json(writer.path("report.json"), report)
-        final = writer.publish()
-    except BaseException:
-        writer.abort()
-        raise
-    print(f"run written to {final}")
-    if args.view:
-        from viz.__main__ import main as viz_main
-
-        return viz_main([str(final)])
-    return 0
-
-
 def converged_estimate(history: Array) -> Array:
     """Median of the last 10 % of updates (4,): m, Ixx, Iyy, Izz."""
     h = history[:, 2:6]
@@ -372,184 +282,3 @@ def newest_offline_report(root: Path = Path("runs")) -> Path | None:
     found = sorted(root.glob("offline-*/report.json"), key=lambda q: q.stat().st_mtime)
     return found[-1] if found else None
 
-
-def online_tables(results: list[OnlineCycle], truth: Array, paper,
-                  offline: dict[str, Array] | None = None) -> tuple[str, dict]:
-    """The paper's online tables (converged ranges) beside the paper's and, when given,
-    our offline ranges (per sensor (2, 4) [min; max]) with the width ratio online/offline."""
-    sensors = sorted({r.sensor for r in results})
-    lines = ["Online estimated mass [kg] and inertia [kg m^2]: converged range over cycles "
-             "(median of the last 10 % of updates)", "",
-             "| source | | mass | I_xx | I_yy | I_zz |", "|---|---|---|---|---|---|",
-             f"| Real value | | {truth[0]} | {truth[1]:.4g} | {truth[2]:.4g} | {truth[3]:.4g} |"]
-    stats: dict = {}
-    for s in sensors:
-        rs = [r for r in results if r.sensor == s]
-        conv = np.array([converged_estimate(r.history) for r in rs])
-        lo, hi = conv.min(axis=0), conv.max(axis=0)
-        pm, pi = paper.ONLINE_MASS[s], paper.ONLINE_INERTIA[s]
-        lines.append(f"| {paper.SOURCE_LABELS[s]} | paper | ({pm[0]}, {pm[1]}) | "
-                     + " | ".join(f"({a:.3g}, {b:.3g})" for a, b in pi) + " |")
-        lines.append("| | ours | " + " | ".join(f"({lo[i]:.5g}, {hi[i]:.5g})" for i in range(4))
-                     + " |")
-        width_ratio = None
-        if offline is not None and s in offline:
-            off = offline[s]
-            lines.append("| | ours offline | " + " | ".join(
-                f"({off[0, i]:.5g}, {off[1, i]:.5g})" for i in range(4)) + " |")
-            width_ratio = (hi - lo) / np.maximum(off[1] - off[0], 1e-300)
-            lines.append("| | width online / offline | " + " | ".join(
-                f"{w:.2f}" for w in width_ratio) + " |")
-        rel = np.abs(conv / truth - 1.0)
-        ttc = np.array([time_to_converge(r.history, truth) for r in rs])
-        lat = np.concatenate([r.latencies for r in rs]) if rs else np.zeros(0)
-        stats[s] = {
-            "range": [lo.tolist(), hi.tolist()],
-            "max_rel_err": rel.max(axis=0).tolist(),
-            "mass_within_0.5pct": int(np.sum(rel[:, 0] <= 0.005)),
-            "inertia_within_5pct": int(np.sum(np.all(rel[:, 1:] <= 0.05, axis=1))),
-            "cycles": len(rs),
-            "range_width_over_offline": None if width_ratio is None else width_ratio.tolist(),
-            "time_to_converge_s": {"median": float(np.nanmedian(ttc)) if np.isfinite(ttc).any()
-                                   else None, "max": float(np.nanmax(ttc))
-                                   if np.isfinite(ttc).any() else None,
-                                   "never": int(np.sum(~np.isfinite(ttc)))},
-            "worst_waypoint_miss_m": float(max(r.miss.max() for r in rs)),
-            "crashes": int(sum(r.crashed for r in rs)),
-            "lifted_off": int(sum(r.lifted_off for r in rs)),
-            "max_height_m": float(max(r.max_z for r in rs)),
-            "update_ms": {"p50": float(np.percentile(lat, 50) * 1e3),
-                          "p99": float(np.percentile(lat, 99) * 1e3)} if lat.size else None,
-            "realtime_factor": float(np.median([r.wall_s / r.flight_s for r in rs])),
-        }
-    lines += ["", "| source | mass within 0.5 % | inertia within 5 % | worst waypoint miss [m] | "
-              "crashes | lifted off | time to converge [s] median (max, never) | "
-              "update p50 / p99 [ms] | wall / flight time |", "|---|---|---|---|---|---|---|---|---|"]
-    for s, st in stats.items():
-        ttc = st["time_to_converge_s"]
-        upd = st["update_ms"] or {"p50": float("nan"), "p99": float("nan")}
-        lines.append(
-            f"| {s} | {st['mass_within_0.5pct']}/{st['cycles']} | "
-            f"{st['inertia_within_5pct']}/{st['cycles']} | {st['worst_waypoint_miss_m']:.3f} | "
-            f"{st['crashes']} | {st['lifted_off']}/{st['cycles']} | "
-            f"{_seconds(ttc['median'])} ({_seconds(ttc['max'])}, {ttc['never']}) | {upd['p50']:.1f} / "
-            f"{upd['p99']:.1f} | {st['realtime_factor']:.2f} |")
-    return "\n".join(lines), stats
-
-
-def _seconds(value: float | None) -> str:
-    return "-" if value is None else f"{value:.1f}"
-
-
-def online_report(results: list[OnlineCycle], truth: Array, stats: dict,
-                  args: argparse.Namespace, elapsed: float) -> dict:
-    from pinquad.core.params import PAPER_SCENARIO
-
-    cycles = []
-    for r in results:
-        conv = converged_estimate(r.history)
-        cycles.append({
-            "sensor": r.sensor, "seed": r.seed, "mstep": "regressor",
-            "truth": {"mass": float(truth[0]), "inertia": np.diag(truth[1:]).tolist()},
-            "estimates": {"mass": float(conv[0]), "inertia": np.diag(conv[1:]).tolist(),
-                          "com": None},
-            "history": {"t": r.history[:, 1].tolist(), "mass": r.history[:, 2].tolist(),
-                        "inertia_diag": r.history[:, 3:6].tolist()},
-            "flight": {"max_miss_m": float(r.miss.max()), "crashed": r.crashed,
-                       "lifted_off": r.lifted_off, "liftoff_step": r.liftoff,
-                       "max_height_m": r.max_z},
-            "update_ms": {"p50": float(np.percentile(r.latencies, 50) * 1e3),
-                          "p99": float(np.percentile(r.latencies, 99) * 1e3)},
-            "excluded": {"ground_samples": r.liftoff,
-                         "why": "samples before lift-off (on the floor) never enter the window"},
-        })
-    first = cycles[0]
-    return {
-        "schema": REPORT_SCHEMA,
-        "source": {"kind": "simulation", "path": None, "sensor": "".join(sorted(stats)),
-                   "estep": "rts", "mode": "online", "vehicle": "paper",
-                   "window": OnlineConfig().window, "every": OnlineConfig().every,
-                   "memory": memory_label(args.memory)},
-        "estimates": first["estimates"], "truth": first["truth"],
-        "em": {"iterations": OnlineConfig().iterations, "loglik": [], "converged": True},
-        "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
-                      "validation": "not run in the online experiment"},
-        "cycles": cycles, "statistics": stats,
-        "scenario": {"start": PAPER_SCENARIO.start.tolist(),
-                     "waypoints": PAPER_SCENARIO.waypoints.tolist()},
-        "seconds": elapsed,
-    }
-
-
-def _write_logs(results: list[OnlineCycle], writer) -> dict:
-    """The first cycle's log per sensor, and the onboard estimate as its 'smoothed'
-    track (an online run has no whole-flight smoother); its flown trajectory as a
-    figure."""
-    from pinquad.core.params import PAPER_SCENARIO
-    from pinquad.io.logs import write_log
-    from pinquad.report.offline import plot_trajectory
-
-    out = {}
-    for r in results:
-        if r.log is None:
-            continue
-        name = f"sensor{r.sensor}-cycle00"
-        logs_dir = writer.path("logs")
-        logs_dir.mkdir(exist_ok=True)
-        write_log(r.log, logs_dir / f"{name}.parquet")
-        np.save(logs_dir / f"{name}-smoothed.npy", r.log.onboard)
-        plot_trajectory(r.log, PAPER_SCENARIO.waypoints,
-                        writer.path("figures") / f"trajectory_{r.sensor}.png", r.log.onboard,
-                        "onboard filter estimate")
-        out[r.sensor] = {"log": f"logs/{name}.parquet", "smoothed": f"logs/{name}-smoothed.npy"}
-    return out
-
-
-def _online_figures(results: list[OnlineCycle], truth: Array, figs: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    figs.mkdir(parents=True, exist_ok=True)
-    sensors = sorted({r.sensor for r in results})
-    names = ["mass [kg]", "I_xx [kg m^2]", "I_yy [kg m^2]", "I_zz [kg m^2]"]
-    fig, axes = plt.subplots(len(sensors), 4, figsize=(16, 3.2 * len(sensors)), squeeze=False)
-    for i, s in enumerate(sensors):
-        for r in (r for r in results if r.sensor == s):
-            for j in range(4):
-                axes[i, j].plot(np.arange(r.history.shape[0]), r.history[:, 2 + j], "--",
-                                lw=0.7, alpha=0.7)
-        for j in range(4):
-            axes[i, j].axhline(truth[j], color="red", lw=1.5)
-            axes[i, j].set_yscale("log")
-            axes[i, j].set_title(f"sensor {s}: {names[j]}")
-            axes[i, j].set_xlabel("online update")
-    fig.tight_layout()
-    fig.savefig(figs / "online_history.png", dpi=90)
-    plt.close(fig)
-
-    # The same histories as errors, zoomed to the acceptance bands: the start (m0 = 1 g,
-    # 99 % off) would otherwise hide the converged part.
-    bands = [0.5, 5.0, 5.0, 5.0]
-    fig, axes = plt.subplots(len(sensors), 4, figsize=(16, 3.2 * len(sensors)), squeeze=False)
-    for i, s in enumerate(sensors):
-        for r in (r for r in results if r.sensor == s):
-            err = 100.0 * (r.history[:, 2:6] / truth - 1.0)
-            for j in range(4):
-                axes[i, j].plot(np.arange(err.shape[0]), err[:, j], lw=0.7, alpha=0.7)
-        for j in range(4):
-            ax = axes[i, j]
-            ax.axhline(0.0, color="red", lw=1.5)
-            for sign in (-1.0, 1.0):
-                ax.axhline(sign * bands[j], color="black", ls=":", lw=1.0)
-            ax.set_ylim(-2.0 * bands[j], 2.0 * bands[j])
-            ax.set_title(f"sensor {s}: {names[j].split(' [')[0]} error [%] (band +-{bands[j]:g})")
-            ax.set_xlabel("online update")
-    fig.tight_layout()
-    fig.savefig(figs / "online_error.png", dpi=90)
-    plt.close(fig)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

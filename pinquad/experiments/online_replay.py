@@ -1,13 +1,11 @@
-"""``python -m pinquad.online --log PATH``: a recorded log replayed through the online
-estimator as a stream (no controller feedback): every ``every`` samples, EM
+"""A recorded log replayed through the online estimator as a stream (``python -m
+pinquad.online --log PATH``; no controller feedback): every ``every`` samples, EM
 (warm-started, one iteration) on the latest ``window`` samples, as in flight.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time
 from dataclasses import replace
 
@@ -15,12 +13,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.cli.common import memory_label
-from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
 from pinquad.identification.em import initial_theta
 from pinquad.identification.identify import get_smoother
 from pinquad.identification.window import window_em, window_prior
-from pinquad.io.logs import LogFormatError
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.updates import regressor_mstep, remember_leaving
 
@@ -105,73 +100,3 @@ def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
     return np.asarray(rows), np.asarray(lat)
 
 
-def replay(args: argparse.Namespace) -> int:
-    from pinquad.io.logs import read_log
-    from pinquad.models.sources import observations
-
-    try:
-        path = args.log
-        from pinquad.io.sdlog import is_sdlog
-
-        if path.exists() and path.is_file() and is_sdlog(path):
-            from pinquad.io.sdlog import read_sdflight
-            from pinquad.realdata.flights import build_observations, default_guess, raw_from_sdflight
-
-            real = build_observations(raw_from_sdflight(read_sdflight(path)))
-            obs, gravity, rotor_acc = real.obs, real.log.meta.gravity, real.rotor_acc
-            mass0, inertia0, _ = default_guess("crazyflie21")
-        else:
-            rotor_acc = None
-            log = read_log(path)
-            sensor = (args.sensor or ["B" if not np.isnan(log.euler).all() else "C"])[0]
-            obs = observations(log, sensor)
-            gravity = log.meta.gravity
-            mass0 = log.meta.mass_guess or PAPER_INITIAL_MASS
-            inertia0 = (log.meta.inertia_guess if log.meta.inertia_guess is not None
-                        else PAPER_INITIAL_INERTIA)
-    except (LogFormatError, ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    hist, lat = stream_em(obs, mass0, inertia0, gravity, memory_s=args.memory,
-                          rotor_acc=rotor_acc)
-    if hist.size == 0:
-        print(f"error: {args.log}: too short to replay (fewer than 50 samples)", file=sys.stderr)
-        return 2
-    memory = memory_label(args.memory)
-    mstep = "regressor"
-    if rotor_acc is not None:
-        mstep = "measured-flight (realdata.RealMStep)"
-        if args.memory is not None:
-            memory = f"mass: {memory}; inertia: each window's band-passed fit alone"
-    print(f"replayed {obs.n} samples of {args.log} in {hist.shape[0]} updates "
-          f"(window 800, every 4, {mstep} M-step, memory: {memory}); "
-          f"update p50 {1e3 * np.median(lat):.1f} ms, p99 {1e3 * np.percentile(lat, 99):.1f} ms")
-    print("| t [s] | mass [kg] | I_xx | I_yy | I_zz |\n|---|---|---|---|---|")
-    for i in np.unique(np.linspace(0, hist.shape[0] - 1, 12).astype(int)):
-        r = hist[i]
-        print(f"| {r[1]:.2f} | {r[2]:.5g} | {r[3]:.4g} | {r[4]:.4g} | {r[5]:.4g} |")
-    if args.out:
-        from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
-
-        writer = RunWriter(args.out)
-        try:
-            atomic_write_json(writer.path("report.json"), {
-                "schema": REPORT_SCHEMA,
-                "source": {"kind": "log", "path": str(args.log), "mode": "online-replay",
-                           "estep": "rts", "mstep": mstep, "memory": memory},
-                "estimates": {"mass": float(hist[-1, 2]), "inertia": np.diag(hist[-1, 3:6]).tolist(),
-                              "com": None},
-                "em": {"iterations": int(hist.shape[0]), "loglik": [], "converged": False},
-                "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
-                              "validation": "not run in replay"},
-                "cycles": [{"sensor": "log", "mstep": mstep, "seed": None,
-                            "estimates": {"mass": float(hist[-1, 2]),
-                                          "inertia": np.diag(hist[-1, 3:6]).tolist()},
-                            "history": {"t": hist[:, 1].tolist(), "mass": hist[:, 2].tolist(),
-                                        "inertia_diag": hist[:, 3:6].tolist()}}],
-            })
-            writer.publish()
-        except BaseException:
-            writer.abort()
-            raise
-    return 0

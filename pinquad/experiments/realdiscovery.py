@@ -68,7 +68,7 @@ class FlightFit:
 def fit_flight(path: Path, max_iterations: int = 60) -> FlightFit:
     """Base identification (``realdata.identify_real``) and discovery of one log."""
     from pinquad.discovery.discover import DiscoveryConfig, discover
-    from pinquad.experiments.logmode import _plain_theta
+    from pinquad.experiments.recorded import plain_theta
     from pinquad.io.sdlog import read_sdflight
     from pinquad.realdata.flights import (
         build_observations,
@@ -83,7 +83,7 @@ def fit_flight(path: Path, max_iterations: int = 60) -> FlightFit:
     mass0, inertia0, _ = default_guess("crazyflie21")
     ident, post, theta = identify_real(real, mass0, inertia0, max_iterations, False, name=path.name)
     obs = corrected(real.obs, theta)
-    plain = _plain_theta(theta)
+    plain = plain_theta(theta)
     out = discover(obs, plain, post, cfg=DiscoveryConfig(refit_em=False))
     speed = np.linalg.norm(post.mean[:, 3:6], axis=1)
     flying = post.mean[:, 2] > 0.03

@@ -43,6 +43,7 @@ from scipy.optimize import minimize
 
 from estimators.protocol import Posterior
 from pinquad.core.conventions import rotation_from_euler, skew
+from pinquad.estep.fast_smoother import loglik_quad
 from pinquad.identification.em import run_em
 from pinquad.models.full import (
     FullQuadSSM,
@@ -310,7 +311,8 @@ class FullIdentification:
     """EM over all ten parameters: theta (mass, com, inertia about the CoM, noise);
     stderr_mass [kg], stderr_com (3,) [m], stderr_inertia (3, 3) [kg m^2] (observed
     information, ``standard_errors``; NaN when not computed); posterior; loglik (I,);
-    converged; e_steps; failure (``EMResult.failure``)."""
+    converged; e_steps; failure (``EMResult.failure``); start: the parameters EM started
+    from."""
 
     theta: Theta
     stderr_mass: float
@@ -321,6 +323,7 @@ class FullIdentification:
     converged: bool
     e_steps: int
     failure: str | None = None
+    start: Theta | None = None
 
     @property
     def mass(self) -> float:
@@ -346,8 +349,6 @@ def _loglik_at(pi: Array, obs: Observations, theta: Theta, loglik: Callable | No
     """log p(y | pi) of the EKF (or ``loglik``) on FullQuadSSM with the ten parameters pi
     and theta's noise. The EKF is the compiled one (``fast_smoother.loglik_quad``, which
     falls back to the generic filter where its kernels do not reproduce the model)."""
-    from pinquad.estep.fast_smoother import loglik_quad
-
     mass, com, inertia = from_dynamic_parameters(pi)
     model = FullQuadSSM(obs, Theta(mass, inertia, theta.noise, theta.gravity, com))
     return (loglik or loglik_quad)(model, obs.ys)
@@ -422,4 +423,4 @@ def identify_full(obs: Observations, start: Theta, smoother: Callable, max_itera
     se_m, se_c, se_i = (standard_errors(obs, res.theta)[:3] if information
                         else (math.nan, np.full(3, math.nan), np.full((3, 3), math.nan)))
     return FullIdentification(res.theta, se_m, se_c, se_i, res.posterior, res.loglik,
-                              res.converged, res.e_steps, res.failure)
+                              res.converged, res.e_steps, res.failure, start=start)

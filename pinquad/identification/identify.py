@@ -4,14 +4,17 @@ the observed information (and the information at the truth, when a simulation gi
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from estimators.iterated import smooth as iterated_smooth
 from estimators.protocol import Posterior
+from pinquad.estep.fast_smoother import loglik_quad, smooth_quad
 from pinquad.identification.em import EMResult, Smoother, initial_theta, run_em
 from pinquad.identification.fisher import observed_information, standard_errors
+from pinquad.identification.full_inertia import FullIdentification
 from pinquad.models.ssm import Observations, Theta
 from pinquad.mstep.updates import paper_mstep, regressor_mstep
 
@@ -23,52 +26,47 @@ ESTEPS = ("rts", "ieks", "gtsam")
 
 
 def get_smoother(estep: str) -> Smoother:
-    """The E-step smoother by name: ``rts`` (compiled fast path when available),
-    ``ieks`` (EKF + RTS iterated to the MAP trajectory, ``estimators.iterated``) or
-    ``gtsam`` (factor-graph batch smoother, the same MAP by GTSAM)."""
+    """The E-step smoother by name: ``rts`` (the compiled EKF + RTS; other models than
+    the kernels know go to the generic one), ``ieks`` (EKF + RTS iterated to the MAP
+    trajectory, ``estimators.iterated``) or ``gtsam`` (factor-graph batch smoother, the
+    same MAP by GTSAM)."""
     if estep == "gtsam":
-        from estimators.factor_graph import smooth as gtsam_smooth
+        from estimators.factor_graph import smooth as gtsam_smooth  # GTSAM only when asked for
 
         return gtsam_smooth
     if estep == "ieks":
-        from estimators.iterated import smooth as iterated_smooth
-
         return iterated_smooth
     if estep != "rts":
         raise ValueError(f"unknown E-step {estep!r}; expected {', '.join(ESTEPS)}")
-    try:
-        from pinquad.estep.fast_smoother import smooth_quad
-
-        return smooth_quad
-    except ImportError:  # the compiled path is optional
-        from estimators.rts import smooth
-
-        return smooth
+    return smooth_quad
 
 
 def loglik_function(estep: str):
-    """log p(y | theta) for information computations (always the EKF's): the compiled
-    forward pass (``fast_smoother.loglik_quad``) when available, else the generic EKF."""
-    try:
-        from pinquad.estep.fast_smoother import loglik_quad
-
-        return loglik_quad
-    except ImportError:  # the compiled path is optional
-        from pinquad.identification.fisher import ekf_loglik
-
-        return ekf_loglik
+    """log p(y | theta) for information computations (always the EKF's, whatever
+    ``estep``): the compiled forward pass (``fast_smoother.loglik_quad``)."""
+    return loglik_quad
 
 
 @dataclass(frozen=True)
 class Identification:
-    """One EM run's outcome on one log.
+    """One identification of a vehicle's mass and inertia from one flight: the result
+    every path returns (the paper's Monte Carlo, a recorded log, the Python API).
 
-    estimates: mass [kg] and inertia (3, 3) [kg m^2]; stderr (4,) standard errors of
-    [m, Ixx, Iyy, Izz] from the observed information (NaN if not computed);
-    history_mass (I+1,), history_inertia (I+1, 3): after each EM iteration;
-    loglik (I,); converged; decreases; info_truth (4, 4) observed information at the
-    true parameters (simulation only, else None); failure: why EM stopped early, if it
-    did (``EMResult.failure``).
+    mstep: ``regressor``, ``paper`` or ``full``; sensor: the observation source (A/B/C)
+    or the measured log's channel list; mass [kg]; inertia (3, 3) [kg m^2] about the CoM
+    (diagonal unless ``mstep == "full"``); stderr (4,): standard errors of [m, I_xx,
+    I_yy, I_zz] (NaN where not computed); history_mass (I+1,), history_inertia (I+1, 3):
+    after each EM iteration; loglik (I,); converged; decreases: iterations where the
+    log-likelihood fell; seconds: wall time; info_truth (4, 4): observed information at
+    the true parameters (simulation only, else None); theta: the final parameters with
+    their noise model; failure: why EM stopped early, if it did; e_steps: E-steps run
+    (None: one per iteration); notes: how the run was set up, in words; posterior: the
+    smoothed states at the estimate and observations: what its E-step saw (None when not
+    kept); full: the ten-parameter fit
+    (CoM and full tensor with their standard errors) when ``mstep == "full"``;
+    measured: the measured-flight fit (kf, jackknife, nuisance moment, model-free mass:
+    a ``pinquad.realdata`` RealIdentification, a layer above this one) when the flight
+    is a rotor-speed log.
     """
 
     mstep: str
@@ -79,11 +77,39 @@ class Identification:
     history_inertia: Array
     loglik: Array
     converged: bool
-    decreases: tuple[int, ...]
-    seconds: float
+    decreases: tuple[int, ...] = ()
+    seconds: float = 0.0
     info_truth: Array | None = None
-    noise: Theta | None = None
+    theta: Theta | None = None
     failure: str | None = None
+    sensor: str = ""
+    e_steps: int | None = None
+    notes: tuple[str, ...] = ()
+    posterior: Posterior | None = field(default=None, repr=False, compare=False)
+    observations: Observations | None = field(default=None, repr=False, compare=False)
+    full: FullIdentification | None = field(default=None, repr=False)
+    measured: object | None = field(default=None, repr=False)
+
+    @property
+    def iterations(self) -> int:
+        """EM iterations run (M-steps)."""
+        return int(self.loglik.size)
+
+    @property
+    def inertia_diag(self) -> Array:
+        """[I_xx, I_yy, I_zz] (3,) [kg m^2]."""
+        return np.diag(self.inertia).copy()
+
+    @property
+    def com(self) -> Array | None:
+        """The identified centre of mass (3,) [m] from the thrust centre, None unless the
+        ten-parameter model was fitted."""
+        return None if self.full is None else np.asarray(self.full.com)
+
+    @property
+    def noise(self) -> Theta | None:
+        """The final parameters (``theta``; the name older callers use)."""
+        return self.theta
 
 
 def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, estep: str,
@@ -106,7 +132,7 @@ def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, e
         mstep=mstep, mass=res.theta.mass, inertia=np.asarray(res.theta.inertia),
         stderr=stderr, history_mass=res.mass, history_inertia=res.inertia_diag,
         loglik=res.loglik, converged=res.converged, decreases=res.decreases,
-        seconds=time.perf_counter() - t0, info_truth=info_truth, noise=res.theta,
+        seconds=time.perf_counter() - t0, info_truth=info_truth, theta=res.theta,
         failure=res.failure,
     )
     return out, res.posterior

@@ -10,12 +10,15 @@ yaw``; ``gyro_*`` [rad/s, body]; ``acc_*`` [m/s^2, body specific force]; actuati
 
 from __future__ import annotations
 
+import io
 import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import (
@@ -24,6 +27,7 @@ from pinquad.core.conventions import (
     euler_from_quat_wxyz,
     quat_wxyz_from_euler,
 )
+from pinquad.io.runs import atomic_write_bytes
 
 Array = NDArray[np.float64]
 
@@ -52,6 +56,34 @@ class LogMeta:
 
 
 @dataclass(frozen=True)
+class MeasuredSamples:
+    """What a measured log carries beyond its rows (a Crazyflie micro-SD log).
+
+    pose_t (P,) [s, log clock], pose_position (P, 3) [m, world], pose_euler (P, 3) roll,
+    pitch, yaw [rad]: motion-capture poses at their own times (None: no pose stream;
+    euler NaN where the quaternion was missing or not unit); pwm (N, 4) [0..65535]:
+    motor commands per row, or None; onboard_position (N, 3) [m]: the vehicle's own
+    position estimate per row, or None.
+    """
+
+    pose_t: Array | None = None
+    pose_position: Array | None = None
+    pose_euler: Array | None = None
+    pwm: Array | None = None
+    onboard_position: Array | None = None
+
+    def rows(self, start: int, stop: int, t_first: float, t_last: float) -> MeasuredSamples:
+        """Rows start..stop-1, and the poses with t_first <= t <= t_last."""
+        def cut(a: Array | None) -> Array | None:
+            return None if a is None else a[start:stop]
+        if self.pose_t is None:
+            return replace(self, pwm=cut(self.pwm), onboard_position=cut(self.onboard_position))
+        keep = (self.pose_t >= t_first) & (self.pose_t <= t_last)
+        return MeasuredSamples(self.pose_t[keep], self.pose_position[keep],
+                               self.pose_euler[keep], cut(self.pwm), cut(self.onboard_position))
+
+
+@dataclass(frozen=True)
 class FlightLog:
     """One flight, one row per time sample (N rows).
 
@@ -65,6 +97,8 @@ class FlightLog:
     truth (N, 12) or None: simulator state [p, v, Theta, omega], for scoring only.
     onboard (N, 12) or None: the vehicle's own state estimate (columns ``est_*``), the
     one its controller used.
+    measured: what a measured log carries beyond its rows (raw motion-capture poses,
+    motor commands), or None.
     """
 
     t: Array
@@ -81,6 +115,7 @@ class FlightLog:
     truth: Array | None = None
     onboard: Array | None = None
     meta: LogMeta = field(default_factory=LogMeta)
+    measured: MeasuredSamples | None = None
 
     @property
     def n(self) -> int:
@@ -102,6 +137,8 @@ class FlightLog:
             thrust=cut(self.thrust), torque=cut(self.torque), rpm=cut(self.rpm),
             vbat=cut(self.vbat), contact=cut(self.contact), truth=cut(self.truth),
             onboard=cut(self.onboard),
+            measured=None if self.measured is None else self.measured.rows(
+                start, stop, float(self.t[start]), float(self.t[stop - 1])),
         )
 
 
@@ -169,17 +206,10 @@ def sidecar(meta: LogMeta) -> dict:
 
 def write_log(log: FlightLog, path: str | Path) -> Path:
     """Write the log as CSV or Parquet (by suffix) plus its JSON sidecar, atomically."""
-    from pinquad.io.runs import atomic_write_bytes
-
     path = Path(path)
     cols = log_columns(log)
     suffix = path.suffix.lower()
     if suffix == ".parquet":
-        import io
-
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
         buf = io.BytesIO()
         pq.write_table(pa.table({k: np.asarray(v, dtype=float) for k, v in cols.items()}), buf)
         atomic_write_bytes(path, buf.getvalue())
@@ -201,8 +231,6 @@ def write_log(log: FlightLog, path: str | Path) -> Path:
 def _read_table(path: Path) -> dict[str, Array]:
     suffix = path.suffix.lower()
     if suffix == ".parquet":
-        import pyarrow.parquet as pq
-
         try:
             table = pq.read_table(path)
         except Exception as exc:  # pyarrow raises several types for corrupt files

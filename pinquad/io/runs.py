@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import json
+import math
 import os
+import shutil
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 REPORT_SCHEMA = "pinquad.report/1"
 """The ``schema`` of every report.json (DESIGN 4.3)."""
@@ -38,10 +42,6 @@ def atomic_write_json(path: str | Path, obj: Any) -> Path:
 
 
 def _clean(obj: Any) -> Any:
-    import math
-
-    import numpy as np
-
     if isinstance(obj, dict):
         return {str(k): _clean(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -96,6 +96,4 @@ class RunWriter:
         return self.target
 
     def abort(self) -> None:
-        import shutil
-
         shutil.rmtree(self.staging, ignore_errors=True)

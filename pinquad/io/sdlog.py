@@ -19,7 +19,8 @@ Two layers:
 * :func:`read_sdflight` -> :class:`SdFlight` (and :func:`read_sdlog` -> its
   :class:`~pinquad.io.logs.FlightLog`): the flight on the ``fixedFrequency`` grid in SI
   units, with the motion-capture pose of ``estPose`` placed at the nearest grid row and
-  the motor commands (PWM), which FlightLog has no field for, alongside.
+  the motor commands (PWM) and the raw poses at their own times in its ``measured``
+  samples.
 
 Unit conversions at this boundary: gyro [deg/s] * pi/180 -> [rad/s]; accelerometer
 [g] * 9.81 -> [m/s^2]; battery [mV] / 1000 -> [V]; rotor speed stays [rev/min].
@@ -30,14 +31,14 @@ from __future__ import annotations
 import math
 import re
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import GRAVITY, euler_from_quat_wxyz
-from pinquad.io.logs import FlightLog, LogFormatError, LogMeta
+from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, MeasuredSamples
 
 Array = NDArray[np.float64]
 
@@ -465,10 +466,40 @@ def read_sdflight(path: str | Path, verify_crc: bool = True) -> SdFlight:
     return to_flight(read_sdlog_raw(path, verify_crc=verify_crc))
 
 
+def measured_samples(flight: SdFlight) -> MeasuredSamples:
+    """What the flight carries beyond its grid rows: the motion-capture poses from the raw
+    ``estPose`` records at their own times (not the copies snapped to the grid rows; a
+    record no later than every earlier one is dropped; Euler angles NaN where the
+    quaternion is missing or its norm is off 1 by 0.1 or more), the motor commands, and
+    the onboard position estimate ``stateEstimate.x/y/z`` on the grid rows."""
+    raw = flight.raw
+    pose_t = pose_pos = pose_euler = None
+    ev = raw.events.get(POSE_EVENT)
+    if ev is not None and ev.count:
+        t = ev.time - flight.t0
+        keep = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
+        pose_pos = np.column_stack([ev.get(f"locSrv.{a}") for a in "xyz"])[keep]
+        quat = np.column_stack([ev.get(f"locSrv.q{a}") for a in "wxyz"])[keep]
+        norm = np.linalg.norm(quat, axis=1)
+        good = np.isfinite(quat).all(axis=1) & (np.abs(norm - 1.0) < 0.1)
+        pose_euler = np.full((quat.shape[0], 3), np.nan)
+        if good.any():
+            pose_euler[good] = euler_from_quat_wxyz(quat[good] / norm[good, None])
+        pose_t = t[keep]
+    grid = raw.events[GRID_EVENT]
+    onboard = None
+    if all(grid.has(f"stateEstimate.{a}") for a in "xyz"):
+        onboard = np.column_stack([grid.get(f"stateEstimate.{a}")[flight.rows] for a in "xyz"])
+    return MeasuredSamples(pose_t=pose_t, pose_position=pose_pos, pose_euler=pose_euler,
+                           pwm=flight.pwm, onboard_position=onboard)
+
+
 def read_sdlog(path: str | Path) -> FlightLog:
-    """Read a Crazyflie micro-SD log as a FlightLog (see :func:`to_flight`).
+    """Read a Crazyflie micro-SD log as a FlightLog (see :func:`to_flight`) with its
+    :func:`measured_samples`.
 
     meta: vehicle ``crazyflie21``, no mass guess, source = the path, notes on dropped
     samples, gaps and pose placement. Raises LogFormatError.
     """
-    return read_sdflight(path).log
+    flight = read_sdflight(path)
+    return replace(flight.log, measured=measured_samples(flight))

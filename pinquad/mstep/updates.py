@@ -33,7 +33,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.core.conventions import rotation_and_derivatives, rotation_from_euler, wrap_angle
+from pinquad.core.conventions import (
+    euler_rate_matrix_inv,
+    rotation_and_derivatives,
+    rotation_from_euler,
+    wrap_angle,
+)
 from pinquad.models.ssm import CHANNEL_SLICES, NoiseModel, Observations, Theta, kinematic_floor
 from pinquad.mstep import compiled
 from pinquad.mstep.stats import QuadraticSums, transition_mask
@@ -363,8 +368,6 @@ def measurement_variances(post: Posterior, obs: Observations, previous: Array) -
 def kinematic_variances(post: Posterior, obs: Observations) -> Array:
     """Per-step variances of p_{k+1} - p_k - dt v_k and Theta_{k+1} - Theta_k -
     dt E^{-1} omega_k (first order), floored at 1e-14."""
-    from pinquad.core.conventions import euler_rate_matrix_inv
-
     use = np.flatnonzero(transition_mask(obs))
     mu0, mu1 = post.mean[use], post.mean[use + 1]
     dt = obs.dt

@@ -7,10 +7,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from pinquad.core import paper_results as paper
 from pinquad.experiments.offline_mc import CycleResult
+from pinquad.io.logs import write_log
+from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 
 Array = NDArray[np.float64]
 
@@ -177,13 +180,9 @@ def cycle_entries(cycles: Sequence[CycleResult]) -> list[dict]:
 
 def plot_em_history(cycles: Sequence[CycleResult], mstep: str, path: Path) -> None:
     """Estimate vs EM iteration for all cycles, the truth as a red line (paper's figures)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     sensors = sorted({c.sensor for c in cycles})
-    fig, axes = plt.subplots(len(sensors), 4, figsize=(16, 3.2 * len(sensors)), squeeze=False)
+    fig = Figure(figsize=(16, 3.2 * len(sensors)))
+    axes = fig.subplots(len(sensors), 4, squeeze=False)
     for i, s in enumerate(sensors):
         for c in (c for c in cycles if c.sensor == s):
             for r in c.runs:
@@ -202,18 +201,12 @@ def plot_em_history(cycles: Sequence[CycleResult], mstep: str, path: Path) -> No
     fig.suptitle(f"EM estimates per iteration, {mstep} M-step, all cycles")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
-    plt.close(fig)
 
 
 def plot_trajectory(log, waypoints: Array | None, path: Path, estimate: Array | None = None,
                     estimate_label: str = "smoothed estimate") -> None:
     """The flown trajectory in 3-D (truth, measurements, estimate) with the waypoints."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = plt.figure(figsize=(7, 6))
+    fig = Figure(figsize=(7, 6))
     ax = fig.add_subplot(projection="3d")
     if log.truth is not None:
         ax.plot(*log.truth[:, 0:3].T, color="k", lw=1.2, label="true")
@@ -229,4 +222,56 @@ def plot_trajectory(log, waypoints: Array | None, path: Path, estimate: Array | 
     ax.legend(loc="upper left", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
-    plt.close(fig)
+
+
+def write_offline_run(writer: RunWriter, results: Sequence[CycleResult],
+                      summary: dict[tuple[str, str], dict[str, ParamStats]], tables: str,
+                      msteps: tuple[str, ...], sensors: Sequence[str], source: dict,
+                      waypoints_start: tuple[Array, Array], seconds: float) -> None:
+    """The offline experiment's run directory into ``writer``'s staging directory (the
+    caller publishes or aborts): EM-history and trajectory figures, the first cycle of
+    each sensor's log and smoothed means, report.json (DESIGN 4.3; ``estimates`` and
+    ``em`` of the first cycle's first M-step, every cycle under ``cycles``) and report.md.
+    source: report.json's ``source`` entries beyond kind, path and sensor;
+    waypoints_start: (waypoints (W, 3), start (3,)) [m] of the flown scenario."""
+    waypoints, start = waypoints_start
+    figs = writer.path("figures")
+    figs.mkdir(exist_ok=True)
+    for m in msteps:
+        plot_em_history(results, m, figs / f"em_history_{m}.png")
+    logs_dir = writer.path("logs")
+    logs_dir.mkdir(exist_ok=True)
+    run_logs = {}
+    for c in results:
+        if c.log is None:
+            continue
+        name = f"sensor{c.sensor}-cycle{c.cycle:02d}"
+        write_log(c.log, logs_dir / f"{name}.parquet")
+        if c.smoothed is not None:
+            np.save(logs_dir / f"{name}-smoothed.npy", c.smoothed)
+        plot_trajectory(c.log, waypoints, figs / f"trajectory_{c.sensor}.png", c.smoothed)
+        run_logs[c.sensor] = {"log": f"logs/{name}.parquet",
+                              "smoothed": f"logs/{name}-smoothed.npy"}
+    first = results[0]
+    best = next((r for r in first.runs if r.mstep == msteps[0]), first.runs[0])
+    report = {
+        "schema": REPORT_SCHEMA,
+        "source": {"kind": "simulation", "path": None, "sensor": "".join(sensors), **source},
+        "estimates": {"mass": best.mass, "inertia": np.asarray(best.inertia).tolist(),
+                      "com": None, "stderr": {"mass": best.stderr[0],
+                                              "inertia_diag": best.stderr[1:4].tolist()}},
+        "truth": {"mass": first.truth_mass, "inertia": first.truth_inertia.tolist(),
+                  "com": [0.0, 0.0, 0.0]},
+        "em": {"iterations": int(best.loglik.size), "loglik": best.loglik.tolist(),
+               "converged": bool(best.converged)},
+        "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+                      "validation": "not run on simulated paper experiment"},
+        "cycles": cycle_entries(results),
+        "statistics": stats_json(summary),
+        "scenario": {"start": np.asarray(start).tolist(),
+                     "waypoints": np.asarray(waypoints).tolist()},
+        "run_logs": run_logs,
+        "seconds": seconds,
+    }
+    atomic_write_json(writer.path("report.json"), report)
+    writer.path("report.md").write_text("# pinquad offline experiment\n\n" + tables + "\n")

@@ -40,6 +40,7 @@ k_aero (-9.18e-7, -9.18e-7, -10.3e-7) N s/m per rad/s times the summed hover rot
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -150,8 +151,6 @@ SIMULATOR_FACTORIES: dict[str, Callable[..., Disturbance]] = {
 def injected_coefficients(name: str, disturbance_args: dict | None = None) -> dict[str, float]:
     """The coefficients (by the estimator's names) of ``SIMULATOR_FACTORIES[name]`` called with
     ``disturbance_args`` (defaults when None); for scoring simulated discovery."""
-    import inspect
-
     args = dict(disturbance_args or {})
     sig = inspect.signature(SIMULATOR_FACTORIES[name])
     full = {k: p.default for k, p in sig.parameters.items()}

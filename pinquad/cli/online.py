@@ -1,0 +1,166 @@
+"""``python -m pinquad.online``: online EM in the closed loop (the paper's online scheme,
+``pinquad.experiments.online``), or with ``--log PATH`` a recorded log replayed through
+the online estimator as a stream (``pinquad.experiments.online_replay``)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from pinquad.cli.common import memory_arg, memory_label
+from pinquad.cli.help import HelpFormatter, positive_int
+from pinquad.core import paper_results as paper
+from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
+from pinquad.experiments.online import newest_offline_report, offline_ranges, run_online_cycle
+from pinquad.experiments.online_replay import stream_em
+from pinquad.experiments.recorded import raw_flight
+from pinquad.io.logs import LogFormatError
+from pinquad.io.read import read_log
+from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json, new_run_dir
+from pinquad.io.sdlog import is_sdlog
+from pinquad.models.sources import observations
+from pinquad.realdata.flights import build_observations, default_guess
+from pinquad.report.online import online_figures, online_report, online_tables, write_online_logs
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m pinquad.online",
+                                description="Online EM in the closed loop (paper's online "
+                                "experiment): sliding window, estimates fed to the controller.",
+                                formatter_class=HelpFormatter)
+    p.add_argument("--sensor", choices=["A", "B", "C"], action="append",
+                   help="observation source(s) (default: A, B and C)")
+    p.add_argument("--cycles", type=positive_int, default=20, help="seeded cycles per sensor")
+    p.add_argument("--seed", type=int, default=0, help="base seed")
+    p.add_argument("--jobs", type=positive_int, default=os.cpu_count() or 1,
+                   help="worker processes")
+    p.add_argument("--out", type=Path, help="output run directory (default runs/online-<time>)")
+    p.add_argument("--log", type=Path, help="replay a recorded log through the online "
+                   "estimator as a stream (no controller feedback)")
+    p.add_argument("--offline-report", type=Path,
+                   help="an offline report.json whose ranges the online ranges are compared with "
+                   "(default: the newest runs/offline-*/report.json, if any)")
+    p.add_argument("--memory", type=memory_arg, default=math.inf, metavar="SECONDS",
+                   help="time constant [s] with which the M-step forgets samples that left "
+                        "the window; inf keeps them all (incremental EM), none uses the "
+                        "window alone (the paper's scheme)")
+    p.add_argument("--view", action="store_true", help="open the browser view of the run")
+    args = p.parse_args(argv)
+    if args.log is not None:
+        return replay(args)
+    offline_path = args.offline_report or newest_offline_report()
+    offline = None
+    if offline_path is not None:
+        try:
+            offline = offline_ranges(offline_path)
+        except ValueError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+    sensors = args.sensor or ["A", "B", "C"]
+    jobs = [(s, i, args.seed, args.memory) for s in sensors for i in range(args.cycles)]
+    out_dir = args.out or new_run_dir("online")
+    writer = RunWriter(out_dir)
+    t0 = time.perf_counter()
+    try:
+        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+            results = list(tqdm(pool.map(run_online_cycle, jobs), total=len(jobs),
+                                desc="online cycles", file=sys.stderr))
+        elapsed = time.perf_counter() - t0
+        truth = np.array([PAPER_VEHICLE.mass, *PAPER_VEHICLE.inertia_diag])
+        text, stats = online_tables(results, truth, paper, offline)
+        text += ("\n\nOffline ranges from " + str(offline_path) if offline is not None else
+                 "\n\nNo offline report to compare with (run python -m pinquad.offline first, "
+                 "or pass --offline-report)")
+        print(text)
+        print(f"\n{len(results)} closed-loop flights, seeds "
+              f"{min(r.seed for r in results)}..{max(r.seed for r in results)}; {elapsed:.1f} s; "
+              f"M-step memory: {memory_label(args.memory)}")
+        report = online_report(results, truth, stats, memory_label(args.memory), elapsed)
+        atomic_write_json(writer.path("report.json"), report)
+        writer.path("report.md").write_text("# pinquad online experiment\n\n" + text + "\n")
+        online_figures(results, truth, writer.path("figures"))
+        report["run_logs"] = write_online_logs(results, writer)
+        atomic_write_json(writer.path("report.json"), report)
+        final = writer.publish()
+    except BaseException:
+        writer.abort()
+        raise
+    print(f"run written to {final}")
+    if args.view:
+        from viz.__main__ import main as viz_main  # the viewer (viser) only when asked for
+
+        return viz_main([str(final)])
+    return 0
+
+
+def replay(args: argparse.Namespace) -> int:
+    """``--log PATH``: the recorded log replayed through the online estimator (module
+    docstring of ``pinquad.experiments.online_replay``); prints the estimates over time
+    and, with ``--out``, writes a run directory."""
+    try:
+        path = args.log
+        if path.exists() and path.is_file() and is_sdlog(path):
+            real = build_observations(raw_flight(read_log(path)))
+            obs, gravity, rotor_acc = real.obs, real.log.meta.gravity, real.rotor_acc
+            mass0, inertia0, _ = default_guess("crazyflie21")
+        else:
+            rotor_acc = None
+            log = read_log(path)
+            sensor = (args.sensor or ["B" if not np.isnan(log.euler).all() else "C"])[0]
+            obs = observations(log, sensor)
+            gravity = log.meta.gravity
+            mass0 = log.meta.mass_guess or PAPER_INITIAL_MASS
+            inertia0 = (log.meta.inertia_guess if log.meta.inertia_guess is not None
+                        else PAPER_INITIAL_INERTIA)
+    except (LogFormatError, ValueError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    hist, lat = stream_em(obs, mass0, inertia0, gravity, memory_s=args.memory,
+                          rotor_acc=rotor_acc)
+    if hist.size == 0:
+        print(f"error: {args.log}: too short to replay (fewer than 50 samples)", file=sys.stderr)
+        return 2
+    memory = memory_label(args.memory)
+    mstep = "regressor"
+    if rotor_acc is not None:
+        mstep = "measured-flight (realdata.RealMStep)"
+        if args.memory is not None:
+            memory = f"mass: {memory}; inertia: each window's band-passed fit alone"
+    print(f"replayed {obs.n} samples of {args.log} in {hist.shape[0]} updates "
+          f"(window 800, every 4, {mstep} M-step, memory: {memory}); "
+          f"update p50 {1e3 * np.median(lat):.1f} ms, p99 {1e3 * np.percentile(lat, 99):.1f} ms")
+    print("| t [s] | mass [kg] | I_xx | I_yy | I_zz |\n|---|---|---|---|---|")
+    for i in np.unique(np.linspace(0, hist.shape[0] - 1, 12).astype(int)):
+        r = hist[i]
+        print(f"| {r[1]:.2f} | {r[2]:.5g} | {r[3]:.4g} | {r[4]:.4g} | {r[5]:.4g} |")
+    if args.out:
+        writer = RunWriter(args.out)
+        try:
+            atomic_write_json(writer.path("report.json"), {
+                "schema": REPORT_SCHEMA,
+                "source": {"kind": "log", "path": str(args.log), "mode": "online-replay",
+                           "estep": "rts", "mstep": mstep, "memory": memory},
+                "estimates": {"mass": float(hist[-1, 2]), "inertia": np.diag(hist[-1, 3:6]).tolist(),
+                              "com": None},
+                "em": {"iterations": int(hist.shape[0]), "loglik": [], "converged": False},
+                "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+                              "validation": "not run in replay"},
+                "cycles": [{"sensor": "log", "mstep": mstep, "seed": None,
+                            "estimates": {"mass": float(hist[-1, 2]),
+                                          "inertia": np.diag(hist[-1, 3:6]).tolist()},
+                            "history": {"t": hist[:, 1].tolist(), "mass": hist[:, 2].tolist(),
+                                        "inertia_diag": hist[:, 3:6].tolist()}}],
+            })
+            writer.publish()
+        except BaseException:
+            writer.abort()
+            raise
+    return 0

@@ -1,0 +1,311 @@
+"""Identify mass and inertia from a recorded flight, whatever it carries.
+
+Dispatch on what the log holds:
+
+* rotor speeds (``rpm``; a Crazyflie micro-SD log or a table with ``rpm_1..4``): a
+  measured flight, turned into observations on a 100 Hz grid by
+  :mod:`pinquad.realdata.flights` (motion capture, gyro, rotor speeds through the
+  thrust-stand kf) and identified with its M-step (mass from the force row, inertia
+  from the 3-8 Hz torque rows with the air-speed moments profiled out). A micro-SD log
+  (with ``FlightLog.measured`` samples) is kind ``sdlog``, a table ``measured-table``
+  (no PWM repair);
+* ``thrust`` and ``torque``: a log with the applied wrench (kind ``simulated``),
+  observed through the paper's sources (``sources.observations``; sensor A if it
+  carries an onboard estimate and accelerometer samples, else B if it has attitude,
+  else C) and identified with the shared regressor M-step (or the paper's, or all ten
+  inertial parameters).
+
+Initial guesses come from the log's sidecar (``mass_guess``, ``inertia_guess``), else
+from ``realdata.default_guess`` (crazyflie21: 25 g and half the published inertia;
+others: the paper's m0 = 0.001 kg, I0 = diag(1e-4, 2e-4, 1e-4) kg m^2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.protocol import Posterior
+from pinquad.discovery.discover import DiscoveryConfig, discover
+from pinquad.discovery.staged import staged_start
+from pinquad.estep.fast_smoother import smooth_quad
+from pinquad.identification.full_inertia import identify_full
+from pinquad.identification.identify import Identification, identify
+from pinquad.io.logs import FlightLog
+from pinquad.models.sources import observations
+from pinquad.models.ssm import Observations, Theta
+from pinquad.realdata.flights import (
+    PoseSamples,
+    RawFlight,
+    RealIdentification,
+    RealTheta,
+    ThrustCoefficient,
+    build_observations,
+    corrected,
+    default_guess,
+    identify_real,
+    options_for_sensor,
+)
+
+Array = NDArray[np.float64]
+
+MSTEPS = ("regressor", "paper", "full")
+
+
+@dataclass(frozen=True)
+class LogOptions:
+    """How to identify a recorded log.
+
+    sensors: observation sources to run (``A``/``B``/``C``; empty: the log's default,
+    :func:`default_sensor`, or for a measured flight every channel it has); msteps: any
+    of ``regressor``, ``paper``, ``full`` (``full``: all ten inertial parameters, logs
+    with thrust and torques only); estep: ``rts``, ``ieks`` or ``gtsam``;
+    max_iterations: E-steps at most per EM run (>= 1); information: compute standard
+    errors from the observed information.
+    """
+
+    sensors: tuple[str, ...] = ()
+    msteps: tuple[str, ...] = ("regressor", "paper")
+    estep: str = "rts"
+    max_iterations: int = 100
+    information: bool = True
+
+    def __post_init__(self) -> None:
+        unknown = [m for m in self.msteps if m not in MSTEPS]
+        if unknown or not self.msteps:
+            raise ValueError(f"M-steps must be some of {', '.join(MSTEPS)}; got {self.msteps}")
+        if self.max_iterations < 1:
+            raise ValueError(f"max_iterations must be at least 1; got {self.max_iterations}")
+
+
+@dataclass(frozen=True)
+class DiscoveryStart:
+    """What effect discovery starts from: the observations the reported run's EM saw
+    (measured flights: with its nuisance moment in the torques), its parameters and its
+    smoothed posterior."""
+
+    obs: Observations
+    theta: Theta
+    posterior: Posterior
+
+
+@dataclass(frozen=True)
+class LogResult:
+    """A recorded log's identification: runs (first = the reported one), the log and the
+    observations the E-step saw, the smoothed means (N, 12) of the reported run, the
+    initial guess in words, exclusions and notes, the kind of log (``sdlog``,
+    ``measured-table``, ``simulated``), the thrust coefficient and actuation-fault notes
+    of a measured flight, and discovery's starting point."""
+
+    runs: tuple[Identification, ...]
+    log: FlightLog
+    obs: Observations
+    smoothed: Array
+    guess: str
+    excluded: tuple[str, ...]
+    notes: tuple[str, ...]
+    kind: str
+    kf: ThrustCoefficient | None = None
+    faults: tuple[str, ...] = ()
+    discovery_start: DiscoveryStart | None = None
+
+
+DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
+                                        "measured-table": {"refit_em": False}}
+"""DiscoveryConfig overrides by log kind (``simulated``, ``sdlog``, ``measured-table``).
+Measured flights keep the base inertia of ``realdata``'s band-limited M-step (the
+plain regressor M-step of the EM refit does not hold it: on jana10 it moved I_xx from 17
+to 24 e-6 kg m^2); their effects and the mass are fitted on the base posterior."""
+
+
+def initial_guess(log: FlightLog) -> tuple[float, Array, str]:
+    """(mass0 [kg], inertia0 (3, 3) [kg m^2], where they came from in words): the
+    sidecar's guesses, else the vehicle's default. Raises ValueError if not positive."""
+    meta = log.meta
+    mass0, inertia0, words = default_guess(meta.vehicle)
+    parts = []
+    if meta.mass_guess is not None:
+        mass0 = float(meta.mass_guess)
+        parts.append("mass from the log's sidecar")
+    if meta.inertia_guess is not None:
+        inertia0 = np.asarray(meta.inertia_guess, dtype=float).reshape(3, 3)
+        parts.append("inertia from the log's sidecar")
+    if len(parts) < 2:
+        parts.append(words)
+    if not (mass0 > 0 and np.all(np.diag(inertia0) > 0)):
+        raise ValueError(f"{meta.source}: initial guess must be positive; got mass {mass0} kg, "
+                         f"inertia diagonal {np.diag(inertia0).tolist()} kg m^2")
+    return mass0, inertia0, "; ".join(parts)
+
+
+def plain_theta(theta: Theta) -> Theta:
+    """The plain :class:`~pinquad.models.ssm.Theta` of a measured run's ``RealTheta`` (its
+    nuisance moment travels in ``realdata.corrected`` observations instead)."""
+    return Theta(theta.mass, np.asarray(theta.inertia), theta.noise, theta.gravity)
+
+
+def default_sensor(log: FlightLog) -> str:
+    """A if the log carries an onboard estimate and accelerometer samples, else B if it
+    has attitude samples, else C."""
+    if log.onboard is not None and np.isfinite(log.accel).any():
+        return "A"
+    if np.isfinite(log.euler).any():
+        return "B"
+    return "C"
+
+
+def raw_flight(log: FlightLog) -> RawFlight:
+    """The measured-flight pipeline's input: the log with its raw poses, motor commands
+    and onboard position (``FlightLog.measured``) when it carries them."""
+    m = log.measured
+    if m is None:
+        return RawFlight(log=log)
+    pose = None
+    if m.pose_t is not None:
+        pose = PoseSamples(t=m.pose_t, position=m.pose_position, euler=m.pose_euler)
+    return RawFlight(log=log, pose=pose, pwm=m.pwm, onboard_pos=m.onboard_position)
+
+
+def _from_measured(ident: RealIdentification, label: str, post: Posterior, theta: Theta,
+                   obs: Observations) -> Identification:
+    return Identification(
+        mstep="regressor", mass=ident.mass, inertia=np.diag(ident.inertia), stderr=ident.se_total,
+        history_mass=ident.history[:, 0], history_inertia=ident.history[:, 1:4],
+        loglik=ident.loglik, converged=ident.converged, seconds=ident.seconds, theta=theta,
+        sensor=label, e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident)
+
+
+def discovery_start(run: Identification) -> DiscoveryStart:
+    """Where effect discovery starts from a run: its observations, parameters and
+    posterior; a measured-flight run's nuisance moment (``RealTheta``) moves into the
+    torques of its observations (``realdata.corrected``) and out of its parameters."""
+    if run.posterior is None or run.observations is None or run.theta is None:
+        raise ValueError("this identification kept no posterior to start discovery from")
+    if isinstance(run.theta, RealTheta):
+        return DiscoveryStart(corrected(run.observations, run.theta), plain_theta(run.theta),
+                              run.posterior)
+    return DiscoveryStart(run.observations, run.theta, run.posterior)
+
+
+def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
+    raw = raw_flight(log)
+    mass0, inertia0, guess = initial_guess(log)
+    sensors = list(options.sensors) or [None]
+    if "full" in options.msteps:
+        raise ValueError(f"{log.meta.source}: --mstep full needs a CSV or Parquet log with "
+                         "thrust and torque columns; measured rotor-speed logs are identified "
+                         "with the regressor or paper M-step")
+    runs: list[Identification] = []
+    first = None
+    for sensor in sensors:
+        real = build_observations(raw, options_for_sensor(sensor))
+        label = sensor or ",".join(real.obs.channels)
+        theta = None
+        if "regressor" in options.msteps:
+            ident, post, theta = identify_real(
+                real, mass0, inertia0, options.max_iterations, options.information,
+                name=Path(str(log.meta.source)).name, estep=options.estep)
+            runs.append(_from_measured(ident, label, post, theta, real.obs))
+            if first is None:
+                first = (real, post.mean)
+        if "paper" in options.msteps:
+            # The paper's M-step knows no air-speed moment: give it the torques with the
+            # regressor run's moment added when there is one.
+            obs = real.obs if theta is None else corrected(real.obs, theta)
+            ident_p, post_p = identify(obs, mass0, inertia0, log.meta.gravity, options.estep,
+                                       "paper", options.max_iterations, False)
+            torques = ("with the regressor run's nuisance moment" if theta is not None
+                       else "rotor torques only")
+            runs.append(replace(ident_p, sensor=label, posterior=post_p, observations=obs,
+                                notes=(f"torques: {torques}",)))
+            if first is None:
+                first = (real, post_p.mean)
+    assert first is not None
+    real, smoothed = first
+    return LogResult(tuple(runs), real.log, real.obs, smoothed, guess, real.excluded,
+                     real.notes, kind, kf=real.kf, faults=tuple(real.faults.notes),
+                     discovery_start=discovery_start(runs[0]))
+
+
+def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity: float,
+          options: LogOptions) -> Identification:
+    """EM over all ten inertial parameters (``pinquad.identification.full_inertia``) from
+    the staged start (``discovery.staged.staged_start``: the diagonal model's EM from the
+    paper's guess, refitted with the horizontal CoM), compiled E-step throughout."""
+    start = staged_start(obs, mass0, inertia0, gravity, smooth_quad)
+    res = identify_full(obs, start, smooth_quad, max_iterations=options.max_iterations,
+                        information=options.information)
+    stderr = np.concatenate([[res.stderr_mass], np.diag(res.stderr_inertia)])
+    return Identification(
+        mstep="full", mass=res.mass, inertia=np.asarray(res.inertia), stderr=stderr,
+        history_mass=np.array([start.mass, res.mass]),
+        history_inertia=np.array([np.diag(start.inertia), np.diag(res.inertia)]),
+        loglik=res.loglik, converged=res.converged, theta=res.theta, failure=res.failure,
+        sensor=sensor, e_steps=res.e_steps, posterior=res.posterior, observations=obs, full=res)
+
+
+def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
+    mass0, inertia0, guess = initial_guess(log)
+    sensors = list(options.sensors) or [default_sensor(log)]
+    runs: list[Identification] = []
+    first = None
+    for sensor in sensors:
+        obs = observations(log, sensor)
+        for mstep in options.msteps:
+            if mstep == "full":
+                run = _full(obs, sensor, mass0, inertia0, log.meta.gravity, options)
+            else:
+                ident, post = identify(obs, mass0, inertia0, log.meta.gravity, options.estep,
+                                       mstep, options.max_iterations, options.information)
+                run = replace(ident, sensor=sensor, posterior=post, observations=obs)
+            runs.append(run)
+            if first is None:
+                first = (obs, run)
+    assert first is not None
+    obs, run = first
+    n_ex = int(obs.exclude[: obs.n - 1].sum())
+    excluded = (f"{n_ex} transitions: touching the floor (the log's contact flags)",
+                f"total: {n_ex} of {obs.n - 1} transitions excluded")
+    return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
+                     tuple(log.meta.notes), "simulated",
+                     discovery_start=discovery_start(run))
+
+
+def identify_log(log: FlightLog, options: LogOptions | None = None) -> LogResult:
+    """Identify the vehicle of a recorded log (module docstring). Raises ValueError (with
+    the log named) when the log cannot be identified as asked; numpy's LinAlgError when
+    EM fails numerically."""
+    options = options or LogOptions()
+    if log.thrust is not None:
+        return _with_applied_wrench(log, options)
+    kind = "sdlog" if log.measured is not None else "measured-table"
+    return _measured(log, options, kind)
+
+
+def discovery_config(kind: str) -> DiscoveryConfig:
+    """Effect discovery's settings for a kind of log (``DISCOVERY_SETTINGS``)."""
+    return DiscoveryConfig(**DISCOVERY_SETTINGS.get(kind, {}))
+
+
+def run_discovery(result: LogResult, figs: Path | None = None) -> dict:
+    """Effect discovery (``pinquad.discovery.discover.discover``) on the reported run: the
+    DESIGN 4.3 ``discovery`` section, figures written to ``figs`` (when given) and named
+    relative to the run directory. A numerical failure of the refit is reported in the
+    section (key ``error``) instead of stopping the run: the identification stands
+    without it."""
+    start = result.discovery_start
+    if start is None:
+        return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+                "validation": "not run", "error": "no EM run to start from"}
+    try:
+        out = discover(start.obs, start.theta, start.posterior, cfg=discovery_config(result.kind),
+                       figures_dir=figs)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+        return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+                "validation": "not run", "error": f"discovery failed numerically: {exc}"}
+    section = out.to_report()
+    section["figures"] = [f"figures/{Path(f).name}" for f in section["figures"]]
+    return section

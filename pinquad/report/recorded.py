@@ -1,0 +1,277 @@
+"""What a recorded log's identification prints and writes: the table, the residual
+figure, report.json (DESIGN 4.3) and report.md, and the run directory holding them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from numpy.typing import NDArray
+
+from pinquad.core.conventions import wrap_angle
+from pinquad.discovery.discover import discovery_markdown
+from pinquad.experiments.recorded import LogResult
+from pinquad.identification.identify import Identification
+from pinquad.io.logs import write_log
+from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
+from pinquad.models.ssm import Observations
+from pinquad.realdata.flights import PUBLISHED_INERTIA, SCALE_MASS
+from pinquad.report.offline import plot_trajectory
+
+Array = NDArray[np.float64]
+
+
+def _motor_split_entry(r: Identification) -> dict | None:
+    """report.json's ``motor_split`` entry of a measured run (None otherwise)."""
+    split = None if r.measured is None else r.measured.motor_split
+    if split is None:
+        return None
+    return {
+        "thrust_share": split.share.tolist(),
+        "rebuilt_motors": [i + 1 for i in split.rebuilt],
+        "measured_motors_mass": split.measured_mass,
+        "all_measured_mass": (split.all_measured_mass
+                              if np.isfinite(split.all_measured_mass) else None),
+        "all_measured_transitions": split.all_measured_rows,
+        "note": "each motor's part of the model-free mass's vertical thrust, "
+                "relative to the four-motor mean (realdata.MotorSplit); "
+                "rebuilt_motors: motors with speeds from the PWM map in some "
+                "rows; measured_motors_mass: what the other motors carry of the "
+                "model-free mass [kg]; all_measured_mass: the model-free mass "
+                "over the transitions with no speed from the PWM map [kg]"}
+
+
+def run_details(r: Identification, kind: str) -> dict:
+    """report.json's per-run entries beyond the estimates: standard-error kinds, the EM
+    history, and what the path adds (measured flights: kf-combined errors, the nuisance
+    moment, the model-free mass; the ten-parameter model: its start and the CoM and
+    tensor errors). kind: the log's kind (``LogResult.kind``)."""
+    if r.measured is not None:
+        ident = r.measured
+        detail = {
+            "stderr_observed_information": {"mass": ident.se_info[0],
+                                            "inertia_diag": ident.se_info[1:].tolist()},
+            "stderr_jackknife": {"mass": ident.se_jack[0],
+                                 "inertia_diag": ident.se_jack[1:].tolist()},
+            "stderr_statistical": {"mass": ident.se_stat[0],
+                                   "inertia_diag": ident.se_stat[1:].tolist()},
+            "stderr_note": "stderr = statistical (larger of observed information and "
+                           "block jackknife) combined with kf's uncertainty (all "
+                           "estimates scale with kf) and, for I_zz, the yaw ratio's",
+            "torque_band_hz": list(ident.band),
+            "nuisance_moment": {"features": ["thrust", "v_body_x", "v_body_y",
+                                             "v_body_z", "omega_x", "omega_y", "omega_z"],
+                                "coefficients": ident.moment_coef.tolist()},
+            "e_steps": ident.e_steps,
+            "history": ident.history.tolist(),
+            "seconds": ident.seconds,
+            "model_free_mass": ident.quasi_static_mass,
+            "model_free_mass_note": "kf sum omega^2 along the vertical over g + the mean "
+                                    "vertical acceleration, the same transitions, no EM "
+                                    "(realdata.quasi_static_mass)",
+        }
+        split = _motor_split_entry(r)
+        if split is not None:
+            detail["motor_split"] = split
+        return detail
+    if kind != "simulated":  # the paper's M-step on a measured flight
+        torques = next((n.split(": ", 1)[1] for n in r.notes if n.startswith("torques: ")),
+                       "rotor torques only")
+        return {"torques": torques, "seconds": r.seconds}
+    if r.full is not None:
+        start = r.full.start
+        return {"stderr_note": "observed information of the EKF likelihood over all ten "
+                               "parameters (delta method to CoM and inertia)",
+                "em_failure": r.failure, "e_steps": r.e_steps,
+                "start": {"note": "diagonal EM from the paper's guess, refitted with the "
+                                  "horizontal CoM (full_inertia.staged_start)",
+                          "mass": start.mass, "com": np.asarray(start.com).tolist(),
+                          "inertia_diag": np.diag(start.inertia).tolist()},
+                "stderr_full": {"com": r.full.stderr_com.tolist(),
+                                "inertia": r.full.stderr_inertia.tolist()}}
+    return {"stderr_note": "observed information of the EKF likelihood",
+            "em_failure": r.failure,
+            "history": np.column_stack([r.history_mass, r.history_inertia]).tolist(),
+            "seconds": r.seconds}
+
+
+def log_table(result: LogResult) -> str:
+    """The printed table: one row per run (mass [g], inertia diagonal [1e-6 kg m^2] with
+    standard errors, EM iterations), the scale / published row and mass checks for the
+    Crazyflie, the ten-parameter model's CoM and products of inertia."""
+    crazyflie = result.log.meta.vehicle == "crazyflie21"
+    head = "| sensor | M-step | mass [g] | I_xx [1e-6 kg m^2] | I_yy | I_zz | EM iterations |"
+    lines = [head, "|---|---|---|---|---|---|---|"]
+
+    def pm(v: float, s: float, scale: float, fmt: str) -> str:
+        return f"{v * scale:{fmt}}" + ("" if not np.isfinite(s) else f" ± {s * scale:{fmt}}")
+
+    for r in result.runs:
+        lines.append(
+            f"| {r.sensor} | {r.mstep} | {pm(r.mass, r.stderr[0], 1e3, '.3f')} | "
+            + " | ".join(pm(r.inertia[i, i], r.stderr[i + 1], 1e6, ".2f") for i in range(3))
+            + f" | {r.iterations}{'' if r.converged else ' (not converged)'} |")
+    if crazyflie:
+        lines.append(f"| scale / published | | {SCALE_MASS * 1e3:.1f} | "
+                     + " | ".join(f"{v * 1e6:.2f}" for v in PUBLISHED_INERTIA) + " | |")
+        for r in result.runs:
+            lines.append(f"\n{r.sensor}, {r.mstep} M-step: mass {r.mass * 1e3:.2f} g vs "
+                         f"{SCALE_MASS * 1e3:.1f} g on the scale: "
+                         f"{100 * (r.mass / SCALE_MASS - 1):+.2f} %"
+                         + ("" if not np.isfinite(r.stderr[0]) else
+                            f" ({abs(r.mass - SCALE_MASS) / r.stderr[0]:.1f} standard errors)"))
+            free = None if r.measured is None else r.measured.quasi_static_mass
+            if free is not None and np.isfinite(free):
+                lines.append(f"{r.sensor}, model-free check (mean vertical thrust, no EM): "
+                             f"{free * 1e3:.2f} g ({100 * (free / SCALE_MASS - 1):+.2f} %)")
+            split = _motor_split_entry(r)
+            if split and split["rebuilt_motors"]:
+                lines.append(
+                    f"{r.sensor}, motors measured "
+                    f"({', '.join(f'M{i}' for i in range(1, 5) if i not in split['rebuilt_motors'])}) "
+                    f"carry {split['measured_motors_mass'] * 1e3:.2f} g of it; thrust shares "
+                    f"of the four-motor mean " + ", ".join(
+                        f"M{i + 1} {v:.3f}{' (repaired)' if i + 1 in split['rebuilt_motors'] else ''}"
+                        for i, v in enumerate(split["thrust_share"])))
+                own = split.get("all_measured_mass")
+                if own is not None:
+                    lines.append(
+                        f"{r.sensor}, model-free mass on the {split['all_measured_transitions']} "
+                        f"transitions with every rotor speed measured: {own * 1e3:.2f} g "
+                        f"({100 * (own / SCALE_MASS - 1):+.2f} %)")
+    for r in result.runs:
+        if r.full is not None:
+            full = r.full
+            lines.append(f"\n{r.sensor}, full M-step: centre of mass [mm] "
+                         + ", ".join(pm(full.com[i], full.stderr_com[i], 1e3, ".3f")
+                                     for i in range(3)))
+            lines.append(f"{r.sensor}, full M-step: products of inertia [1e-6 kg m^2] "
+                         + ", ".join(f"I_{a}{b} " + pm(full.inertia[i, j],
+                                                       full.stderr_inertia[i, j], 1e6, ".2f")
+                                     for (i, a), (j, b) in (((0, "x"), (1, "y")),
+                                                            ((0, "x"), (2, "z")),
+                                                            ((1, "y"), (2, "z")))))
+    return "\n".join(lines)
+
+
+def plot_residuals(obs: Observations, smoothed: Array, path: Path) -> None:
+    """Measurement residuals y - H m over time, one panel per channel."""
+    h = obs.measurement_matrix()
+    pred = smoothed @ h.T
+    res = obs.ys - pred
+    angle = obs.angle_rows()
+    if angle.size:
+        res[:, angle] = wrap_angle(res[:, angle])
+    units = {"pos": "m", "vel": "m/s", "euler": "rad", "gyro": "rad/s"}
+    fig = Figure(figsize=(10, 2.4 * len(obs.channels)))
+    axes = fig.subplots(len(obs.channels), 1, sharex=True, squeeze=False)
+    for i, ch in enumerate(obs.channels):
+        ax = axes[i, 0]
+        for j, lab in enumerate("xyz"):
+            col = res[:, 3 * i + j]
+            ok = np.isfinite(col)
+            ax.plot(obs.t[ok], col[ok], ".", ms=1.5, label=f"{ch} {lab}")
+        ax.set_ylabel(f"{ch} residual [{units[ch]}]")
+        ax.legend(loc="upper right", fontsize=7, markerscale=4)
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.suptitle("measurement residuals y - H E[x | all y] of the smoothed state")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
+def discovery_summary(section: dict) -> str:
+    """A few printed lines: what was selected, its coefficients and the held-out RMS."""
+    if "error" in section:
+        return f"effect discovery: {section['error']}"
+    sel = section["selected"]
+    if not sel:
+        return "effect discovery: no significant unmodelled effect (held-out test)"
+    lines = [f"effect discovery: selected {', '.join(s['effect'] for s in sel)}"]
+    for s in sel:
+        co = ", ".join(f"{n} = {v:.4g} ± {s['stderr'][n]:.2g} {s['units'][n]}"
+                       for n, v in s["coefficients"].items())
+        lines.append(f"  {s['effect']}: {co}; held-out gain "
+                     f"{100 * s['evidence']['heldout_gain']:.0f} %")
+    refit = section.get("refit")
+    if refit:
+        inertia = np.diag(np.asarray(refit["inertia"])) * 1e6
+        lines.append(f"  refit with the effects: mass {refit['mass'] * 1e3:.3f} g, inertia diagonal "
+                     f"({', '.join(f'{v:.2f}' for v in inertia)}) 1e-6 kg m^2")
+    b, a = section["residual_rms_before"], section["residual_rms_after"]
+    lines.append("  held-out residual RMS before -> after: " + ", ".join(
+        f"{k} {b[k]:.3g} -> {a[k]:.3g}" for k in b))
+    return "\n".join(lines)
+
+
+
+
+def _estimates(r: Identification) -> dict:
+    return {"mass": r.mass, "inertia": np.asarray(r.inertia).tolist(),
+            "com": None if r.com is None else r.com.tolist(),
+            "stderr": {"mass": r.stderr[0], "inertia_diag": r.stderr[1:].tolist()}}
+
+
+def _em(r: Identification) -> dict:
+    return {"iterations": r.iterations, "loglik": r.loglik.tolist(),
+            "converged": bool(r.converged)}
+
+
+def report_json(result: LogResult, path: str, estep: str, seconds: float,
+                discovery: dict | None) -> dict:
+    """report.json of a recorded log (DESIGN 4.3): the first run's estimates, every run
+    with its details, exclusions, notes, the kf and fault notes of measured flights, and
+    the discovery section (``not run`` when None)."""
+    main = result.runs[0]
+    report = {
+        "schema": REPORT_SCHEMA,
+        "source": {"kind": "log", "path": path, "sensor": main.sensor,
+                   "estep": estep, "log_type": result.kind,
+                   "vehicle": result.log.meta.vehicle, "mstep": main.mstep},
+        "estimates": _estimates(main),
+        "em": _em(main),
+        "discovery": discovery if discovery is not None else {
+            "selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+            "validation": "not run"},
+        "excluded": list(result.excluded),
+        "cycles": [],
+        "run_logs": {"log": {"log": "logs/flight.parquet",
+                             "smoothed": "logs/flight-smoothed.npy"}},
+        "initial_guess": result.guess,
+        "runs": [{"sensor": r.sensor, "mstep": r.mstep, "estimates": _estimates(r), "em": _em(r),
+                  **run_details(r, result.kind)} for r in result.runs],
+        "notes": list(result.notes),
+        "seconds": seconds,
+    }
+    if result.kf is not None:
+        kf = result.kf
+        report["kf"] = {"value": kf.kf, "stderr": kf.kf_se, "pooled": kf.pooled,
+                        "runs": {r.source: r.kf for r in kf.runs}, "note": kf.note}
+        report["faults"] = list(result.faults)
+    return report
+
+
+def report_markdown(result: LogResult, path: str, discovery: dict | None) -> str:
+    """report.md: the table, exclusions, notes and the discovery section."""
+    md = (f"# pinquad: identification from {path}\n\n" + log_table(result) + "\n\n"
+          + "\n".join(f"- excluded: {e}" for e in result.excluded) + "\n"
+          + "".join(f"- note: {n}\n" for n in result.notes))
+    if discovery is not None:
+        md += "\n" + discovery_markdown(discovery)
+    return md
+
+
+def write_log_run(writer: RunWriter, result: LogResult, report: dict, markdown: str) -> None:
+    """The run directory's files (report.json, report.md, the log as the E-step saw it,
+    the smoothed means, trajectory and residual figures) into ``writer``'s staging
+    directory; the caller publishes or aborts."""
+    figs = writer.path("figures")
+    figs.mkdir(exist_ok=True)
+    logs_dir = writer.path("logs")
+    logs_dir.mkdir(exist_ok=True)
+    write_log(result.log, logs_dir / "flight.parquet")
+    np.save(logs_dir / "flight-smoothed.npy", result.smoothed)
+    plot_trajectory(result.log, None, figs / "trajectory.png", result.smoothed)
+    plot_residuals(result.obs, result.smoothed, figs / "residuals.png")
+    atomic_write_json(writer.path("report.json"), report)
+    writer.path("report.md").write_text(markdown)
