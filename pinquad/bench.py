@@ -1,9 +1,9 @@
 """``python -m pinquad.bench``: entry point; the command is
-``pinquad.experiments.bench.main``."""
+``pinquad.cli.bench.main``."""
 
 import sys
 
-from pinquad.experiments.bench import main
+from pinquad.cli.bench import main
 
 if __name__ == "__main__":
     sys.exit(main())

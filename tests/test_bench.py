@@ -18,17 +18,17 @@ import numpy as np
 import pytest
 
 from pinquad.experiments import bench
-from pinquad.experiments.bench_estep import (
-    CONTESTANTS,
+from pinquad.experiments.bench_cases import (
     TOLERANCE,
     EStepCase,
     base_observations,
     build_case,
-    check_all,
     load_case,
     mean_error,
     tile_observations,
 )
+from pinquad.experiments.bench_estep import CONTESTANTS, check_all
+from pinquad.io.runs import atomic_write_json
 
 N_STEPS = 300
 
@@ -95,7 +95,7 @@ def test_helpers():
 
 def test_json_is_written_whole(tmp_path):
     out = tmp_path / "sub" / "bench.json"
-    bench.write_json_atomic(out, {"estep": {"N": [1], "ours_s": [None]}})
+    atomic_write_json(out, {"estep": {"N": [1], "ours_s": [None]}})
     assert json.loads(out.read_text()) == {"estep": {"N": [1], "ours_s": [None]}}
     assert [p.name for p in out.parent.iterdir()] == ["bench.json"]
 

@@ -352,7 +352,8 @@ def test_recorded_log_run_without_truth(tmp_path: Path) -> None:
     from PIL import Image
 
     from pinquad.io.logs import FlightLog, write_log
-    from viz.app import MAX_LINE_POINTS, serve
+    from viz.app import serve
+    from viz.scene import MAX_LINE_POINTS
 
     n = 30000  # 60 s at 500 Hz
     t = np.arange(n) / 500.0
