@@ -103,7 +103,7 @@ def _msteps(args: argparse.Namespace) -> tuple[str, ...]:
 
 
 def _guess(log: FlightLog) -> tuple[float, Array, str]:
-    from pinquad.realdata.flights import default_guess
+    from pinquad.realdata.dataset import default_guess
 
     meta = log.meta
     mass0, inertia0, words = default_guess(meta.vehicle)
@@ -144,12 +144,9 @@ def default_sensor(log: FlightLog) -> str:
 
 def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
     from pinquad.identification.identify import identify
-    from pinquad.realdata.flights import (
-        build_observations,
-        corrected,
-        identify_real,
-        options_for_sensor,
-    )
+    from pinquad.realdata.identify import identify_real
+    from pinquad.realdata.model import corrected
+    from pinquad.realdata.observations import build_observations, options_for_sensor
 
     log = raw.log
     mass0, inertia0, guess = _guess(log)
@@ -307,7 +304,7 @@ def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity
 # ----------------------------------------------------------------------------- output
 
 def _table(result: LogResult) -> str:
-    from pinquad.realdata.flights import PUBLISHED_INERTIA, SCALE_MASS
+    from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS
 
     crazyflie = result.log.meta.vehicle == "crazyflie21"
     head = "| sensor | M-step | mass [g] | I_xx [1e-6 kg m^2] | I_yy | I_zz | EM iterations |"
@@ -488,7 +485,7 @@ def discovery_summary(section: dict) -> str:
 def _load(args: argparse.Namespace) -> LogResult:
     from pinquad.io.logs import read_log
     from pinquad.io.sdlog import is_sdlog, read_sdflight
-    from pinquad.realdata.flights import RawFlight, raw_from_sdflight
+    from pinquad.realdata.raw import RawFlight, raw_from_sdflight
 
     path = Path(args.log)
     if not path.exists():

@@ -41,7 +41,7 @@ def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] 
     tau_off = z moment_coef^T + [0, 0, J_r rotor_acc] (``realdata.RealMStep``) evaluated
     on the new window's rows, with the features z from the previous posterior's means
     (its last row repeated for the rows it has not seen yet)."""
-    from pinquad.realdata.flights import RealTheta, torque_features
+    from pinquad.realdata.model import RealTheta, torque_features
 
     if not isinstance(theta, RealTheta) or theta.moment_coef is None or previous is None:
         return theta
@@ -57,7 +57,7 @@ def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] 
 def _measured_model(win: Observations, theta: Theta) -> QuadSSM:
     """The E-step model of a measured flight's window: the quadcopter with the nuisance
     moment of ``theta`` added to the rotor torques (``realdata.corrected``)."""
-    from pinquad.realdata.flights import corrected
+    from pinquad.realdata.model import corrected
 
     return QuadSSM(corrected(win, theta), theta)
 
@@ -93,7 +93,7 @@ def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
             theta = initial_theta(win, mass0, inertia0, gravity)
         mstep, model_of = regressor_mstep, QuadSSM
         if rotor_acc is not None:
-            from pinquad.realdata.flights import RealMStep
+            from pinquad.realdata.band_mstep import RealMStep
 
             theta = _measured_theta(theta, previous, start, win, rotor_acc[start:k + 1])
             mstep, model_of = RealMStep(rotor_acc=rotor_acc[start:k + 1]), _measured_model
@@ -115,7 +115,9 @@ def replay(args: argparse.Namespace) -> int:
 
         if path.exists() and path.is_file() and is_sdlog(path):
             from pinquad.io.sdlog import read_sdflight
-            from pinquad.realdata.flights import build_observations, default_guess, raw_from_sdflight
+            from pinquad.realdata.dataset import default_guess
+            from pinquad.realdata.observations import build_observations
+            from pinquad.realdata.raw import raw_from_sdflight
 
             real = build_observations(raw_from_sdflight(read_sdflight(path)))
             obs, gravity, rotor_acc = real.obs, real.log.meta.gravity, real.rotor_acc
