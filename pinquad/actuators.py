@@ -1,9 +1,9 @@
 """``python -m pinquad.actuators``: entry point; the command is
-``pinquad.vehicle.actuators.main``."""
+``pinquad.cli.actuators.main``."""
 
 import sys
 
-from pinquad.vehicle.actuators import main
+from pinquad.cli.actuators import main
 
 if __name__ == "__main__":
     sys.exit(main())

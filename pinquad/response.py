@@ -1,9 +1,9 @@
 """``python -m pinquad.response``: entry point; the command is
-``pinquad.realdata.response.main``."""
+``pinquad.cli.response.main``."""
 
 import sys
 
-from pinquad.realdata.response import main
+from pinquad.cli.response import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -124,7 +124,9 @@ def test_replay_of_a_measured_flight_converges_to_the_offline_answer():
     is within 1.5 % of the scale and its roll / pitch inertia within 10 % of the offline
     identification of the same log (``python -m pinquad.realdata``: 18.7, 16.9 e-6)."""
     from pinquad.experiments.online_replay import stream_em
-    from pinquad.realdata.flights import SCALE_MASS, default_guess, identify_real, load_real
+    from pinquad.realdata.dataset import SCALE_MASS, default_guess
+    from pinquad.realdata.identify import identify_real
+    from pinquad.realdata.observations import load_real
 
     flight = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushed" / "jana02"
     assert flight.is_file(), f"the Crazyflie data are missing: expected {flight}"

@@ -17,19 +17,12 @@ import numpy as np
 import pytest
 
 from pinquad.io.logs import FlightLog, LogMeta
-from pinquad.realdata.flights import (
-    PUBLISHED_INERTIA,
-    SCALE_MASS,
-    RawFlight,
-    RealDataOptions,
-    RealIdentification,
-    build_observations,
-    default_guess,
-    identify_real,
-    load_real,
-    quasi_static_mass,
-    thrust_coefficient,
-)
+from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS, default_guess
+from pinquad.realdata.identify import RealIdentification, identify_real
+from pinquad.realdata.mass_balance import quasi_static_mass
+from pinquad.realdata.observations import RealDataOptions, build_observations, load_real
+from pinquad.realdata.raw import RawFlight
+from pinquad.realdata.thrust import thrust_coefficient
 from pinquad.vehicle.actuators import ActuatorModel
 
 REPO = Path(__file__).resolve().parents[1]
@@ -80,7 +73,7 @@ def _synthetic(n_sec: float = 4.0) -> RawFlight:
     vel[:, 2] = np.gradient(z, t)
     log = FlightLog(t=t, position=nan3, velocity=vel, euler=nan3, gyro=gyro, accel=nan3,
                     rpm=rpm, meta=LogMeta(vehicle="crazyflie21", source="synthetic"))
-    from pinquad.realdata.flights import PoseSamples
+    from pinquad.realdata.raw import PoseSamples
 
     tp = np.arange(0.0, n_sec, 1 / 90)
     pos = np.column_stack([np.zeros(tp.size), np.zeros(tp.size), np.interp(tp, t, z)])
@@ -241,7 +234,7 @@ def test_truncated_real_log_exits_2_with_file_and_offset(tmp_path):
 
 def test_rotor_acceleration_signs_and_gaps():
     """sum_i spin_i omega_i' [rad/s^2] from rpm, NaN next to a log gap."""
-    from pinquad.realdata.flights import rotor_acceleration
+    from pinquad.realdata.observations import rotor_acceleration
 
     t = np.arange(0.0, 1.0, 0.002)
     t[300:] += 0.05  # a 50 ms gap between rows 299 and 300
@@ -265,7 +258,7 @@ def test_yaw_flight_rotor_inertia_is_identified_and_positive():
 def _synthetic_band(inertia, jr, k=1500, seed=0):
     """Band-passed regression data of a log whose yaw torque is t_z + jr e: the rotor drag
     torque t_z = x_z . I - jr e - nuisance, plus noise."""
-    from pinquad.realdata.flights import BandStats
+    from pinquad.realdata.band_mstep import BandStats
 
     rng = np.random.default_rng(seed)
     x = rng.normal(0.0, 10.0, (k, 3, 3))
@@ -278,7 +271,7 @@ def _synthetic_band(inertia, jr, k=1500, seed=0):
 
 
 def test_pooled_rotor_inertia_recovers_a_shared_value_and_leaves_each_log_out():
-    from pinquad.realdata.flights import band_fit, pooled_rotor_inertia
+    from pinquad.realdata.rotor_inertia import band_fit, pooled_rotor_inertia
 
     jr = 15e-9
     inertias = [np.array([16e-6, 17e-6, iz]) for iz in (12e-6, 20e-6, 28e-6)]
@@ -303,7 +296,7 @@ def test_fixed_rotor_inertia_is_taken_back_out_of_the_band_stats():
     """jana02 identified with a J_r fitted elsewhere (fixed, 15e-9): the stored band-passed
     regression has the drag torque alone, band_fit at that J_r gives the EM's inertia
     back, and the J_r term explains yaw motion it was not fitted on."""
-    from pinquad.realdata.flights import band_fit
+    from pinquad.realdata.rotor_inertia import band_fit
 
     require_data()
     jr = 15e-9
@@ -318,7 +311,7 @@ def test_fixed_rotor_inertia_is_taken_back_out_of_the_band_stats():
 
 
 def test_pooled_cli_needs_two_pool_logs():
-    from pinquad.realdata.flights import main
+    from pinquad.cli.realdata import main
 
     require_data()
     assert main(["--data", str(DATA), "--only", "jana00", "--pool", "jana00"]) == 2

@@ -21,13 +21,14 @@ from pinquad.core import paper_results as paper
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.experiments.online import newest_offline_report, offline_ranges, run_online_cycle
 from pinquad.experiments.online_replay import stream_em
-from pinquad.experiments.recorded import raw_flight
 from pinquad.io.logs import LogFormatError
 from pinquad.io.read import read_log
 from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json, new_run_dir
 from pinquad.io.sdlog import is_sdlog
 from pinquad.models.sources import observations
-from pinquad.realdata.flights import build_observations, default_guess
+from pinquad.realdata.dataset import default_guess
+from pinquad.realdata.observations import build_observations
+from pinquad.realdata.raw import raw_flight
 from pinquad.report.online import online_figures, online_report, online_tables, write_online_logs
 
 

@@ -18,6 +18,8 @@ from pinquad.identification.identify import get_smoother
 from pinquad.identification.window import window_em, window_prior
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.updates import regressor_mstep, remember_leaving
+from pinquad.realdata.band_mstep import RealMStep
+from pinquad.realdata.model import RealTheta, corrected, torque_features
 
 Array = NDArray[np.float64]
 
@@ -36,8 +38,6 @@ def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] 
     tau_off = z moment_coef^T + [0, 0, J_r rotor_acc] (``realdata.RealMStep``) evaluated
     on the new window's rows, with the features z from the previous posterior's means
     (its last row repeated for the rows it has not seen yet)."""
-    from pinquad.realdata.flights import RealTheta, torque_features
-
     if not isinstance(theta, RealTheta) or theta.moment_coef is None or previous is None:
         return theta
     prev_start, post, _ = previous
@@ -52,8 +52,6 @@ def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] 
 def _measured_model(win: Observations, theta: Theta) -> QuadSSM:
     """The E-step model of a measured flight's window: the quadcopter with the nuisance
     moment of ``theta`` added to the rotor torques (``realdata.corrected``)."""
-    from pinquad.realdata.flights import corrected
-
     return QuadSSM(corrected(win, theta), theta)
 
 
@@ -88,8 +86,6 @@ def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
             theta = initial_theta(win, mass0, inertia0, gravity)
         mstep, model_of = regressor_mstep, QuadSSM
         if rotor_acc is not None:
-            from pinquad.realdata.flights import RealMStep
-
             theta = _measured_theta(theta, previous, start, win, rotor_acc[start:k + 1])
             mstep, model_of = RealMStep(rotor_acc=rotor_acc[start:k + 1]), _measured_model
         theta, post = window_em(win, theta, warm_up, iterations, smoother, mstep, earlier,

@@ -70,13 +70,11 @@ def fit_flight(path: Path, max_iterations: int = 60) -> FlightFit:
     from pinquad.discovery.discover import DiscoveryConfig, discover
     from pinquad.experiments.recorded import plain_theta
     from pinquad.io.sdlog import read_sdflight
-    from pinquad.realdata.flights import (
-        build_observations,
-        corrected,
-        default_guess,
-        identify_real,
-        raw_from_sdflight,
-    )
+    from pinquad.realdata.dataset import default_guess
+    from pinquad.realdata.identify import identify_real
+    from pinquad.realdata.model import corrected
+    from pinquad.realdata.observations import build_observations
+    from pinquad.realdata.raw import raw_from_sdflight
 
     raw = raw_from_sdflight(read_sdflight(path))
     real = build_observations(raw)

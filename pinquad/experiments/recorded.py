@@ -4,7 +4,7 @@ Dispatch on what the log holds:
 
 * rotor speeds (``rpm``; a Crazyflie micro-SD log or a table with ``rpm_1..4``): a
   measured flight, turned into observations on a 100 Hz grid by
-  :mod:`pinquad.realdata.flights` (motion capture, gyro, rotor speeds through the
+  :mod:`pinquad.realdata.observations` (motion capture, gyro, rotor speeds through the
   thrust-stand kf) and identified with its M-step (mass from the force row, inertia
   from the 3-8 Hz torque rows with the air-speed moments profiled out). A micro-SD log
   (with ``FlightLog.measured`` samples) is kind ``sdlog``, a table ``measured-table``
@@ -37,18 +37,12 @@ from pinquad.identification.identify import Identification, identify
 from pinquad.io.logs import FlightLog
 from pinquad.models.sources import observations
 from pinquad.models.ssm import Observations, Theta
-from pinquad.realdata.flights import (
-    PoseSamples,
-    RawFlight,
-    RealIdentification,
-    RealTheta,
-    ThrustCoefficient,
-    build_observations,
-    corrected,
-    default_guess,
-    identify_real,
-    options_for_sensor,
-)
+from pinquad.realdata.dataset import default_guess
+from pinquad.realdata.identify import RealIdentification, identify_real
+from pinquad.realdata.model import RealTheta, corrected
+from pinquad.realdata.observations import build_observations, options_for_sensor
+from pinquad.realdata.raw import raw_flight
+from pinquad.realdata.thrust import ThrustCoefficient
 
 Array = NDArray[np.float64]
 
@@ -155,18 +149,6 @@ def default_sensor(log: FlightLog) -> str:
     if np.isfinite(log.euler).any():
         return "B"
     return "C"
-
-
-def raw_flight(log: FlightLog) -> RawFlight:
-    """The measured-flight pipeline's input: the log with its raw poses, motor commands
-    and onboard position (``FlightLog.measured``) when it carries them."""
-    m = log.measured
-    if m is None:
-        return RawFlight(log=log)
-    pose = None
-    if m.pose_t is not None:
-        pose = PoseSamples(t=m.pose_t, position=m.pose_position, euler=m.pose_euler)
-    return RawFlight(log=log, pose=pose, pwm=m.pwm, onboard_pos=m.onboard_position)
 
 
 def _from_measured(ident: RealIdentification, label: str, post: Posterior, theta: Theta,

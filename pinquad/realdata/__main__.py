@@ -1,9 +1,9 @@
 """``python -m pinquad.realdata``: entry point; the command is
-``pinquad.realdata.flights.main``."""
+``pinquad.cli.realdata.main``."""
 
 import sys
 
-from pinquad.realdata.flights import main
+from pinquad.cli.realdata import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -27,24 +27,25 @@ phi is kept in (0, 1) (a low-pass disturbance). Standard error of I: from the ob
 information of (log I, log q_white, log q_colour, log r) at phi fixed (phi sits near 1
 on the measured flights, where its own curvature is flat), pseudo-inverted.
 
-``python -m pinquad.axis_inertia [LOG ...]`` prints the table for measured logs
-(``--parts 2``: each half of each flight on its own); ``--simulate 1 10`` checks the
-estimator on simulated closed-loop flights with a known inertia.
+``python -m pinquad.axis_inertia [LOG ...]`` (``pinquad.cli.axis_inertia``) prints the
+table for measured logs (``--parts 2``: each half of each flight on its own);
+``--simulate 1 10`` checks the estimator on simulated closed-loop flights with a known
+inertia (:func:`simulated_axes`).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
-import time
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 from scipy.optimize import minimize
+
+from pinquad.core.params import CRAZYFLIE21
+from pinquad.realdata.observations import RealObservations, simulated_observations
+from pinquad.realdata.raw import simulated_crazyflie
 
 Array = NDArray[np.float64]
 
@@ -212,7 +213,7 @@ def fit_axis(u: Array, y: Array, gap: NDArray[np.bool_], dt: float, inertia0: fl
                    steps=int(np.isfinite(y).sum()))
 
 
-def axis_signals(real, reference: Array, rotor_inertia: float = 0.0
+def axis_signals(real: RealObservations, reference: Array, rotor_inertia: float = 0.0
                  ) -> tuple[Array, Array, NDArray[np.bool_], float]:
     """(u (K, 3) [N m], y (K, 3) [rad/s], gap (K,) bool, dt [s]) of a measured flight
     (``realdata.RealObservations``) over the span from its first to its last used
@@ -241,8 +242,8 @@ def axis_signals(real, reference: Array, rotor_inertia: float = 0.0
     return u, y, gap, float(obs.dt)
 
 
-def identify_axes(real, reference: Array, rotor_inertia: float = 0.0, part: int = 0,
-                  parts: int = 1) -> tuple[AxisFit, AxisFit, AxisFit]:
+def identify_axes(real: RealObservations, reference: Array, rotor_inertia: float = 0.0,
+                  part: int = 0, parts: int = 1) -> tuple[AxisFit, AxisFit, AxisFit]:
     """:class:`AxisFit` of roll, pitch and yaw of a measured flight, each started at the
     reference inertia (3,) [kg m^2]; with ``parts`` > 1, of the ``part``-th (0-based) of
     that many equal consecutive pieces of the used span alone (a consistency check: the
@@ -257,109 +258,10 @@ def identify_axes(real, reference: Array, rotor_inertia: float = 0.0, part: int 
     return fits[0], fits[1], fits[2]
 
 
-# ----------------------------------------------------------------------------- command line
-
 def simulated_axes(factor: float, seed: int) -> tuple[tuple[AxisFit, AxisFit, AxisFit], Array]:
     """:func:`identify_axes` of a simulated closed-loop Crazyflie 2.1 flight (sensor B,
     the torque noise x factor; ``realdata.simulated_crazyflie``) read as a measured log,
     and the true inertia diagonal (3,) [kg m^2]."""
-    from pinquad.core.params import CRAZYFLIE21
-    from pinquad.realdata.flights import simulated_crazyflie, simulated_observations
-
     real = simulated_observations(simulated_crazyflie(factor, seed, "B"))
     truth = np.diag(CRAZYFLIE21.inertia).copy()
     return identify_axes(real, truth), truth
-
-
-def _cell(fit: AxisFit) -> str:
-    flag = " (!)" if fit.unreliable else ""
-    return f"{1e6 * fit.inertia:.1f} ± {1e6 * fit.se:.1f} (phi {fit.phi:.2f}){flag}"
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    from tqdm import tqdm
-
-    from pinquad.cli.common import add_measured_log_arguments, measured_logs, positive_factors
-    from pinquad.io.logs import LogFormatError
-    from pinquad.realdata.flights import PUBLISHED_INERTIA
-
-    p = argparse.ArgumentParser(
-        prog="python -m pinquad.axis_inertia",
-        description="Inertia of measured Crazyflie flights by direct maximum likelihood per "
-                    "body axis, with the unmodelled torques as a coloured disturbance.")
-    add_measured_log_arguments(p)
-    p.add_argument("--simulate", type=float, nargs="+", metavar="FACTOR", default=None,
-                   help="instead of measured logs, identify simulated closed-loop flights "
-                        "(sensor B) with the torque process noise multiplied by each FACTOR")
-    p.add_argument("--seeds", type=int, nargs="+", default=[0],
-                   help="generator seeds of the simulated flights (with --simulate)")
-    p.add_argument("--parts", type=int, default=1,
-                   help="identify each log's flight cut into this many equal consecutive "
-                        "pieces, each alone (a consistency check)")
-    args = p.parse_args(argv)
-    t0 = time.perf_counter()
-    if args.parts < 1:
-        print(f"error: --parts {args.parts}: expected a positive number", file=sys.stderr)
-        return 2
-    if args.simulate is not None:
-        error = positive_factors(args.simulate)
-        if error:
-            print(f"error: {error}", file=sys.stderr)
-            return 2
-        print("simulated Crazyflie 2.1, closed loop, sensor B, read as a measured log; "
-              f"seeds {', '.join(map(str, args.seeds))}; inertia [1e-6 kg m^2] ± standard "
-              "error, error vs truth\n")
-        print("| torque noise | seed | roll | pitch | yaw |")
-        print("|---|---|---|---|---|")
-        jobs = [(f, s) for f in args.simulate for s in args.seeds]
-        for factor, seed in tqdm(jobs, unit="flight", file=sys.stderr):
-            fits, truth = simulated_axes(factor, seed)
-            cells = [f"{_cell(fit)}, {100 * (fit.inertia / truth[j] - 1):+.1f} % "
-                     f"({(fit.inertia - truth[j]) / fit.se:+.1f} SE)"
-                     for j, fit in enumerate(fits)]
-            print(f"| x{factor:g} | {seed} | " + " | ".join(cells) + " |")
-        print(f"\ntruth {', '.join(f'{1e6 * v:.2f}' for v in truth)} e-6 kg m^2; "
-              f"{len(jobs)} flights in {time.perf_counter() - t0:.0f} s")
-        return 0
-    rows = []
-    try:
-        for name, real in measured_logs(args):
-            for part in range(args.parts):
-                label = name if args.parts == 1 else f"{name} [{part + 1}/{args.parts}]"
-                rows.append((label, identify_axes(real, PUBLISHED_INERTIA, args.rotor_inertia,
-                                                  part, args.parts)))
-            kf = real.kf.kf
-    except (LogFormatError, ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    if not rows:
-        print("error: no logs given", file=sys.stderr)
-        return 2
-    print(f"direct maximum likelihood per axis, coloured torque disturbance; kf = {kf:.4e} "
-          f"N/(rad/s)^2; J_r = {args.rotor_inertia:g} kg m^2 on yaw; inertia [1e-6 kg m^2] ± "
-          "statistical standard error (kf's and the yaw ratio's uncertainty not included); "
-          f"(!): standard error undefined or over {100 * UNRELIABLE_SE:.0f} % of the "
-          "estimate (a fit that ran off)\n")
-    print("| log | I_xx | I_yy | I_zz |")
-    print("|---|---|---|---|")
-    for name, fits in rows:
-        print(f"| {name} | " + " | ".join(_cell(f) for f in fits) + " |")
-    cells = []
-    for j in range(3):
-        kept = np.array([fits[j].inertia for _, fits in rows if not fits[j].unreliable])
-        if kept.size == 0:
-            cells.append("- (all flagged)")
-            continue
-        m = float(kept.mean())
-        sd = float(kept.std(ddof=1)) if kept.size > 1 else 0.0
-        cells.append(f"{1e6 * m:.1f} ± {1e6 * sd:.1f} ({100 * sd / m:.0f} %, {kept.size} of "
-                     f"{len(rows)})")
-    print("| mean ± sd ((!) left out) | " + " | ".join(cells) + " |")
-    print("| published (CF 2.0, no decks) | "
-          + " | ".join(f"{1e6 * v:.2f}" for v in PUBLISHED_INERTIA) + " |")
-    print(f"\n{len(rows)} logs in {time.perf_counter() - t0:.0f} s")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -31,31 +31,32 @@ left out: it is a diagnostic, not an estimator. Phase > 0: the modelled torque l
 acceleration (the gyro's filtering delays it; the 10 ms grid puts the torque bin half a
 step late, which is undone here by centring both on the grid times).
 
-``python -m pinquad.response [LOG ...]`` prints |H| and the coherence per axis at a few
-frequencies for each log, and draws |H_j(f)| of every log in one figure;
-``python -m pinquad.response --simulate 1 10 30`` does the same for simulated
-closed-loop flights with the torque noise multiplied by each factor, and prints what EM
-identifies on each.
+``python -m pinquad.response [LOG ...]`` (``pinquad.cli.response``) prints |H| and the
+coherence per axis at a few frequencies for each log, and draws |H_j(f)| of every log in
+one figure (``pinquad.report.response``); ``python -m pinquad.response --simulate 1 10 30``
+does the same for simulated closed-loop flights with the torque noise multiplied by each
+factor, and prints what EM identifies on each.
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
-import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import butter, csd, sosfiltfilt, welch
+
+from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_MASS
+from pinquad.identification.identify import identify
+from pinquad.models.sources import observations
+from pinquad.realdata.identify import identify_real
+from pinquad.realdata.observations import RealObservations, simulated_observations
+from pinquad.realdata.raw import simulated_crazyflie
+from pinquad.sim.simulator import flight_log
 
 Array = NDArray[np.float64]
 
-AXES = ("x (roll)", "y (pitch)", "z (yaw)")
-REPORT_HZ = (2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0)
-BANDS = ((2.0, 3.0), (3.0, 5.0), (5.0, 8.0), (8.0, 12.0), (12.0, 16.0))
-"""Frequency bands [Hz] of the printed band medians."""
 UNEXPLAINED_BAND = (2.0, 16.0)
 """Band [Hz] of :func:`unexplained_torque`."""
 
@@ -128,8 +129,6 @@ def unexplained_torque(acc: Array, tau: Array, inertia: Array, dt: float,
     model does not have (disturbances: air, rotor aerodynamics, anything unmodelled) are
     against the rotor torque: in closed loop the controller answers them, and where they
     dominate |H| follows the controller rather than the inertia (module docstring)."""
-    from scipy.signal import butter, sosfiltfilt
-
     sos = butter(2, [band[0], min(band[1], 0.45 / dt)], btype="band", fs=1.0 / dt,
                  output="sos")
     left = sosfiltfilt(sos, np.asarray(inertia) * acc - tau, axis=0)
@@ -146,8 +145,6 @@ def response_of_signals(name: str, t: Array, dt: float, gyro: Array, torque: Arr
     outside flight. Spectra: Welch, Hann segments of ``segment_s`` seconds, half overlap,
     over the span between the first and the last used transition. reference (3,)
     [kg m^2]: the inertia :func:`unexplained_torque` is measured against (NaN if None)."""
-    from scipy.signal import csd, welch
-
     t, acc, tau = _span_signals(t, dt, gyro, torque, exclude)
     fs = 1.0 / dt
     nper = min(int(round(segment_s * fs)), t.size)
@@ -170,7 +167,7 @@ def response_of_signals(name: str, t: Array, dt: float, gyro: Array, torque: Arr
                            unexplained=left)
 
 
-def apparent_inertia(real, name: str = "", rotor_inertia: float = 0.0,
+def apparent_inertia(real: RealObservations, name: str = "", rotor_inertia: float = 0.0,
                      segment_s: float = 2.56, reference: Array | None = None
                      ) -> ApparentInertia:
     """:class:`ApparentInertia` of a measured flight (``realdata.RealObservations``): the
@@ -233,12 +230,6 @@ def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
     log with EM (EKF + RTS E-step, regressor M-step, the offline command's start) and,
     with sensor B, with the measured-flight pipeline (``realdata.identify_real`` on
     ``realdata.raw_from_simulated``, started at the truth)."""
-    from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_MASS
-    from pinquad.identification.identify import identify
-    from pinquad.models.sources import observations
-    from pinquad.realdata.flights import identify_real, simulated_crazyflie, simulated_observations
-    from pinquad.sim.simulator import flight_log
-
     vehicle = CRAZYFLIE21
     flight = simulated_crazyflie(factor, seed, sensor)
     truth = np.diag(vehicle.inertia).copy()
@@ -257,194 +248,3 @@ def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
     return SimulatedResponse(factor=float(factor), seed=seed, sensor=sensor, response=response,
                              em_inertia=np.diag(ident.inertia).copy(), band_inertia=band_inertia, band=band,
                              truth=truth, crashed=bool(flight.crashed))
-
-
-def format_response(results: Sequence[ApparentInertia], hz: Sequence[float] = REPORT_HZ,
-                    published: Array | None = None) -> str:
-    """A Markdown table per axis: rows = logs, columns = frequencies, cells |H| [1e-6 kg m^2]
-    (coherence, phase [deg])."""
-    lines = []
-    for j, axis in enumerate(AXES):
-        ref = "" if published is None else f"; published {1e6 * published[j]:.2f}"
-        lines.append(f"\naxis {axis}: |H| [1e-6 kg m^2] (coherence, phase: > 0 the torque "
-                     f"leads){ref}\n")
-        lines.append("| log | " + " | ".join(f"{f:g} Hz" for f in hz) + " |")
-        lines.append("|---|" + "---|" * len(hz))
-        for r in results:
-            cells = []
-            for f in hz:
-                g, ph, c = r.at(f)
-                cells.append(f"{1e6 * g[j]:.1f} ({c[j]:.2f}, {np.degrees(ph[j]):+.0f} deg)")
-            lines.append(f"| {r.name} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def plot_response(results: Sequence[ApparentInertia], path: Path,
-                  published: Array | None = None, band: tuple[float, float] = (3.0, 8.0),
-                  fmax: float = 20.0, reference_label: str = "published (CF 2.0)",
-                  title: str = "apparent inertia against frequency (flat and on the dashed "
-                               "line if the rigid-body torque model held)") -> Path:
-    """|H_j(f)| of every log, one panel per axis, the inertia M-step's band shaded and the
-    reference inertia ``published`` (3,) [kg m^2] dashed; written atomically to ``path``
-    (PNG)."""
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from pinquad.io.runs import atomic_write_bytes
-
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharex=True)
-    for j, ax in enumerate(axes):
-        for r in results:
-            sel = (r.freq > 0.5) & (r.freq <= fmax)
-            ax.plot(r.freq[sel], 1e6 * r.gain[sel, j], lw=1.2, label=r.name)
-        ax.axvspan(*band, color="0.9", zorder=0, label=f"M-step band {band[0]:g}-{band[1]:g} Hz")
-        if published is not None:
-            ax.axhline(1e6 * published[j], color="k", ls="--", lw=1, label=reference_label)
-        ax.set_yscale("log")
-        ax.set_title(f"axis {AXES[j]}")
-        ax.set_xlabel("frequency [Hz]")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("|torque / angular acceleration| [1e-6 kg m^2]")
-    axes[-1].legend(fontsize=7, loc="upper right")
-    fig.suptitle(title)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return atomic_write_bytes(path, buf.getvalue())
-
-
-def _band_lines(results: Sequence[ApparentInertia], what: str) -> list[str]:
-    """Per axis, the median over ``results`` of each band's median |H| [1e-6 kg m^2]."""
-    return [f"\naxis {axis}, median over the {what} of the median |H| per band "
-            "[1e-6 kg m^2]: " + ", ".join(
-                f"{lo:g}-{hi:g} Hz {1e6 * np.median([r.band_gain(lo, hi)[j] for r in results]):.1f}"
-                for lo, hi in BANDS)
-            for j, axis in enumerate(AXES)]
-
-
-def _unexplained_line(r: ApparentInertia, against: str) -> str:
-    lo, hi = UNEXPLAINED_BAND
-    return (f"{r.name}: unexplained / rotor torque in {lo:g}-{hi:g} Hz (against {against}) "
-            "roll {:.2f}, pitch {:.2f}, yaw {:.2f}".format(*r.unexplained))
-
-
-def format_simulated(results: Sequence[SimulatedResponse]) -> str:
-    """A Markdown table, one row per simulated flight: the band medians of |H| per axis,
-    the unexplained torque ratio and EM's inertia error."""
-    head = ("| torque noise | seed | sensor | axis | " + " | ".join(
-        f"{lo:g}-{hi:g} Hz" for lo, hi in BANDS) + " | true I | unexplained / rotor torque "
-        f"({UNEXPLAINED_BAND[0]:g}-{UNEXPLAINED_BAND[1]:g} Hz) | EM inertia error | "
-        "measured-flight pipeline (band-passed M-step) inertia error |")
-    lines = [head, "|---|---|---|---|" + "---|" * len(BANDS) + "---|---|---|---|"]
-    for s in results:
-        for j, axis in enumerate(("roll", "pitch", "yaw")):
-            bands = " | ".join(f"{1e6 * s.response.band_gain(lo, hi)[j]:.1f}"
-                               for lo, hi in BANDS)
-            crash = " (crashed)" if s.crashed else ""
-            lines.append(f"| x{s.factor:g}{crash} | {s.seed} | {s.sensor} | {axis} | {bands} | "
-                         f"{1e6 * s.truth[j]:.2f} | {s.response.unexplained[j]:.2f} | "
-                         f"{100 * s.em_rel_error[j]:+.1f} % | "
-                         + (f"{100 * s.band_rel_error[j]:+.1f} % |"
-                            if np.isfinite(s.band_rel_error[j]) else "- |"))
-    return "\n".join(lines)
-
-
-def _figure(results: Sequence[ApparentInertia], out: Path, reference: Array, **kwargs
-            ) -> bool:
-    """:func:`plot_response` to ``out``, printing its path, or the error on stderr
-    (False) if it cannot be written."""
-    try:
-        print(f"figure: {plot_response(results, out, reference, **kwargs)}")
-    except OSError as exc:
-        print(f"error: {out}: cannot write the figure ({exc.strerror or exc})", file=sys.stderr)
-        return False
-    return True
-
-
-def _run_simulated(factors: Sequence[float], seed: int, sensor: str, out: Path | None,
-                   band: tuple[float, float] = (3.0, 8.0)
-                   ) -> int:
-    from tqdm import tqdm
-
-    t0 = time.perf_counter()
-    results = [simulated_response(f, seed, sensor, band=band)
-               for f in tqdm(factors, unit="flight", file=sys.stderr)]
-    print(f"simulated Crazyflie 2.1, closed loop, sensor {sensor}, generator seed {seed} for "
-          f"every flight; torque process noise x {', '.join(f'{f:g}' for f in factors)}; "
-          "|H| of the logged commanded torque against the logged gyro, band medians "
-          "[1e-6 kg m^2]; EM: EKF + RTS E-step, regressor M-step on the same log; "
-          "measured-flight pipeline: pinquad.realdata's identification of the same flight "
-          f"with rotor speeds from the commanded wrench, inertia M-step band {band[0]:g}-"
-          f"{band[1]:g} Hz\n")
-    print(format_simulated(results))
-    if out is not None and not _figure(
-            [r.response for r in results], out, results[0].truth,
-            reference_label="true inertia",
-            title="simulated closed loop: apparent inertia against frequency, torque noise "
-                  "x factor"):
-        return 2
-    print(f"{len(results)} flights in {time.perf_counter() - t0:.0f} s")
-    return 0
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    from pinquad.cli.common import add_measured_log_arguments, measured_logs, positive_factors
-    from pinquad.io.logs import LogFormatError
-    from pinquad.realdata.flights import PUBLISHED_INERTIA
-
-    p = argparse.ArgumentParser(
-        prog="python -m pinquad.response",
-        description="Apparent inertia |torque / angular acceleration| against frequency on "
-                    "measured Crazyflie flights: where the rigid-body torque model holds.")
-    add_measured_log_arguments(p)
-    p.add_argument("--out", type=Path, default=None,
-                   help="write the figure here (PNG; default: none)")
-    p.add_argument("--simulate", type=float, nargs="+", metavar="FACTOR", default=None,
-                   help="instead of measured logs, fly the simulated Crazyflie in closed loop "
-                        "once per FACTOR, with the torque process noise multiplied by it, and "
-                        "print its apparent inertia and what EM identifies (about 10-20 s "
-                        "per flight)")
-    p.add_argument("--seed", type=int, default=0,
-                   help="generator seed of every simulated flight (with --simulate)")
-    p.add_argument("--band", type=float, nargs=2, metavar=("LO", "HI"), default=[3.0, 8.0],
-                   help="torque band [Hz] of the measured-flight pipeline's inertia M-step "
-                        "on the simulated flights (with --simulate; its default 3-8 Hz)")
-    p.add_argument("--sensor", choices=("A", "B", "C"), default="B",
-                   help="sensor set of the simulated flights (with --simulate; B, the default, "
-                        "logs the pose the measured-flight pipeline needs)")
-    args = p.parse_args(argv)
-    if args.simulate is not None:
-        error = positive_factors(args.simulate)
-        if error:
-            print(f"error: {error}", file=sys.stderr)
-            return 2
-        return _run_simulated(args.simulate, args.seed, args.sensor, args.out,
-                              tuple(args.band))
-    t0 = time.perf_counter()
-    try:
-        results = [apparent_inertia(real, name, args.rotor_inertia, reference=PUBLISHED_INERTIA)
-                   for name, real in measured_logs(args)]
-    except (LogFormatError, ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(f"apparent inertia |H_j(f)| = |S_a,tau / S_a,a| per axis, J_r = "
-          f"{args.rotor_inertia:g} kg m^2 on the yaw torque; {len(results)} logs")
-    print(format_response(results, published=PUBLISHED_INERTIA))
-    for line in _band_lines(results, "logs"):
-        print(line)
-    print()
-    for r in results:
-        print(_unexplained_line(r, "the published inertia"))
-    if args.out is not None and not _figure(results, args.out, PUBLISHED_INERTIA):
-        return 2
-    print(f"{len(results)} logs in {time.perf_counter() - t0:.0f} s")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

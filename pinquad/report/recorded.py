@@ -16,7 +16,7 @@ from pinquad.identification.identify import Identification
 from pinquad.io.logs import write_log
 from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 from pinquad.models.ssm import Observations
-from pinquad.realdata.flights import PUBLISHED_INERTIA, SCALE_MASS
+from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS
 from pinquad.report.offline import plot_trajectory
 
 Array = NDArray[np.float64]

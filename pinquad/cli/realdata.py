@@ -1,0 +1,137 @@
+"""``python -m pinquad.realdata [--data DIR] [--jobs N] [--rotor-inertia pooled|per-flight|
+none|VALUE]`` identifies every flight of the IMRC Lab data set and prints the table
+(pooled J_r: a first pass fits J_r per flight on the pool logs, then every log is
+identified with J_r fixed)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from pinquad.io.logs import LogFormatError
+from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
+from pinquad.realdata.observations import RealDataOptions
+from pinquad.realdata.rotor_inertia import pooled_rotor_inertia
+from pinquad.realdata.table import TableJob, run_jobs
+from pinquad.realdata.thrust import thrust_coefficient
+from pinquad.report.realdata import format_table
+
+
+def _rotor_choice(text: str) -> str | float:
+    if text in ("pooled", "per-flight", "none"):
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected pooled, per-flight, none or a value in kg m^2") from None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m pinquad.realdata [--data DIR] [--jobs N]``: identify every flight."""
+    parser = argparse.ArgumentParser(
+        prog="python -m pinquad.realdata",
+        description="Identify mass and inertia of the real Crazyflie from every micro-SD "
+                    "flight log and print the table (scale 34.7 g, published inertia).")
+    parser.add_argument("--data", type=Path, default=None,
+                        help="Crazyflie data directory (with imrc_brushed/ and thrust_stand/) "
+                             "or a directory of flight logs (default: $PINQUAD_CRAZYFLIE_DATA, "
+                             "else ../shared/data/crazyflie next to the repository)")
+    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
+                        help="worker processes")
+    parser.add_argument("--max-iterations", type=int, default=150, help="E-steps per log")
+    parser.add_argument("--no-information", action="store_true",
+                        help="skip the observed information (jackknife errors only)")
+    parser.add_argument("--channels", default="pos,euler,gyro",
+                        help="measurement channels, comma-separated (pos, vel, euler, gyro)")
+    parser.add_argument("--faults", choices=["repair", "repair-all", "exclude"],
+                        default="repair", help="handling of implausible rotor speeds")
+    parser.add_argument("--band", type=float, nargs=2, default=(3.0, 8.0),
+                        metavar=("LO", "HI"), help="torque-row band of the inertia M-step [Hz]")
+    parser.add_argument("--only", nargs="*", help="log names to run (default: all)")
+    parser.add_argument("--rotor-inertia", type=_rotor_choice, default="pooled",
+                        help="rotor inertia J_r of the yaw torque J_r sum spin_i omega_i': "
+                             "pooled (default: one J_r fitted jointly on the --pool logs, each "
+                             "pool log identified with the J_r of the others, leave-one-out), "
+                             "per-flight (fitted on each log), none, or a value [kg m^2]")
+    parser.add_argument("--pool", nargs="*", default=list(POOL_FLIGHTS),
+                        help="logs the pooled J_r is fitted on (default: the seven with every "
+                             "rotor speed measured); run whatever --only says")
+    args = parser.parse_args(argv)
+    flights = flights_dir(args.data)
+    logs = sorted(p for p in flights.iterdir() if p.is_file() and p.name.startswith("jana")) \
+        if flights.is_dir() else []
+    all_logs = list(logs)
+    if args.only:
+        logs = [p for p in logs if p.name in set(args.only)]
+    if not logs:
+        print(f"error: {flights}: no flight log (jana*) found; expected the IMRC Lab micro-SD "
+              "logs (give the data directory with --data DIR)", file=sys.stderr)
+        return 2
+    try:
+        options = RealDataOptions(channels=tuple(c.strip() for c in args.channels.split(",")),
+                                  faults=args.faults)
+        stand = stand_dir(args.data)
+        kf = thrust_coefficient(stand)
+    except (LogFormatError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    mode = args.rotor_inertia
+    print(f"pinquad real data: {len(logs)} logs from {flights}, channels {options.channels}, "
+          f"faults {options.faults}, torque band {args.band[0]:g}-{args.band[1]:g} Hz, "
+          f"rotor inertia {mode}, {args.jobs} worker(s); {kf.note}", file=sys.stderr)
+    rotor, pass1 = None, ""
+    try:
+        if mode == "pooled":
+            pool = [p for p in all_logs if p.name in set(args.pool)]
+            if len(pool) < 2:
+                print(f"error: --pool {' '.join(args.pool)}: fewer than two of these logs in "
+                      f"{flights}; expected at least two to pool J_r over", file=sys.stderr)
+                return 2
+            print(f"pass 1: J_r fitted per flight on the {len(pool)} pool logs "
+                  f"({', '.join(p.name for p in pool)}) to pool it", file=sys.stderr)
+            first = run_jobs([TableJob(p, options, args.max_iterations, False, tuple(args.band),
+                                       stand, keep_band_stats=True) for p in pool], args.jobs)
+            bad = [(p.name, r) for p, r in zip(pool, first, strict=True) if isinstance(r, str)]
+            if bad:
+                print("error: pool log not identified: " + "; ".join(f"{n}: {w}" for n, w in bad),
+                      file=sys.stderr)
+                return 2
+            rotor = pooled_rotor_inertia({r.name: r.band_stats for r in first})
+            pass1 = (f"; pass 1 (J_r per flight on the pool logs, then pooled) "
+                     f"{time.perf_counter() - t0:.0f} s")
+            print(rotor.describe(), file=sys.stderr)
+            jobs = []
+            for p in logs:
+                jr, how = rotor.for_log(p.name)
+                src = how if how == "leave-one-out" else "pooled on " + ", ".join(rotor.logs)
+                jobs.append(TableJob(p, replace(options, rotor_inertia=jr), args.max_iterations,
+                                     not args.no_information, tuple(args.band), stand,
+                                     fit_rotor_inertia=False, rotor_source=src))
+        else:
+            fixed = 0.0 if isinstance(mode, str) else mode
+            src = {"per-flight": "fitted on this log", "none": ""}.get(mode, "given") \
+                if isinstance(mode, str) else "given"
+            jobs = [TableJob(p, replace(options, rotor_inertia=fixed), args.max_iterations,
+                             not args.no_information, tuple(args.band), stand,
+                             fit_rotor_inertia=mode == "per-flight", rotor_source=src)
+                    for p in logs]
+        results = run_jobs(jobs, args.jobs)
+    except (LogFormatError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    failed = [(j.path.name, r) for j, r in zip(jobs, results, strict=True) if isinstance(r, str)]
+    results = [r for r in results if not isinstance(r, str)]
+    print(format_table(results, rotor))
+    for name, why in failed:
+        print(f"\n{name}: not identified: {why}")
+    print(f"\n{len(results)} logs in {time.perf_counter() - t0:.0f} s "
+          f"({sum(r.seconds for r in results):.0f} s of EM + standard errors in the workers"
+          f"{pass1})")
+    return 0

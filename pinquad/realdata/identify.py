@@ -1,0 +1,189 @@
+"""Mass and inertia of the vehicle from one measured flight, with standard errors.
+
+Identification (:func:`identify_real`) is EM with the compiled EKF + RTS E-step and
+:class:`RealMStep`: the shared closed form for the mass (body-z force row), the shared
+profiled objective for the inertia but on the torque rows band-passed to 3-8 Hz, and a
+nuisance body moment (thrust, body-frame air speed, body rates) that the measured
+flights demand: the rotor torques that cancel rotor-drag / blade-flapping moments are
+ten times the inertial torque I omega' and, left in, inflate the inertia thirty-fold.
+
+Flight data identify only kf / m and kf L / I (every input is proportional to kf), so
+the identified mass and inertia scale exactly with the kf taken from the thrust stand
+(``pinquad.realdata.thrust``); :func:`identify_real` propagates its uncertainty into the
+standard errors (:func:`total_standard_errors`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.identification.em import initial_theta, run_em
+from pinquad.identification.fisher import observed_information, standard_errors
+from pinquad.identification.identify import get_smoother, loglik_function
+from pinquad.models.ssm import Theta
+from pinquad.realdata.band_mstep import BandStats, RealMStep
+from pinquad.realdata.dataset import SCALE_MASS
+from pinquad.realdata.mass_balance import MotorSplit, motor_split, quasi_static_mass
+from pinquad.realdata.model import corrected, real_model
+from pinquad.realdata.observations import RealObservations
+from pinquad.realdata.rotor_inertia import yaw_band_stats
+from pinquad.realdata.thrust import ThrustCoefficient
+from pinquad.vehicle.actuators import YAW_RATIO_CRAZYFLIE
+
+Array = NDArray[np.float64]
+
+YAW_RATIO_REL_SE = 0.0005 / YAW_RATIO_CRAZYFLIE
+"""Relative standard uncertainty of the yaw torque/thrust ratio: published values span
+0.0060-0.0070 m around the 0.006 m used, taken as +-0.0005 m (one standard deviation)."""
+REPAIR_REL_SE = np.array([0.011, 0.07, 0.05, 0.24])
+"""Relative standard uncertainty of [m, I_xx, I_yy, I_zz] added when rotor speeds were
+rebuilt from PWM, measured by hiding M1 on the seven clean flights (zero in ~30 % of the
+rows, a stuck half value elsewhere, as on jana20-29), rebuilding it with the partner map
+and identifying again: root-mean-square change of the estimate over the seven flights
+(mass 1.1 %: mean +0.55 %, largest +2.6 % on jana01; I_xx 7 %, I_yy 5 %, I_zz 24 %).
+
+On jana20-29 themselves the rebuilt M1 is checked against M1's own readings: the stuck
+channel updates a few hundred times per flight, and each fresh value is half the speed
+(a ratio to M3 of 0.48 where the clean flights give 0.92-0.99); twice the fresh values
+agree with the partner-map rebuild to +0.5..+1.3 % (median, six logs) and -0.5 % (jana25),
+residual 50-160 rev/min. The +2.3..+3.3 % mass excess of those flights is not the repair:
+the mocap-acceleration force balance with the measured M2 + M3 + M4 alone gives
+26.9-27.0 g-equivalents there against 26.1-26.5 on jana02-05 (same M1/M3 and M2/M4 speed
+balance), +2.5-3 % from motors that were never rebuilt, and it persists in slow level
+flight (< 0.3 m/s, |v_z| < 0.1 m/s) and away from the floor. Thrust per rpm^2 (air
+density, propellers) or the vehicle's mass differed in that session; flight data
+identify only kf / m and cannot tell which."""
+
+
+@dataclass(frozen=True)
+class RealIdentification:
+    """Mass and inertia of the vehicle from one measured flight.
+
+    name: log name; mass [kg]; inertia (3,) diagonal [kg m^2]; se_info (4,): standard
+    errors of [m, I_xx, I_yy, I_zz] from the observed information (NaN if not computed
+    or not positive definite); se_jack (4,): block-jackknife standard errors;
+    se_stat (4,): the larger of the two (the statistical uncertainty with kf known);
+    se_total (4,): se_stat combined with kf's uncertainty (every estimate is
+    proportional to kf) and, for I_zz, the yaw ratio's (``YAW_RATIO_REL_SE``);
+    kf: the thrust coefficient; iterations, converged, loglik (I,), e_steps: the EM run;
+    history (I+1, 4): [m, I_xx, I_yy, I_zz] per iteration; moment_coef (3, 7): the
+    nuisance moment (``TORQUE_FEATURES``); n_used / n_excluded transitions; excluded:
+    exclusion notes; notes: other notes; seconds: wall time; band: the torque band [Hz];
+    rotor_inertia: J_r [kg m^2] used (fitted or fixed; NaN: none); band_stats: the
+    band-passed regression at the final posterior (``keep_band_stats``); rotor_source:
+    how J_r was obtained, in words (set by the table); quasi_static_mass [kg]: the
+    model-free check :func:`quasi_static_mass` on the same transitions; motor_split: that
+    check split by motor (:func:`motor_split`).
+    """
+
+    name: str
+    mass: float
+    inertia: Array
+    se_info: Array
+    se_jack: Array
+    se_stat: Array
+    se_total: Array
+    kf: ThrustCoefficient
+    iterations: int
+    converged: bool
+    loglik: Array
+    e_steps: int
+    history: Array
+    moment_coef: Array
+    n_used: int
+    n_excluded: int
+    excluded: tuple[str, ...]
+    notes: tuple[str, ...]
+    seconds: float
+    band: tuple[float, float] = (3.0, 8.0)
+    rotor_inertia: float = float("nan")
+    band_stats: BandStats | None = None
+    rotor_source: str = ""
+    quasi_static_mass: float = float("nan")
+    motor_split: MotorSplit | None = None
+
+    @property
+    def params(self) -> Array:
+        """[m, I_xx, I_yy, I_zz] (4,) [kg, kg m^2]."""
+        return np.concatenate([[self.mass], self.inertia])
+
+    @property
+    def mass_rel_error(self) -> float:
+        """m / 34.7 g - 1."""
+        return self.mass / SCALE_MASS - 1.0
+
+
+
+def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
+                          yaw_rel: float = YAW_RATIO_REL_SE, repaired: bool = False) -> Array:
+    """se_total (4,) of [m, I_xx, I_yy, I_zz]: every input is proportional to kf, so
+    each estimate is too (relative uncertainty kf_rel); I_zz is also proportional to the
+    yaw torque ratio (yaw_rel); rotor speeds rebuilt from PWM add ``REPAIR_REL_SE``:
+
+        se_total_i^2 = se_stat_i^2 + p_i^2 (kf_rel^2 [+ yaw_rel^2 for I_zz]
+                                            [+ REPAIR_REL_SE_i^2 if repaired])
+    """
+    rel = np.full(4, kf_rel**2)
+    rel[3] += yaw_rel**2
+    if repaired:
+        rel += REPAIR_REL_SE**2
+    stat = np.where(np.isfinite(se_stat), se_stat, 0.0)
+    return np.sqrt(stat**2 + params**2 * rel)
+
+
+def identify_real(real: RealObservations, mass0: float, inertia0: Array,
+                  max_iterations: int = 100, information: bool = True,
+                  band: tuple[float, float] = (3.0, 8.0), tol: float = 1e-4,
+                  name: str | None = None, estep: str = "rts", fit_rotor_inertia: bool = True,
+                  keep_band_stats: bool = False):
+    """EM on a measured flight (``RealMStep``; E-step ``estep``: ``rts`` = compiled EKF +
+    RTS, or ``gtsam``) from (mass0 [kg], inertia0 (3, 3) [kg m^2]), then standard errors
+    (the observed information always uses the EKF likelihood).
+
+    keep_band_stats: store :func:`yaw_band_stats` at the final posterior in the result
+    (the input of :func:`pooled_rotor_inertia`).
+
+    Returns (RealIdentification, Posterior, RealTheta). EM stops when the relative change
+    of (m, I) is below ``tol`` (1e-4, far below the standard errors) and the relative
+    log-likelihood change below tol / 10, or after ``max_iterations`` E-steps.
+    """
+    t0 = time.perf_counter()
+    obs = real.obs
+    gravity = real.log.meta.gravity
+    fit_jr = fit_rotor_inertia and real.rotor_acc is not None and not real.options.rotor_inertia
+    mstep = RealMStep(band, real.rotor_acc if fit_jr else None)
+    theta0 = initial_theta(obs, mass0, inertia0, gravity)
+    res = run_em(obs, theta0, get_smoother(estep), mstep, max_iterations=max_iterations,
+                 tol=tol, tol_loglik=0.1 * tol, accelerate=False, model_factory=real_model)
+    theta = res.theta
+    params = np.concatenate([[theta.mass], np.diag(theta.inertia)])
+    se_info = np.full(4, np.nan)
+    if information:
+        plain = Theta(theta.mass, np.asarray(theta.inertia), theta.noise, gravity)
+        info = observed_information(corrected(obs, theta), plain, loglik_function("rts"))
+        se_info = standard_errors(info)
+    se_jack = mstep.jackknife(res.posterior, obs, theta)
+    se_stat = np.fmax(se_info, se_jack)
+    se_total = total_standard_errors(params, se_stat, real.kf.rel_se,
+                                     repaired=bool(real.repaired))
+    history = np.column_stack([np.concatenate([[mass0], res.mass]),
+                               np.vstack([np.diag(inertia0), res.inertia_diag])])
+    coef = getattr(theta, "moment_coef", None)
+    out = RealIdentification(
+        name=name or Path(real.source).name, mass=theta.mass,
+        inertia=np.diag(theta.inertia).copy(), se_info=se_info, se_jack=se_jack,
+        se_stat=se_stat, se_total=se_total, kf=real.kf, iterations=res.iterations,
+        converged=res.converged, loglik=res.loglik, e_steps=res.e_steps, history=history,
+        moment_coef=np.zeros((3, 7)) if coef is None else coef, n_used=real.n_used,
+        n_excluded=real.n_excluded, excluded=real.excluded, notes=real.notes,
+        seconds=time.perf_counter() - t0, band=band,
+        rotor_inertia=float(getattr(theta, "rotor_inertia", None) or real.options.rotor_inertia
+                            or float("nan")),
+        band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None,
+        quasi_static_mass=quasi_static_mass(real), motor_split=motor_split(real))
+    return out, res.posterior, theta

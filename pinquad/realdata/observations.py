@@ -1,0 +1,460 @@
+"""Measured Crazyflie flights as EM observations on a uniform grid.
+
+A micro-SD log (``pinquad.io.sdlog``, ~500 Hz ``fixedFrequency`` rows plus motion capture
+at ~55 Hz on average) becomes :class:`~pinquad.models.ssm.Observations` on a uniform grid t_k = k dt,
+dt = 0.01 s:
+
+* gyro, accelerometer, onboard velocity: mean of the samples with
+  t in [t_k - dt/2, t_k + dt/2) (centred, so the mean estimates the value at t_k);
+* inputs u_k = [F, M_x, M_y, M_z]: mean over [t_k, t_k + dt) of the wrench of each
+  ~2 ms sample, F = kf sum_i omega_i^2 [N], M = mixer (``ActuatorModel``) [N m]. The
+  forward bin is what the explicit-Euler transition x_{k+1} = x_k + dt f(x_k, u_k)
+  integrates: v_{k+1} - v_k = int_{t_k}^{t_k+dt} a dt ~ dt * mean(a);
+* motion-capture position [m] and Euler angles [rad] (from the ``locSrv`` quaternion):
+  the pose sample nearest t_k within dt/2, else NaN (a dropout is a missing sample);
+  a pose more than ``outlier_m`` / ``outlier_rad`` away from the median of its
+  neighbours is a tracking glitch and is dropped too.
+
+Transitions k -> k+1 the M-step must skip (``Observations.exclude``): ground contact and
+the take-off / landing around it (height below ``contact_height`` at low speed, or rotors
+below flight speed, widened by ``contact_margin`` seconds), implausible rotor readings
+(``faults.detect_actuation_faults``) unless repaired from the PWM commands, bins with no
+actuation sample (the input there is interpolated only so the E-step can pass over it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
+from pinquad.io.sdlog import is_sdlog, read_sdflight
+from pinquad.models.ssm import Observations
+from pinquad.realdata.faults import (
+    PARTNER,
+    ActuationFaultReport,
+    detect_actuation_faults,
+    reconstruct_rpm,
+)
+from pinquad.realdata.raw import PoseSamples, RawFlight, raw_from_sdflight, raw_from_simulated
+from pinquad.realdata.resample import (
+    bin_mean,
+    fill_rows,
+    interp_nan,
+    nearest_samples,
+    pose_glitches,
+)
+from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
+from pinquad.sim.simulator import Flight
+from pinquad.vehicle.actuators import (
+    KF_CRAZYFLIE,
+    SPIN_CRAZYFLIE,
+    YAW_RATIO_CRAZYFLIE,
+    ActuatorModel,
+)
+
+Array = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+GRID_DT = 0.01
+"""Resampled step [s]: 100 Hz."""
+
+
+# ----------------------------------------------------------------------------- options
+
+@dataclass(frozen=True)
+class RealDataOptions:
+    """How a measured log becomes observations.
+
+    dt [s]: grid step; channels: measurement blocks among ``pos`` (motion capture),
+    ``vel`` (onboard estimate), ``euler`` (motion capture), ``gyro``; onboard_pos: take
+    ``pos`` from the onboard estimate instead of the motion capture (source A);
+    faults: ``repair`` (rebuild untrusted rotor speeds from PWM through a map learned on
+    the diagonal partner, which spins the same way), ``repair-all`` (map learned on all
+    trusted motors: ``faults.repair_log``), or ``exclude`` (skip flagged rows);
+    kf [N/(rad/s)^2] or None for :func:`thrust_coefficient`; yaw_ratio [m]; spin;
+    contact_height [m], contact_speed [m/s], flight_rpm [rev/min], contact_margin [s]:
+    ground-contact detection (module docstring); outlier_m [m], outlier_rad [rad]:
+    motion-capture glitch thresholds.
+    """
+
+    dt: float = GRID_DT
+    channels: tuple[str, ...] = ("pos", "euler", "gyro")
+    onboard_pos: bool = False
+    faults: str = "repair"
+    kf: float | None = None
+    yaw_ratio: float = YAW_RATIO_CRAZYFLIE
+    rotor_inertia: float = 0.0
+    spin: tuple[float, float, float, float] = SPIN_CRAZYFLIE
+    contact_height: float = 0.03
+    contact_speed: float = 0.2
+    flight_rpm: float = 10000.0
+    contact_margin: float = 0.3
+    outlier_m: float = 0.05
+    outlier_rad: float = 0.2
+
+    def __post_init__(self) -> None:
+        bad = [c for c in self.channels if c not in ("pos", "vel", "euler", "gyro")]
+        if bad or not self.channels:
+            raise ValueError(f"channels {self.channels}: expected some of pos, vel, euler, gyro")
+        if self.faults not in ("repair", "repair-all", "exclude"):
+            raise ValueError(f"faults {self.faults!r}: expected repair, repair-all or exclude")
+        if not self.dt > 0:
+            raise ValueError(f"dt must be positive; got {self.dt}")
+
+
+SENSOR_CHANNELS = {
+    "A": (("pos", "vel", "gyro"), True),
+    "B": (("pos", "vel", "euler", "gyro"), False),
+    "C": (("pos", "vel", "gyro"), False),
+}
+"""--sensor on a measured log: B = everything, C = no attitude, A = the onboard
+estimate's position and velocity with the gyro (the paper's sources)."""
+
+
+def options_for_sensor(sensor: str | None, base: RealDataOptions | None = None
+                       ) -> RealDataOptions:
+    """Options for a paper source name (None: the default measured-log channels)."""
+    base = base or RealDataOptions()
+    if sensor is None:
+        return base
+    if sensor not in SENSOR_CHANNELS:
+        raise ValueError(f"unknown sensor {sensor!r}; expected A, B or C")
+    channels, onboard = SENSOR_CHANNELS[sensor]
+    return replace(base, channels=channels, onboard_pos=onboard)
+
+
+
+# ----------------------------------------------------------------------------- result
+
+@dataclass(frozen=True)
+class Exclusion:
+    """One reason for skipping transitions: reason (words) and transitions (count; a
+    transition may have several reasons)."""
+
+    reason: str
+    transitions: int
+
+
+@dataclass(frozen=True)
+class RealObservations:
+    """A measured flight ready for EM.
+
+    obs: the E-step's Observations on the grid (N steps of dt); log: the resampled
+    flight (N rows: mocap position / Euler, onboard velocity, gyro, accelerometer,
+    rotor speeds after repair, thrust [N] and torque [N m] = obs.inputs);
+    exclusions: why transitions were skipped, with counts; notes: what else was done
+    (repairs, dropouts, glitches) in words; faults: the actuation fault report of the
+    original-rate log; kf: the thrust coefficient used; source: the file; repaired:
+    motors (0-based) whose readings were rebuilt from PWM; rotor_acc (N,) [rad/s^2]: mean
+    over [t_k, t_k + dt) of sum_i spin_i d(omega_i)/dt (:func:`rotor_acceleration`, gaps
+    interpolated), the regressor of the rotor-inertia yaw torque J_r * rotor_acc;
+    rebuilt_fraction (N,) [-]: share of the log's rotor samples in [t_k, t_k + dt) with a
+    speed taken from the PWM map (1 for a bin without samples; None: not recorded).
+    """
+
+    obs: Observations
+    log: FlightLog
+    exclusions: tuple[Exclusion, ...]
+    notes: tuple[str, ...]
+    faults: ActuationFaultReport
+    kf: ThrustCoefficient
+    source: str
+    options: RealDataOptions = field(default_factory=RealDataOptions)
+    repaired: tuple[int, ...] = ()
+    rotor_acc: Array | None = None
+    rebuilt_fraction: Array | None = None
+
+    @property
+    def n_transitions(self) -> int:
+        return self.obs.n - 1
+
+    @property
+    def n_excluded(self) -> int:
+        return int(self.obs.exclude[: self.obs.n - 1].sum())
+
+    @property
+    def n_used(self) -> int:
+        return self.n_transitions - self.n_excluded
+
+    @property
+    def excluded(self) -> tuple[str, ...]:
+        """Human-readable exclusion list: one line per reason with its count, then the
+        total."""
+        lines = [f"{e.transitions} transitions: {e.reason}" for e in self.exclusions
+                 if e.transitions]
+        lines.append(f"total: {self.n_excluded} of {self.n_transitions} transitions excluded, "
+                     f"{self.n_used} used ({self.obs.dt * 1e3:.0f} ms each)")
+        return tuple(lines)
+
+
+# ----------------------------------------------------------------------------- build
+
+def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
+            ) -> tuple[Array, BoolArray, BoolArray, list[str]]:
+    """Rotor speeds (N, 4) after the chosen fault handling, rows (N,) still untrusted,
+    readings (N, 4) taken from the PWM map, and notes."""
+    log = raw.log
+    rpm = np.asarray(log.rpm, dtype=float)
+    untrusted = report.motor_mask | report.unreliable[None, :]
+    notes: list[str] = []
+    none = np.zeros((log.n, 4), dtype=bool)
+    if not untrusted.any():
+        return rpm, np.zeros(log.n, dtype=bool), none, notes
+    if mode == "exclude" or raw.pwm is None or not np.isfinite(raw.pwm).all():
+        if mode != "exclude":
+            notes.append("implausible rotor speeds cannot be rebuilt (no PWM in the log): "
+                         "their rows are excluded")
+        return rpm, untrusted.any(axis=1), none, notes
+    bad_motors = [i for i in range(4) if untrusted[:, i].any()]
+    if mode == "repair" and not any(untrusted[:, PARTNER[i]].any() for i in bad_motors):
+        # A motor's diagonal partner spins the same way with the same propeller type;
+        # on the clean flights the PWM -> rpm map of M3 alone predicts M1's mean speed
+        # to +0.5 % on average, the map of all three other motors to +2 %.
+        out = rpm.copy()
+        rebuilt = none.copy()
+        for i in bad_motors:
+            others = tuple(j for j in range(4) if j != PARTNER[i])
+            rec = reconstruct_rpm(log, raw.pwm, report, replace_motors=others)
+            out[untrusted[:, i], i] = rec.rpm[untrusted[:, i], i]
+            rebuilt[:, i] = untrusted[:, i] & rec.replaced[:, i]
+            notes.append(f"M{i + 1}: {int(rebuilt[:, i].sum())} readings rebuilt from its PWM "
+                         f"through the PWM -> rpm map of its diagonal partner M{PARTNER[i] + 1} "
+                         f"(first-order lag {rec.tau * 1e3:.0f} ms, map residual "
+                         f"{rec.fit_rms:.0f} rev/min)")
+            div = rec.divisions[i]
+            if div is not None and div.divisor > 1:
+                notes.append(div.describe(i))
+        return out, np.zeros(log.n, dtype=bool), rebuilt, notes
+    if mode == "repair":
+        notes.append("a diagonal partner is untrusted too: map learned on all trusted motors")
+    rec = reconstruct_rpm(log, raw.pwm, report)
+    notes.extend(rec.notes)
+    return rec.rpm, np.zeros(log.n, dtype=bool), rec.replaced, notes
+
+
+def rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float]) -> Array:
+    """(N,) sum_i spin_i d(omega_i)/dt [rad/s^2] from rotor speeds rpm (N, 4) [rev/min] at
+    times t (N,) [s]: central differences, NaN where a neighbouring interval is a log gap
+    (longer than twice the median step) or a speed is not finite.
+
+    Times J_r [kg m^2] it is the reaction torque of the rotors' own angular acceleration on
+    the body about z, tau_z = sum_i spin_i J_r d(omega_i)/dt [N m], with the sign of the
+    rotor's drag torque (the motor supplies J_r omega_i' + Q_i to the rotor along its spin
+    axis and the body takes the opposite).
+    """
+    omega = np.asarray(rpm, dtype=float) * (2.0 * math.pi / 60.0)
+    t = np.asarray(t, dtype=float)
+    if t.size < 3:
+        return np.full(t.size, np.nan)
+    acc = np.gradient(omega, t, axis=0) @ np.asarray(spin, dtype=float)
+    step = np.diff(t)
+    gap = step > 2.0 * float(np.median(step))
+    acc[np.concatenate([gap, [False]]) | np.concatenate([[False], gap])] = np.nan
+    return acc
+
+
+def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
+                       kf: ThrustCoefficient | None = None) -> RealObservations:
+    """Resample a measured flight to the grid and build the EM observations (module
+    docstring). Raises ValueError if nothing usable remains."""
+    options = options or RealDataOptions()
+    log = raw.log
+    source = log.meta.source
+    if log.rpm is None:
+        raise ValueError(f"{source}: the log has no rotor speeds (rpm_1..rpm_4); expected "
+                         "rpm columns to compute thrust and torques")
+    if log.n < 10:
+        raise ValueError(f"{source}: only {log.n} samples; expected a flight of at least 10")
+    if kf is None:
+        kf = (thrust_coefficient() if options.kf is None else
+              ThrustCoefficient(options.kf, 0.05 * options.kf, (), options.kf,
+                                f"kf = {options.kf:.4e} N/(rad/s)^2 given (5 % assumed)"))
+    notes: list[str] = [kf.note]
+    dt = options.dt
+
+    report = detect_actuation_faults(log, flight_rpm=options.flight_rpm)
+    rpm, untrusted_rows, rebuilt, repair_notes = _repair(raw, report, options.faults)
+    untrusted_motors = report.motor_mask | report.unreliable[None, :]
+    notes.extend(repair_notes)
+    if report.vbat_stuck:
+        notes.append(f"battery voltage stuck at {report.vbat_value:.2f} V: not used")
+    actuator = ActuatorModel(kf=kf.kf, yaw_ratio=options.yaw_ratio, spin=options.spin)
+    finite_rpm = np.isfinite(rpm).all(axis=1)
+    thrust = np.full(log.n, np.nan)
+    torque = np.full((log.n, 3), np.nan)
+    if finite_rpm.any():
+        thrust[finite_rpm], torque[finite_rpm] = actuator.wrench(rpm[finite_rpm])
+    rotor_acc = rotor_acceleration(log.t, rpm, options.spin)
+    if options.rotor_inertia:
+        torque[:, 2] += options.rotor_inertia * rotor_acc
+    # Untrusted rows carry no input: their bins become NaN and are excluded below.
+    wrench = np.column_stack([thrust, torque])
+    wrench[untrusted_rows] = np.nan
+
+    t_src = log.t
+    k = int(math.floor((t_src[-1] - t_src[0]) / dt)) + 1
+    grid = t_src[0] + dt * np.arange(k)
+    centred = grid - 0.5 * dt
+    gyro = bin_mean(t_src, log.gyro, centred, dt, k)
+    accel = bin_mean(t_src, log.accel, centred, dt, k)
+    vel = bin_mean(t_src, log.velocity, centred, dt, k)
+    rpm_g = bin_mean(t_src, np.where(untrusted_rows[:, None], np.nan, rpm), grid, dt, k)
+    rebuilt_g = bin_mean(t_src, rebuilt.any(axis=1).astype(float), grid, dt, k)[:, 0]
+    inputs = bin_mean(t_src, wrench, grid, dt, k)
+    rotor_acc_g = interp_nan(grid, bin_mean(
+        t_src, np.where(untrusted_rows, np.nan, rotor_acc), grid, dt, k)[:, 0])
+    vbat = None
+    if log.vbat is not None and not report.vbat_stuck:
+        vbat = bin_mean(t_src, log.vbat, centred, dt, k)[:, 0]
+    onboard_pos = None
+    if raw.onboard_pos is not None:
+        onboard_pos = bin_mean(t_src, raw.onboard_pos, centred, dt, k)
+
+    # Motion capture: nearest sample within half a bin.
+    if raw.pose is not None:
+        pose = raw.pose
+    else:
+        pose = PoseSamples(t=t_src, position=log.position, euler=log.euler)
+    has_pose = np.isfinite(pose.position).all(axis=1) | np.isfinite(pose.euler).all(axis=1)
+    p_t, p_pos, p_eul = pose.t[has_pose], pose.position[has_pose], pose.euler[has_pose]
+    glitch_pos = pose_glitches(p_pos, options.outlier_m)
+    glitch_eul = pose_glitches(p_eul, options.outlier_rad, angle=True)
+    p_pos = np.where(glitch_pos[:, None], np.nan, p_pos)
+    p_eul = np.where(glitch_eul[:, None], np.nan, p_eul)
+    rows, which = nearest_samples(grid, p_t, 0.5 * dt)
+    position = np.full((k, 3), np.nan)
+    euler = np.full((k, 3), np.nan)
+    position[rows] = p_pos[which]
+    euler[rows] = p_eul[which]
+    n_pose = int(np.isfinite(position).all(axis=1).sum())
+    notes.append(f"motion capture: {p_t.size} poses; {n_pose} of {k} grid steps have one "
+                 f"within {0.5 * dt * 1e3:.0f} ms ({100 * n_pose / k:.0f} %), the others are "
+                 "missing samples")
+    if glitch_pos.any() or glitch_eul.any():
+        notes.append(f"motion capture: {int(glitch_pos.sum())} position / "
+                     f"{int(glitch_eul.sum())} attitude samples more than "
+                     f"{options.outlier_m * 100:.0f} cm / {options.outlier_rad:.2f} rad from the "
+                     "median of their 6 neighbours dropped as tracking glitches")
+
+    # --- exclusions (transitions k -> k+1)
+    exclusions: list[Exclusion] = []
+    n_tr = k - 1
+    exclude = np.zeros(k, dtype=bool)
+
+    # Ground contact: near the floor and slow, or rotors below flight speed; widened by
+    # the margin because take-off and landing mix contact forces and ground effect.
+    z = position[:, 2]
+    z_fill = interp_nan(grid, z)
+    speed = np.linalg.norm(np.nan_to_num(vel), axis=1)
+    rotors_idle = np.isfinite(rpm_g).all(axis=1)
+    rotors_idle[rotors_idle] = np.median(rpm_g[rotors_idle], axis=1) < options.flight_rpm
+    low = np.isfinite(z_fill) & (z_fill < options.contact_height) & (speed < options.contact_speed)
+    contact = low | rotors_idle
+    grow = int(round(options.contact_margin / dt))
+    if contact.any():
+        near = np.convolve(contact.astype(float), np.ones(2 * grow + 1), mode="same") > 0
+        ex = near.copy()
+        ex[:-1] |= near[1:]
+        exclusions.append(Exclusion(
+            f"ground contact, take-off or landing (height < {options.contact_height * 100:.0f} "
+            f"cm at < {options.contact_speed:g} m/s, or median rotor speed < "
+            f"{options.flight_rpm:.0f} rev/min; {int(contact.sum())} steps, widened by "
+            f"{options.contact_margin:g} s)", int(ex[:n_tr].sum())))
+        exclude |= ex
+    else:
+        exclusions.append(Exclusion("ground contact, take-off or landing: none (airborne "
+                                    "throughout: the logs start and end in flight)", 0))
+
+    if untrusted_rows.any():
+        # A bin with any untrusted sample is skipped, even if trusted samples remain.
+        ex = bin_mean(t_src, untrusted_rows.astype(float), grid, dt, k)[:, 0] > 0
+        exclusions.append(Exclusion(
+            f"implausible rotor readings ({report.n_flagged} of {log.n} samples flagged by "
+            "faults.detect_actuation_faults" + (", not repaired" if options.faults == "exclude"
+                                                 else "") + ")", int(ex[:n_tr].sum())))
+        exclude |= ex
+    elif report.n_flagged:
+        exclusions.append(Exclusion(
+            f"implausible rotor readings: {report.n_flagged} of {log.n} samples flagged, all "
+            "rebuilt from PWM (none excluded)", 0))
+
+    nan_in = np.isnan(inputs).any(axis=1)
+    ex = nan_in & ~exclude
+    exclusions.append(Exclusion("no actuation sample in the 10 ms bin (log gaps) or "
+                                "non-finite rotor speed", int(ex[:n_tr].sum())))
+    exclude |= nan_in
+    if nan_in.all():
+        raise ValueError(f"{source}: no usable actuation sample in the whole log "
+                         f"({report.n_flagged} of {log.n} rotor readings implausible); "
+                         "expected finite, plausible rpm (rebuild them from the PWM commands: "
+                         "RealDataOptions(faults='repair'))")
+    inputs = np.column_stack([interp_nan(grid, inputs[:, c]) for c in range(4)])
+
+    # --- measurements
+    if options.onboard_pos and onboard_pos is None:
+        raise ValueError(f"{source}: sensor A needs the onboard position estimate "
+                         "(stateEstimate.x/y/z), which the log does not have")
+    blocks = {"pos": onboard_pos if options.onboard_pos else position, "vel": vel,
+              "euler": euler, "gyro": gyro}
+    for ch in options.channels:
+        if not np.isfinite(blocks[ch]).any():
+            raise ValueError(f"{source}: measurement channel {ch!r} has no sample in the "
+                             "log; expected motion capture (pos, euler), onboard velocity "
+                             "(vel) or gyro samples")
+    ys = np.column_stack([blocks[ch] for ch in options.channels])
+    x0 = np.zeros(12)
+    p0 = np.array([1e-2] * 3 + [0.25] * 3 + [1e-2] * 3 + [0.25] * 3)
+    for sl, blk in ((slice(0, 3), blocks["pos"]), (slice(3, 6), vel), (slice(6, 9), euler),
+                    (slice(9, 12), gyro)):
+        ok = np.isfinite(blk).all(axis=1)
+        if ok.any():
+            x0[sl] = blk[np.argmax(ok)]
+    obs = Observations(t=grid - grid[0], dt=dt, inputs=inputs, channels=options.channels,
+                       ys=ys, x0=x0, p0=p0, exclude=exclude)
+    if obs.n < 3 or int((~exclude[:n_tr]).sum()) < 10:
+        why = "; ".join(e.reason for e in exclusions if e.transitions)
+        raise ValueError(f"{source}: only {int((~exclude[:n_tr]).sum())} usable transitions "
+                         f"after exclusions ({why}); expected at least 10")
+
+    meta = LogMeta(vehicle=log.meta.vehicle, mass_guess=log.meta.mass_guess,
+                   inertia_guess=log.meta.inertia_guess, gravity=log.meta.gravity,
+                   source=source, notes=tuple(log.meta.notes) + tuple(notes))
+    resampled = FlightLog(t=obs.t, position=position, velocity=vel, euler=euler, gyro=gyro,
+                          accel=accel, thrust=inputs[:, 0], torque=inputs[:, 1:4],
+                          rpm=fill_rows(grid, rpm_g), vbat=vbat, meta=meta)
+    repaired = tuple(int(i) for i in range(4) if (untrusted_motors[:, i]).any()) \
+        if not untrusted_rows.any() else ()
+    return RealObservations(obs=obs, log=resampled, exclusions=tuple(exclusions),
+                            notes=tuple(notes), faults=report, kf=kf, source=source,
+                            options=options, repaired=repaired,
+                            rotor_acc=np.nan_to_num(rotor_acc_g),
+                            rebuilt_fraction=np.nan_to_num(rebuilt_g, nan=1.0))
+
+
+
+def load_real(path: str | Path, options: RealDataOptions | None = None,
+              kf: ThrustCoefficient | None = None) -> RealObservations:
+    """Observations of a measured log: a Crazyflie micro-SD file, or a CSV / Parquet log
+    with ``rpm_1..4`` columns. Raises LogFormatError / ValueError with the file named."""
+    path = Path(path)
+    if is_sdlog(path):
+        raw = raw_from_sdflight(read_sdflight(path))
+    else:
+        log = read_log(path)
+        if log.rpm is None:
+            raise LogFormatError(f"{path}: no rpm_1..rpm_4 columns; expected rotor speeds for "
+                                 "the actuator model")
+        raw = RawFlight(log=log)
+    return build_observations(raw, options, kf)
+
+
+def simulated_observations(flight: Flight) -> RealObservations:
+    """A sensor-B simulated flight through the measured-flight path
+    (``raw.raw_from_simulated``, then :func:`build_observations` with the shared kf)."""
+    return build_observations(raw_from_simulated(flight), RealDataOptions(kf=KF_CRAZYFLIE))

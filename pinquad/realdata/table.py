@@ -1,0 +1,60 @@
+"""The jobs of the real-vehicle table (``python -m pinquad.realdata``): one measured log
+loaded and identified per job, in worker processes."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from pinquad.io.logs import LogFormatError
+from pinquad.realdata.dataset import default_guess
+from pinquad.realdata.identify import RealIdentification, identify_real
+from pinquad.realdata.observations import RealDataOptions, load_real
+from pinquad.realdata.thrust import thrust_coefficient
+
+
+@dataclass(frozen=True)
+class TableJob:
+    """One row of the table: the log's path, EM settings and the data directory."""
+
+    path: Path
+    options: RealDataOptions
+    max_iterations: int
+    information: bool
+    band: tuple[float, float]
+    stand: Path
+    fit_rotor_inertia: bool = True
+    keep_band_stats: bool = False
+    rotor_source: str = ""
+
+
+def run_table_job(job: TableJob) -> RealIdentification | str:
+    """Load one flight and identify it (a worker of ``python -m pinquad.realdata``); a
+    log that cannot be identified gives the reason as a string instead. J_r: fitted per
+    flight if ``job.fit_rotor_inertia`` and ``job.options.rotor_inertia`` is 0, else the
+    options' fixed value."""
+    try:
+        kf = thrust_coefficient(job.stand)
+        real = load_real(job.path, job.options, kf)
+        mass0, inertia0, _ = default_guess("crazyflie21")
+        ident, _, _ = identify_real(real, mass0, inertia0, job.max_iterations,
+                                    job.information, job.band, name=job.path.name,
+                                    fit_rotor_inertia=job.fit_rotor_inertia,
+                                    keep_band_stats=job.keep_band_stats)
+    except (LogFormatError, ValueError) as exc:
+        return str(exc)
+    return replace(ident, rotor_source=job.rotor_source)
+
+
+def run_jobs(jobs: Sequence[TableJob], workers: int) -> list[RealIdentification | str]:
+    """run_table_job over ``jobs`` in ``workers`` processes (results in job order)."""
+    if workers > 1 and len(jobs) > 1:
+        # Longest logs first so the pool finishes together.
+        order = sorted(range(len(jobs)), key=lambda i: -jobs[i].path.stat().st_size)
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            done = dict(zip(order, pool.map(run_table_job, [jobs[i] for i in order]),
+                            strict=True))
+        return [done[i] for i in range(len(jobs))]
+    return [run_table_job(j) for j in jobs]

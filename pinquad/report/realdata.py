@@ -1,0 +1,151 @@
+"""The real-vehicle table of ``python -m pinquad.realdata``: the identified flights as a
+Markdown table, with the summaries printed below it."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from pinquad.realdata.dataset import FLIGHTS, PUBLISHED_INERTIA, SCALE_MASS, YAW_FLIGHTS
+from pinquad.realdata.identify import YAW_RATIO_REL_SE, RealIdentification
+from pinquad.realdata.rotor_inertia import PooledRotorInertia
+
+
+def _short_reasons(ident: RealIdentification) -> str:
+    words = []
+    for line in ident.excluded[:-1]:
+        count, _, reason = line.partition(" transitions: ")
+        key = ("contact" if reason.startswith("ground") else
+               "faulty rpm" if reason.startswith("implausible") else
+               "log gaps" if reason.startswith("no actuation") else reason[:20])
+        words.append(f"{count} {key}")
+    return ", ".join(words) if words else "-"
+
+
+def _pm(value: float, total: float, stat: float, scale: float, fmt: str = ".2f") -> str:
+    return (f"{value * scale:{fmt}} ± {total * scale:{fmt}} "
+            f"({stat * scale:{fmt}})")
+
+
+def _rotor_words(r: RealIdentification) -> str:
+    if not np.isfinite(r.rotor_inertia):
+        return f"{r.name} none"
+    return f"{r.name} {1e9 * r.rotor_inertia:.1f} ({r.rotor_source or 'fitted on this log'})"
+
+
+def format_table(results: Sequence[RealIdentification],
+                 rotor: PooledRotorInertia | None = None) -> str:
+    """The markdown table of the identified flights and the summaries below it
+    (``rotor``: the pooled rotor inertia the flights were identified with, described)."""
+    if not results:
+        return "(no flights)"
+    kf = results[0].kf
+    lines = [
+        "| log | what was flown | used / excluded transitions (why) | mass [g] | vs 34.7 g | "
+        "I_xx [1e-6 kg m^2] | I_yy | I_zz | EM iterations |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        p, tot, st = r.params, r.se_total, r.se_stat
+        within = abs(r.mass - SCALE_MASS) <= 2.0 * tot[0]
+        lines.append(
+            f"| {r.name} | {FLIGHTS.get(r.name, '')} | {r.n_used} / {r.n_excluded} "
+            f"({_short_reasons(r)}) | {_pm(p[0], tot[0], st[0], 1e3)} | "
+            f"{100 * r.mass_rel_error:+.2f} %{'' if within else ' (!)'} | "
+            + " | ".join(_pm(p[i], tot[i], st[i], 1e6, ".1f") for i in (1, 2, 3))
+            + f" | {r.iterations}{'' if r.converged else ' (not converged)'} |")
+    lines += [
+        "",
+        "value ± total standard error (statistical standard error): statistical = larger of "
+        "the observed-information and the block-jackknife standard errors; total adds kf's "
+        f"{100 * kf.rel_se:.1f} % (all estimates are proportional to kf), for I_zz the "
+        f"yaw ratio's {100 * YAW_RATIO_REL_SE:.1f} %, and for logs whose rotor speeds were "
+        "rebuilt from PWM the repair's (mass 1.1 %, I_xx 7 %, I_yy 5 %, I_zz 24 %, measured "
+        "by rebuilding M1 on the clean logs). (!) marks a mass more than two total standard "
+        "errors from the scale.",
+        "",
+        kf.note,
+    ]
+    if rotor is not None:
+        lines += ["", rotor.describe()]
+    masses = np.array([r.mass for r in results])
+    rel = masses / SCALE_MASS - 1.0
+    lines += ["", f"mass: mean {1e3 * masses.mean():.2f} g, spread (sd) {1e3 * masses.std(ddof=1):.2f} g "
+              f"over {masses.size} logs; |error| <= 1.5 % in {int(np.sum(np.abs(rel) <= 0.015))} "
+              f"of {masses.size}; worst {100 * rel[np.argmax(np.abs(rel))]:+.2f} % "
+              f"({results[int(np.argmax(np.abs(rel)))].name})"]
+    qs = np.array([r.quasi_static_mass for r in results])
+    if np.isfinite(qs).any():
+        lines.append(
+            "model-free check, mass that balances the mean vertical thrust (kf sum omega^2 "
+            "along the vertical over g + the mean vertical acceleration, the same "
+            "transitions, no EM): " + ", ".join(
+                f"{r.name} {1e3 * q:.2f} g ({100 * (q / SCALE_MASS - 1.0):+.1f} %)"
+                for r, q in zip(results, qs, strict=True) if np.isfinite(q)))
+    lines += _rebuilt_motor_lines(results)
+    yaw = [r for r in results if r.name in YAW_FLIGHTS]
+    if len(yaw) >= 2:
+        izz = np.array([r.inertia[2] for r in yaw])
+        lines.append(
+            f"I_zz on the yaw flights ({', '.join(r.name for r in yaw)}): "
+            + ", ".join(f"{1e6 * v:.1f}" for v in izz)
+            + f" e-6 kg m^2; spread (max - min) / mean = "
+              f"{100 * float(np.ptp(izz) / izz.mean()):.0f} %, sd / mean = "
+              f"{100 * float(izz.std(ddof=1) / izz.mean()):.0f} % (kf and the yaw ratio are "
+              "common to all logs and cancel in this comparison); rotor inertia J_r used "
+              "[e-9 kg m^2]: " + ", ".join(_rotor_words(r) for r in yaw))
+    inert = np.array([r.inertia for r in results])
+    mean, sd = inert.mean(axis=0), inert.std(ddof=1, axis=0) if len(results) > 1 else np.zeros(3)
+    lines += [
+        "",
+        "| inertia [1e-6 kg m^2] | I_xx | I_yy | I_zz |",
+        "|---|---|---|---|",
+        "| mean over logs ± sd | " + " | ".join(f"{1e6 * m:.1f} ± {1e6 * s:.1f}"
+                                            for m, s in zip(mean, sd, strict=True)) + " |",
+        "| spread sd / mean | " + " | ".join(f"{100 * s / m:.0f} %"
+                                          for m, s in zip(mean, sd, strict=True)) + " |",
+        "| Crazyflie 2.0, no decks (published) | "
+        + " | ".join(f"{1e6 * v:.2f}" for v in PUBLISHED_INERTIA) + " |",
+    ]
+    return "\n".join(lines)
+
+
+def _rebuilt_motor_lines(results: Sequence[RealIdentification]) -> list[str]:
+    """What the logs with rebuilt rotor speeds say about the mass without the rebuild: the
+    measured motors' part of the model-free mass, and the mass if each rebuilt motor
+    carried a share of the thrust anywhere in the range it carries on the clean logs."""
+    split = {r.name: r.motor_split for r in results if r.motor_split is not None}
+    clean = {n: m for n, m in split.items() if not m.rebuilt}
+    faulty = {n: m for n, m in split.items() if m.rebuilt}
+    motors = sorted({i for m in faulty.values() for i in m.rebuilt})
+    if not faulty or not clean or len(motors) != 1:
+        return []
+    i = motors[0]
+    shares = np.array([m.share[i] for m in clean.values()])
+    lo, hi = float(shares.min()), float(shares.max())
+    names = list(clean)
+    words = [
+        f"M{i + 1} repaired ({', '.join(faulty)}): the three measured motors alone carry "
+        + ", ".join(f"{n} {1e3 * m.measured_mass:.2f} g" for n, m in faulty.items())
+        + f" of the model-free mass; on the clean logs M{i + 1} carries {lo:.3f} "
+        f"({names[int(np.argmin(shares))]}) to {hi:.3f} ({names[int(np.argmax(shares))]}) of "
+        "the four-motor mean thrust, and with a share anywhere in that range the faulty "
+        "logs' mass would be "
+        + ", ".join(f"{n} {1e3 * m.mass_if(lo):.2f}-{1e3 * m.mass_if(hi):.2f} g "
+                    f"({100 * (m.mass_if(lo) / SCALE_MASS - 1):+.1f} to "
+                    f"{100 * (m.mass_if(hi) / SCALE_MASS - 1):+.1f} %)"
+                    for n, m in faulty.items())
+        + "; within 1.5 % of the scale needs a share of at most "
+        + ", ".join(f"{n} {m.share_for(1.015 * SCALE_MASS):.3f}" for n, m in faulty.items())
+        + " (the repaired M1 gives "
+        + ", ".join(f"{n} {m.share[i]:.3f}" for n, m in faulty.items()) + ")"]
+    own = {n: m for n, m in faulty.items() if m.all_measured_rows}
+    if own:
+        words.append(
+            f"model-free mass on the transitions where no rotor speed comes from the PWM map "
+            f"(M{i + 1} measured, its pulse-divided readings multiplied back): "
+            + ", ".join(f"{n} {1e3 * m.all_measured_mass:.2f} g "
+                        f"({100 * (m.all_measured_mass / SCALE_MASS - 1):+.1f} %, "
+                        f"{m.all_measured_rows} transitions)" for n, m in own.items()))
+    return words
