@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import lfilter
 
 from pinquad.io.logs import FlightLog
 
@@ -290,8 +291,6 @@ def _first_order_lag(x: Array, tau: float, dt: float) -> Array:
     """y' = (x - y) / tau, discretised with step dt and started at rest on x[0]."""
     if tau <= 0.0:
         return x
-    from scipy.signal import lfilter
-
     a = dt / (tau + dt)
     y, _ = lfilter([a], [1.0, a - 1.0], x, zi=[x[0] * (1.0 - a)])
     return y

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from pinquad.io.runs import atomic_write_bytes
@@ -49,13 +50,8 @@ def plot_response(results: Sequence[ApparentInertia], path: Path,
     """|H_j(f)| of every log, one panel per axis, the inertia M-step's band shaded and the
     reference inertia ``published`` (3,) [kg m^2] dashed; written atomically to ``path``
     (PNG)."""
-    # matplotlib is imported where a figure is drawn, on purpose: the tables need none of it
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharex=True)
+    fig = Figure(figsize=(13, 4))
+    axes = fig.subplots(1, 3, sharex=True)
     for j, ax in enumerate(axes):
         for r in results:
             sel = (r.freq > 0.5) & (r.freq <= fmax)
@@ -73,7 +69,6 @@ def plot_response(results: Sequence[ApparentInertia], path: Path,
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
     return atomic_write_bytes(path, buf.getvalue())
 
 
