@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pinquad.core.effect_vocabulary import EFFECT_NAMES
 from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO
 from pinquad.discovery.discover import (
     DiscoveryConfig,
@@ -26,6 +27,7 @@ from pinquad.discovery.discover import (
     corrected_observations,
     discover,
 )
+from pinquad.discovery.library import SPECS
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.identification.identify import get_smoother
 from pinquad.models.sources import observations
@@ -109,7 +111,7 @@ def test_effect_library_forms():
     lag = effects.motor_lag(0.03).actuation(np.ones(4), np.zeros(4), 0.01)
     np.testing.assert_allclose(lag, np.full(4, 0.25))
     assert effects.injected_coefficients("com_offset") == {"c_x": 0.003, "c_y": -0.002}
-    assert set(effects.EFFECT_NAMES) == set(effects.SPECS)
+    assert set(EFFECT_NAMES) == set(SPECS)
 
 
 def test_effect_ssm_and_corrections(clean):

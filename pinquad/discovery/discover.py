@@ -10,7 +10,7 @@ transition the attitude-kinematics residual (Theta_{k+1} - Theta_k)/dt - E^{-1} 
 [rad/s] (``ATT_AXES``; where a gyro offset shows once the E-step has put most of it into
 the smoothed rates, as the base model's E-step does: about 90 % on the simulated
 flights, so the gyro residual itself keeps only a tenth of it). A
-candidate effect (``pinquad.sim.effects``) adds a wrench Phi_k c, so the extended model is
+candidate effect (``pinquad.discovery.library``) adds a wrench Phi_k c, so the extended model is
 
     Y_k pi - tau_k - Phi_k c ~ N(0, diag(s_j)),
 
@@ -51,12 +51,8 @@ from scipy.optimize import minimize, minimize_scalar
 
 from estimators.protocol import Posterior
 from pinquad.core.conventions import euler_rate_matrix_inv, wrap_angle
-from pinquad.models.effect import EffectSSM
-from pinquad.models.ssm import Observations, QuadSSM, Theta
-from pinquad.mstep.stats import transition_mask
-from pinquad.mstep.updates import regressor_mstep, regressor_stats
-from pinquad.sim.effects import (
-    EFFECT_NAMES,
+from pinquad.core.effect_vocabulary import EFFECT_NAMES
+from pinquad.discovery.library import (
     SPECS,
     TransitionData,
     explaining_feature,
@@ -64,6 +60,10 @@ from pinquad.sim.effects import (
     lagged_inputs,
     wrench_features,
 )
+from pinquad.models.effect import EffectSSM
+from pinquad.models.ssm import Observations, QuadSSM, Theta
+from pinquad.mstep.stats import transition_mask
+from pinquad.mstep.updates import regressor_mstep, regressor_stats
 
 Array = NDArray[np.float64]
 
@@ -140,7 +140,7 @@ class DiscoveryResult:
     """What discovery found.
 
     selected: effect names in the order found; coefficients / stderr: name -> (p,) in the
-    units of ``pinquad.sim.simulator.effects.SPECS`` (stderr by block jackknife); scores: every
+    units of ``pinquad.discovery.library.SPECS`` (stderr by block jackknife); scores: every
     candidate test of every round; rms_before / rms_after: held-out residual RMS per axis
     (``AXES`` [N, N m], ``GYRO_AXES`` [rad/s]); mass [kg], inertia (3, 3) [kg m^2]: after
     the refit (the base estimates if nothing was selected); theta: refit parameters;

@@ -103,7 +103,7 @@ def _gram(fit: FlightFit, effects: tuple[str, ...]) -> tuple[Array, int]:
 def pooled_fit(fits: list[FlightFit], effects: tuple[str, ...]):
     """Profiled ML of (pi, c) on all flights in ``fits`` together (module docstring)."""
     from pinquad.discovery.discover import _fit
-    from pinquad.sim.effects import SPECS
+    from pinquad.discovery.library import SPECS
 
     grams = [_gram(f, effects) for f in fits]
     g = sum(gr for gr, _ in grams)
@@ -114,7 +114,7 @@ def pooled_fit(fits: list[FlightFit], effects: tuple[str, ...]):
 
 
 def _split_coefficients(c: Array, effects: tuple[str, ...]) -> dict[str, Array]:
-    from pinquad.sim.effects import SPECS
+    from pinquad.discovery.library import SPECS
 
     out, j = {}, 0
     for e in effects:
@@ -209,7 +209,7 @@ def run_split(name: str, data: Path, cache: dict[str, FlightFit]) -> dict:
 
 def table(results: dict) -> str:
     """Markdown: per split the effects, coefficients and the test flights' before/after."""
-    from pinquad.sim.effects import SPECS
+    from pinquad.discovery.library import SPECS
 
     lines = ["| split | train (lowest height, top speed) | named per flight (own discovery) | "
              "pooled effect: coefficients ± leave-one-flight-out SE | test flight | "
