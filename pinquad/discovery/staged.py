@@ -7,8 +7,11 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.discovery.discover import DiscoveryConfig, refit
+from pinquad.discovery.refit import refit
+from pinquad.discovery.result import DiscoveryConfig
+from pinquad.identification.em import initial_theta, run_em
 from pinquad.models.ssm import Observations, Theta
+from pinquad.mstep.updates import regressor_mstep
 
 Array = NDArray[np.float64]
 
@@ -30,9 +33,6 @@ def staged_start(obs: Observations, mass0: float, inertia0: Array, gravity: floa
     twenty E-steps either towards the optimum or towards a local maximum several hundred
     nats lower; which one changed with 1e-13 relative perturbations of the data (two of
     four) and with the E-step's rounding, so that start made the answer a coin toss."""
-    from pinquad.identification.em import initial_theta, run_em
-    from pinquad.mstep.updates import regressor_mstep
-
     diag = run_em(obs, initial_theta(obs, mass0, inertia0, gravity), smoother, regressor_mstep,
                   max_iterations=100)
     theta, _, coefficients = refit(obs, diag.theta, diag.posterior, ["com_offset"], smoother,

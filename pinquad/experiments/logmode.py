@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from pinquad.io.logs import FlightLog, LogFormatError
 from pinquad.io.runs import REPORT_SCHEMA
 from pinquad.models.ssm import Observations
+from pinquad.realdata.theta import plain_theta
 
 if TYPE_CHECKING:
     from pinquad.identification.full_inertia import FullIdentification
@@ -122,14 +123,6 @@ def _guess(log: FlightLog) -> tuple[float, Array, str]:
     return mass0, inertia0, "; ".join(parts)
 
 
-def _plain_theta(theta):
-    """The plain :class:`~pinquad.models.ssm.Theta` of a measured run's ``RealTheta`` (its
-    nuisance moment travels in ``realdata.corrected`` observations instead)."""
-    from pinquad.models.ssm import Theta
-
-    return Theta(theta.mass, np.asarray(theta.inertia), theta.noise, theta.gravity)
-
-
 def default_sensor(log: FlightLog) -> str:
     """A if the log carries an onboard estimate and accelerometer samples, else B if it
     has attitude samples, else C."""
@@ -211,7 +204,7 @@ def _measured(raw, args: argparse.Namespace, kind: str) -> LogResult:
                                ident.iterations, ident.loglik, ident.converged, detail))
             if first is None:
                 first = (real, post.mean)
-                disc = (corrected(real.obs, theta), _plain_theta(theta), post)
+                disc = (corrected(real.obs, theta), plain_theta(theta), post)
         if "paper" in msteps:
             # The paper's M-step knows no air-speed moment: give it the torques with the
             # regressor run's moment added when there is one.
@@ -436,15 +429,17 @@ def run_discovery(result: LogResult, figs: Path) -> dict:
     ``discovery`` section, figures written to ``figs`` and named relative to the run
     directory. A numerical failure of the refit is reported in the section (key
     ``error``) instead of stopping the run: the identification stands without it."""
-    from pinquad.discovery.discover import DiscoveryConfig, discover
+    from pinquad.discovery.discover import discover
+    from pinquad.discovery.result import DiscoveryConfig
+    from pinquad.report.discovery import draw_discovery_figures
 
     if result.disc_obs is None or result.disc_posterior is None:
         return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
                 "validation": "not run", "error": "no EM run to start from"}
     cfg = DiscoveryConfig(**DISCOVERY_SETTINGS.get(result.kind, {}))
     try:
-        out = discover(result.disc_obs, result.disc_theta, result.disc_posterior, cfg=cfg,
-                       figures_dir=figs)
+        out = draw_discovery_figures(discover(result.disc_obs, result.disc_theta,
+                                              result.disc_posterior, cfg=cfg), figs)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
                 "validation": "not run", "error": f"discovery failed numerically: {exc}"}
@@ -560,7 +555,7 @@ def identify_log(args: argparse.Namespace) -> int:
               + "\n".join(f"- excluded: {e}" for e in result.excluded) + "\n"
               + "".join(f"- note: {n}\n" for n in result.notes))
         if discovery is not None:
-            from pinquad.discovery.discover import discovery_markdown
+            from pinquad.report.discovery import discovery_markdown
 
             md += "\n" + discovery_markdown(discovery)
         writer.path("report.md").write_text(md)
