@@ -24,8 +24,8 @@ _EXPORTS = {
     "FlightLog": "pinquad.io.logs",
     "LogFormatError": "pinquad.io.logs",
     "Identification": "pinquad.identification.identify",
-    "Discovery": "pinquad.discovery.discover",
-    "DiscoveryConfig": "pinquad.discovery.discover",
+    "Discovery": "pinquad.discovery.result",
+    "DiscoveryConfig": "pinquad.discovery.result",
     "SimConfig": "pinquad.sim.simulator",
     "Vehicle": "pinquad.core.params",
     "VEHICLES": "pinquad.core.params",
@@ -44,8 +44,8 @@ __all__ = [
 if TYPE_CHECKING:
     from pinquad.api import discover, identify, read_log, simulate
     from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO, PAPER_VEHICLE, VEHICLES, Vehicle
-    from pinquad.discovery.discover import DiscoveryConfig
-    from pinquad.discovery.discover import DiscoveryResult as Discovery
+    from pinquad.discovery.result import DiscoveryConfig
+    from pinquad.discovery.result import DiscoveryResult as Discovery
     from pinquad.identification.identify import Identification
     from pinquad.io.logs import FlightLog, LogFormatError
     from pinquad.sim.simulator import SimConfig

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.core.params import VEHICLES, Vehicle
-from pinquad.discovery.discover import DiscoveryConfig, DiscoveryResult
 from pinquad.discovery.discover import discover as discover_effects
+from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.experiments.recorded import (
     LogOptions,
     discovery_config,

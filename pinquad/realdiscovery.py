@@ -1,9 +1,9 @@
 """``python -m pinquad.realdiscovery``: entry point; the command is
-``pinquad.experiments.realdiscovery.main``."""
+``pinquad.cli.realdiscovery.main``."""
 
 import sys
 
-from pinquad.experiments.realdiscovery import main
+from pinquad.cli.realdiscovery import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -49,7 +49,7 @@ def test_readme_python_example_runs_and_prints_what_the_readme_says():
 def test_public_names_resolve_to_the_implementations():
     import pinquad
     from pinquad import api
-    from pinquad.discovery.discover import DiscoveryResult
+    from pinquad.discovery.result import DiscoveryResult
     from pinquad.identification.identify import Identification
     from pinquad.io.logs import FlightLog
 

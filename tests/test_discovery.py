@@ -18,19 +18,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pinquad.core.effect_vocabulary import EFFECT_NAMES
 from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO
-from pinquad.discovery.discover import (
-    DiscoveryConfig,
-    EffectSSM,
-    base_heldout_rms,
-    corrected_observations,
-    discover,
-)
+from pinquad.discovery.discover import base_heldout_rms, discover
+from pinquad.discovery.library import SPECS
+from pinquad.discovery.refit import corrected_observations
+from pinquad.discovery.result import DiscoveryConfig
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.identification.identify import get_smoother
+from pinquad.models.effect import EffectSSM
 from pinquad.models.sources import observations
 from pinquad.models.ssm import QuadSSM
 from pinquad.mstep.updates import regressor_mstep
+from pinquad.report.discovery import draw_discovery_figures
 from pinquad.sim import effects
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
@@ -78,7 +78,7 @@ def test_clean_flight_selects_nothing(clean):
 
 def test_drag_is_named_and_its_coefficient_found(dragged, tmp_path):
     obs, res = dragged
-    out = discover(obs, res.theta, res.posterior, cfg=FAST, figures_dir=tmp_path)
+    out = draw_discovery_figures(discover(obs, res.theta, res.posterior, cfg=FAST), tmp_path)
     assert out.selected[0] == "drag"
     d = out.coefficients["drag"]
     # without the refit the smoother's shrinkage biases the lateral coefficients low
@@ -109,7 +109,7 @@ def test_effect_library_forms():
     lag = effects.motor_lag(0.03).actuation(np.ones(4), np.zeros(4), 0.01)
     np.testing.assert_allclose(lag, np.full(4, 0.25))
     assert effects.injected_coefficients("com_offset") == {"c_x": 0.003, "c_y": -0.002}
-    assert set(effects.EFFECT_NAMES) == set(effects.SPECS)
+    assert set(EFFECT_NAMES) == set(SPECS)
 
 
 def test_effect_ssm_and_corrections(clean):
@@ -350,7 +350,7 @@ def test_clean_twin_has_the_same_noise_and_scores_one_sided():
     simulator's noise draws do not depend on the (deterministic) effects, so the gyro
     noise (measured - true rate) is the same sample by sample, while the flights differ.
     The paired criterion counts a refit no worse than its twin by 2x the clean RMS."""
-    from pinquad.experiments.discovery_mc import CaseResult, _case_from_json, simulate_log, summarize
+    from pinquad.experiments.discovery_mc import CaseResult, case_from_json, simulate_log, summarize
 
     with_wind, _ = simulate_log(("wind",), 4000)
     twin, _ = simulate_log((), 4000)
@@ -397,13 +397,14 @@ def test_clean_twin_has_the_same_noise_and_scores_one_sided():
     assert row["wind_median_after_over_twin"]["force_x"] == pytest.approx(1.0)
     assert row["wind_reachable50_force_x"] == 3 and row["wind_drop50_force_x"] == 3
     assert np.isnan(row["wind_median_after_over_twin"]["force_y"])
-    back = _case_from_json(json.loads(json.dumps(cases[2].to_json())))
+    back = case_from_json(json.loads(json.dumps(cases[2].to_json())))
     np.testing.assert_allclose(back.twin_err, cases[2].twin_err)
     assert back.twin_rms == {"force_x": 1.0}
 
 
 def test_laps_repeat_the_route_and_runs_of_two_lengths_do_not_merge(tmp_path, capsys):
-    from pinquad.experiments.discovery_mc import CaseResult, _case_from_json, discovery_scenario, main
+    from pinquad.cli.discovery import main
+    from pinquad.experiments.discovery_mc import CaseResult, case_from_json, discovery_scenario
 
     one, two = discovery_scenario(), discovery_scenario(2)
     np.testing.assert_array_equal(two.waypoints, np.vstack([one.waypoints, one.waypoints]))
@@ -411,7 +412,7 @@ def test_laps_repeat_the_route_and_runs_of_two_lengths_do_not_merge(tmp_path, ca
     files = []
     for laps in (1, 2):
         case = CaseResult("none", 7, (), {}, {}, z, z, {}, {}, 1.0, False, laps=laps)
-        assert _case_from_json(json.loads(json.dumps(case.to_json()))).laps == laps
+        assert case_from_json(json.loads(json.dumps(case.to_json()))).laps == laps
         path = tmp_path / f"laps{laps}.jsonl"
         path.write_text(json.dumps(case.to_json()) + "\n")
         files.append(str(path))

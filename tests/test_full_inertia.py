@@ -112,7 +112,7 @@ def test_com_offset_effect_has_the_full_models_sign():
     inputs starts turning as the full model with its CoM at c does (a rigid body's
     angular acceleration from rest is I_C^-1 times the torque about its CoM, whatever
     the reference point, so the rates after one step agree to rounding)."""
-    from pinquad.discovery.discover import corrected_observations
+    from pinquad.discovery.refit import corrected_observations
     from pinquad.sim import effects
 
     com = np.array([0.004, -0.003, 0.0])

@@ -19,6 +19,7 @@ import argparse
 import os
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,10 +27,16 @@ import numpy as np
 from pinquad.cli.help import HelpFormatter, positive_int
 from pinquad.core.params import PAPER_SCENARIO
 from pinquad.experiments.offline_mc import CycleJob, run_cycles
-from pinquad.experiments.recorded import LogOptions, identify_log, run_discovery
+from pinquad.experiments.recorded import (
+    LogOptions,
+    discovery_section,
+    identify_log,
+    run_discovery,
+)
 from pinquad.io.logs import LogFormatError
 from pinquad.io.read import read_log
 from pinquad.io.runs import RunWriter, new_run_dir
+from pinquad.report.discovery import draw_discovery_figures
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
 from pinquad.report.recorded import (
     discovery_summary,
@@ -168,9 +175,11 @@ def run_log(args: argparse.Namespace) -> int:
             print("\neffect discovery: not run (it works on the diagonal model: run "
                   "--mstep regressor for it)")
         elif not args.no_discover:
-            figs = writer.path("figures")
-            figs.mkdir(exist_ok=True)
-            discovery = run_discovery(result, figs)
+            outcome = run_discovery(result)
+            if outcome.result is not None:
+                outcome = replace(outcome, result=draw_discovery_figures(
+                    outcome.result, writer.path("figures")))
+            discovery = discovery_section(outcome)
             print()
             print(discovery_summary(discovery))
         report = report_json(result, str(args.log), args.estep, seconds, discovery)

@@ -1,9 +1,9 @@
 """``python -m pinquad.discovery``: entry point; the command is
-``pinquad.experiments.discovery_mc.main``."""
+``pinquad.cli.discovery.main``."""
 
 import sys
 
-from pinquad.experiments.discovery_mc import main
+from pinquad.cli.discovery import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -7,7 +7,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.discovery.discover import DiscoveryConfig, refit
+from pinquad.discovery.refit import refit
+from pinquad.discovery.result import DiscoveryConfig
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.models.ssm import Observations, Theta
 from pinquad.mstep.updates import regressor_mstep

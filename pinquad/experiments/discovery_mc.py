@@ -31,17 +31,29 @@ that floor: only there can a refit that leaves the floor halve the residual.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import sys
-import tempfile
 import time
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+
+from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO
+from pinquad.discovery.discover import base_heldout_rms
+from pinquad.experiments.recorded import (
+    LogOptions,
+    discovery_section,
+    identify_log,
+    run_discovery,
+)
+from pinquad.io.logs import read_log, write_log
+from pinquad.sim import effects
+from pinquad.sim.control import design_gains
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 Array = NDArray[np.float64]
 
@@ -60,7 +72,7 @@ AFFECTED_AXES: dict[str, tuple[str, ...]] = {
 }
 """Residual axes an effect acts on (where its before/after drop is scored). A gyro offset
 acts on the gyro, but the base E-step moves about 90 % of it into the smoothed body
-rates, where it shows in the attitude kinematics (``discovery.ATT_AXES``); both are
+rates, where it shows in the attitude kinematics (``discovery.result.ATT_AXES``); both are
 scored."""
 
 PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
@@ -78,8 +90,6 @@ def discovery_scenario(laps: int = 1):
     route with 2.9 m along y left the lateral drag coefficient D_y 2.4x less precise
     than D_x (scatter 7.6 % vs 3.2 % over 20 seeds), an artefact of the route, not of
     the estimator (3.6 % vs 4.0 % on this one)."""
-    from pinquad.core.params import PAPER_SCENARIO
-
     sc = PAPER_SCENARIO.scaled(0.3)
     wp = np.array([[1.2, 0.9, 0.9], [0.6, 1.8, 0.5], [1.8, 0.6, 1.2], [1.2, 1.4, 0.07],
                    [0.5, 0.4, 0.12], [1.0, 1.0, 0.8]])
@@ -89,17 +99,11 @@ def discovery_scenario(laps: int = 1):
 def discovery_gains():
     """LQR attitude weights (100, 1600) and angle gain 20 (rate loop about 40 rad/s, as the
     Crazyflie's): the default 80 rad/s loop is driven unstable by a 20-30 ms motor lag."""
-    from pinquad.sim.control import design_gains
-
     return design_gains(att_weights=(100.0, 1600.0), k_theta=20.0)
 
 
 def simulate_log(effects_in: tuple[str, ...], seed: int, laps: int = 1):
     """(FlightLog, Flight) of one discovery flight with ``effects_in`` injected (defaults)."""
-    from pinquad.core.params import CRAZYFLIE21
-    from pinquad.sim import effects
-    from pinquad.sim.simulator import SimConfig, flight_log, simulate
-
     dist = tuple(effects.SIMULATOR_FACTORIES[e]() for e in effects_in)
     cfg = SimConfig(vehicle=CRAZYFLIE21, scenario=discovery_scenario(laps), sensor="B",
                     disturbances=dist, gains=discovery_gains())
@@ -153,12 +157,6 @@ class CaseResult:
 
 def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseResult:
     """Simulate, write CSV, read back, identify and discover as ``offline --log`` does."""
-    from pinquad.core.params import CRAZYFLIE21
-    from pinquad.discovery.discover import base_heldout_rms
-    from pinquad.experiments.recorded import LogOptions, identify_log, run_discovery
-    from pinquad.io.logs import read_log, write_log
-    from pinquad.sim import effects
-
     t0 = time.perf_counter()
     injected = CONDITIONS[condition]
     log, flight = simulate_log(injected, seed, laps)
@@ -167,8 +165,7 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
     options = LogOptions(msteps=("regressor",), estep="rts", max_iterations=100,
                          information=False)
     result = identify_log(back, options)
-    figs = workdir / f"figs-{condition}-{seed}"
-    section = run_discovery(result, figs)
+    section = discovery_section(run_discovery(result))
     truth = np.r_[CRAZYFLIE21.mass, np.diag(CRAZYFLIE21.inertia)]
     refit = section.get("refit", {})
     main = result.runs[0]
@@ -201,9 +198,31 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
                       time.perf_counter() - t0, bool(flight.crashed), twin, laps, twin_rms)
 
 
-def _run_job(job: tuple[str, int, str, int]) -> CaseResult:
-    condition, seed, workdir, laps = job
-    return run_case(condition, seed, Path(workdir), laps)
+@dataclass(frozen=True)
+class CaseJob:
+    """One case to run: condition, flight seed (``case_seed``), work directory for its
+    CSV logs and figures, laps of the route."""
+
+    condition: str
+    seed: int
+    workdir: str
+    laps: int = 1
+
+
+def run_job(job: CaseJob) -> CaseResult:
+    """``run_case`` of one job (a module-level function: the process pool pickles it)."""
+    return run_case(job.condition, job.seed, Path(job.workdir), job.laps)
+
+
+def run_cases(work: Sequence[CaseJob], jobs: int = 1) -> Iterator[CaseResult]:
+    """Each job's ``CaseResult`` in the order of ``work``, as it finishes; in ``jobs``
+    worker processes when more than one."""
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as pool:
+            yield from pool.map(run_job, work)
+    else:
+        for job in work:
+            yield run_job(job)
 
 
 def summarize(cases: list[CaseResult]) -> dict:
@@ -293,167 +312,9 @@ def summarize(cases: list[CaseResult]) -> dict:
     return out
 
 
-def markdown(summary: dict) -> str:
-    """The result table (one row per condition)."""
-    cr = summary["clean_rms_rel_err"]
-    lines = ["| condition | n | named (all) | exact set | coef within 10 % | coef err median / max "
-             "| refit within clean acc. | refit within clean acc. of its clean twin "
-             "| affected-axis median RMS drop | extra selected |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    for cond, r in summary["conditions"].items():
-        if cond == "none":
-            lines.append(f"| none | {r['n']} | nothing selected {r['nothing_selected']}/{r['n']} | "
-                         f"| | | {r.get('within_clean_accuracy', '')}/{r['n']} | | | "
-                         f"{', '.join(r['spurious']) or '-'} |")
-            continue
-        effs = CONDITIONS[cond]
-        within = "; ".join(f"{e} {r[f'{e}_coef_within_10pct']}/{r['n']}" for e in effs)
-        errs = "; ".join(f"{100 * r[f'{e}_coef_rel_err_median']:.1f} / "
-                         f"{100 * r[f'{e}_coef_rel_err_max']:.1f} %" for e in effs)
-        drops = "; ".join(", ".join(f"{a} {100 * v:.0f} %" for a, v in r[f"{e}_median_drop"].items())
-                          for e in effs)
-        lines.append(f"| {cond} | {r['n']} | {r['all_named']}/{r['n']} | {r['exact']}/{r['n']} | "
-                     f"{within} | {errs} | {r.get('within_clean_accuracy', '')}/{r['n']} | "
-                     f"{_twin_count(r)} | {drops} | "
-                     f"{', '.join(r['extra_selected']) or '-'} |")
-    lines += ["", "RMS relative error of mass and inertia over the seeds, base EM -> after the refit "
-              "(the none row is the clean-data accuracy):", "",
-              "| condition | mass | I_xx | I_yy | I_zz |", "|---|---|---|---|---|"]
-    for cond, r in summary["conditions"].items():
-        lines.append(f"| {cond} | " + " | ".join(
-            f"{100 * r['base_rms_rel_err'][k]:.2f} -> {100 * r['refit_rms_rel_err'][k]:.2f} %"
-            for k in PARAMS) + " |")
-    paired = [(c, r) for c, r in summary["conditions"].items() if "twin_rms_rel_err" in r]
-    if paired:
-        lines += ["", "Paired with the clean twins (the same seeds flown without the effect, base "
-                  "EM): RMS relative error of the twins -> of the refit on the effect's flights:",
-                  "", "| condition | twins | mass | I_xx | I_yy | I_zz |", "|---|---|---|---|---|---|"]
-        for cond, r in paired:
-            lines.append(f"| {cond} | {r['twin_n']} | " + " | ".join(
-                f"{100 * r['twin_rms_rel_err'][k]:.2f} -> {100 * r['refit_rms_rel_err_paired'][k]:.2f} %"
-                for k in PARAMS) + " |")
-    pr = summary.get("clean_pooled_rms_rel_err")
-    if pr and summary.get("clean_pooled_n", 0) > len(summary["conditions"].get("none", {}).get(
-            "seeds", [])):
-        rows = "; ".join(f"{c} {r['within_pooled_clean_accuracy']}/{r['n']}"
-                         for c, r in summary["conditions"].items()
-                         if c != "none" and "within_pooled_clean_accuracy" in r)
-        lines += ["", f"Clean-data accuracy from all {summary['clean_pooled_n']} clean flights of "
-                  "the run (the no-effect seeds and every effect seed's clean twin, identified "
-                  "alike): RMS relative error " + ", ".join(f"{k} {100 * v:.2f} %" for k, v in
-                                                            pr.items())
-                  + f"; clean flights with every parameter within 2x that: "
-                  f"{summary['clean_pooled_within']}/{summary['clean_pooled_n']}; refits: {rows}."]
-    counts = []
-    for cond, r in summary["conditions"].items():
-        for e in CONDITIONS.get(cond, ()):
-            axes = [a for a in AFFECTED_AXES[e] if f"{e}_drop50_{a}" in r]
-            if axes:
-                counts.append(f"{cond} ({e}): " + ", ".join(
-                    f"{a} {r[f'{e}_drop50_{a}']}/{r['n']}"
-                    + (f" ({r[f'{e}_reachable50_{a}']})" if f"{e}_reachable50_{a}" in r else "")
-                    for a in axes))
-    if counts:
-        lines += ["", "Seeds whose held-out RMS drops by >= 50 % on each affected axis (in "
-                  "brackets: seeds where the effect at least doubles the clean twin's RMS, so "
-                  "that a refit leaving exactly the twin's noise floor would drop by 50 %): "
-                  + "; ".join(counts) + "."]
-    floors = []
-    for cond, r in summary["conditions"].items():
-        for e in CONDITIONS.get(cond, ()):
-            fl = r.get(f"{e}_median_after_over_twin", {})
-            ex = r.get(f"{e}_median_before_over_twin", {})
-            if fl and any(np.isfinite(v) for v in fl.values()):
-                floors.append(f"{cond} ({e}): " + ", ".join(
-                    f"{a} {ex.get(a, float('nan')):.2f} -> {v:.2f}" for a, v in fl.items()))
-    if floors:
-        lines += ["", "Held-out RMS before -> after the refit, each over the clean twin's under "
-                  "the base model (the floor the noise leaves on the same blocks), median over "
-                  "the seeds (before near 1: the effect barely shows on that axis; after 1: "
-                  "nothing of it left): " + "; ".join(floors) + "."]
-    lines.append("")
-    lines.append("Clean-data accuracy (RMS relative error, no effect): "
-                 + ", ".join(f"{k} {100 * v:.2f} %" for k, v in cr.items())
-                 + "; 'within' = every parameter within 2x that; 'of its clean twin': for "
-                 "every parameter |refit error| <= |twin's error| + 2x that (no worse than the "
-                 "same seed flown without the effect, by more than twice the clean accuracy).")
-    return "\n".join(lines)
+def case_from_json(d: dict) -> CaseResult:
+    """The ``CaseResult`` of one ``CaseResult.to_json()`` record (None read as NaN)."""
 
-
-def _twin_count(row: dict) -> str:
-    return f"{row['within_clean_of_twin']}/{row['twin_n']}" if "within_clean_of_twin" in row else ""
-
-
-def main(argv: list[str] | None = None) -> int:
-    from tqdm import tqdm
-
-    from pinquad.io.runs import atomic_write_json, new_run_dir
-
-    p = argparse.ArgumentParser(prog="python -m pinquad.discovery",
-                                description="Seeded Monte Carlo of effect discovery through "
-                                            "the CSV --log path (module pinquad.discovery_mc).")
-    p.add_argument("--seeds", type=int, default=20, help="seeds per condition")
-    p.add_argument("--base-seed", type=int, default=0, help="base seed")
-    p.add_argument("--conditions", nargs="*", default=list(CONDITIONS), choices=list(CONDITIONS))
-    p.add_argument("--jobs", type=int, default=1, help="worker processes")
-    p.add_argument("--laps", type=int, default=1,
-                   help="times round the route per flight (about 20 s a lap)")
-    p.add_argument("--start-index", type=int, default=0,
-                   help="first seed index i (to extend an earlier run with more seeds)")
-    p.add_argument("--merge", type=Path, nargs="+", default=None,
-                   help="only summarise these discovery_mc.json / cases.jsonl files together (a later file's "
-                        "case replaces an earlier one with the same condition and seed)")
-    p.add_argument("--out", type=Path, default=None, help="output directory (default runs/...)")
-    args = p.parse_args(argv)
-    if args.merge:
-        return _merge(args.merge, args.out)
-    if args.seeds < 1 or args.laps < 1:
-        print("error: --seeds and --laps must be at least 1", file=sys.stderr)
-        return 2
-    out = args.out or new_run_dir("discovery-mc")
-    out.mkdir(parents=True, exist_ok=True)
-    jobs = [(c, case_seed(args.base_seed, c, i)) for c in args.conditions
-            for i in range(args.start_index, args.start_index + args.seeds)]
-    print(f"discovery Monte Carlo: {len(args.conditions)} condition(s) x {args.seeds} seeds, "
-          f"base seed {args.base_seed} (seed = base*100000 + condition*1000 + i), {args.laps} "
-          f"lap(s) of the route, {args.jobs} worker(s)")
-    t0 = time.perf_counter()
-    cases: list[CaseResult] = []
-    with tempfile.TemporaryDirectory(prefix="pinquad-dmc-") as tmp:
-        work = [(c, s, tmp, args.laps) for c, s in jobs]
-        if args.jobs > 1:
-            from concurrent.futures import ProcessPoolExecutor
-
-            with ProcessPoolExecutor(args.jobs) as pool:
-                it = pool.map(_run_job, work)
-                for res in tqdm(it, total=len(work), unit="flight", file=sys.stderr):
-                    cases.append(res)
-                    _append(out, res)
-        else:
-            for job in tqdm(work, unit="flight", file=sys.stderr):
-                res = _run_job(job)
-                cases.append(res)
-                _append(out, res)
-    summary = summarize(cases)
-    summary["seconds"] = time.perf_counter() - t0
-    summary["base_seed"] = args.base_seed
-    summary["seeds_per_condition"] = args.seeds
-    summary["laps"] = args.laps
-    table = markdown(summary)
-    print()
-    for cond in args.conditions:
-        seeds = [c.seed for c in cases if c.condition == cond]
-        print(f"{cond}: seeds {seeds[0]}..{seeds[-1]}")
-    print(table)
-    print(f"\n{len(cases)} flights in {summary['seconds']:.0f} s")
-    atomic_write_json(out / "discovery_mc.json", {"summary": summary,
-                                                  "cases": [c.to_json() for c in cases]})
-    (out / "discovery_mc.md").write_text("# Effect discovery Monte Carlo\n\n" + table + "\n")
-    print(f"written to {out}")
-    return 0
-
-
-def _case_from_json(d: dict) -> CaseResult:
     def f(v):
         return float("nan") if v is None else float(v)
 
@@ -467,54 +328,17 @@ def _case_from_json(d: dict) -> CaseResult:
                       int(d.get("laps", 1)), {k: f(v) for k, v in d.get("twin_rms", {}).items()})
 
 
-def _merge(paths: list[Path], out: Path | None) -> int:
-    """Summarise several runs' cases together (later files win on duplicates)."""
-    from pinquad.io.runs import atomic_write_json
-
-    cases: dict[tuple[str, int], CaseResult] = {}
-    seen_laps: set[int] = set()
-    for p in paths:
-        try:
-            text = Path(p).read_text()
-            data = ([json.loads(line) for line in text.splitlines() if line.strip()]
-                    if Path(p).suffix == ".jsonl" else json.loads(text))
-        except (OSError, ValueError) as exc:
-            print(f"error: {p}: cannot read a discovery_mc.json ({exc})", file=sys.stderr)
-            return 2
-        for d in (data["cases"] if isinstance(data, dict) else data):
-            case = _case_from_json(d)
-            cases[(case.condition, case.seed)] = case
-            seen_laps.add(case.laps)
-    laps = sorted(seen_laps)
-    if len(laps) > 1:
-        print(f"error: the files mix flights of {', '.join(map(str, laps))} laps; merge runs "
-              "of one route length", file=sys.stderr)
-        return 2
-    ordered = sorted(cases.values(), key=lambda c: (list(CONDITIONS).index(c.condition), c.seed))
-    summary = summarize(ordered)
-    summary["laps"] = laps[0] if laps else 1
-    table = markdown(summary)
-    for cond in CONDITIONS:
-        seeds = [c.seed for c in ordered if c.condition == cond]
-        if seeds:
-            print(f"{cond}: {len(seeds)} seeds {seeds[0]}..{seeds[-1]}")
-    print(table)
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(out / "discovery_mc.json",
-                          {"summary": summary, "merged_from": [str(p) for p in paths],
-                           "cases": [c.to_json() for c in ordered]})
-        (out / "discovery_mc.md").write_text("# Effect discovery Monte Carlo\n\n" + table + "\n")
-        print(f"written to {out}")
-    return 0
+def read_cases(path: Path) -> list[CaseResult]:
+    """The cases of a ``discovery_mc.json`` or a ``cases.jsonl`` (one case a line).
+    Raises OSError or ValueError if the file cannot be read as either."""
+    text = Path(path).read_text()
+    data = ([json.loads(line) for line in text.splitlines() if line.strip()]
+            if Path(path).suffix == ".jsonl" else json.loads(text))
+    return [case_from_json(d) for d in (data["cases"] if isinstance(data, dict) else data)]
 
 
-def _append(out: Path, res: CaseResult) -> None:
-    """Stream each case to cases.jsonl (a long run can be inspected while it runs)."""
+def append_case(out: Path, res: CaseResult) -> None:
+    """Stream each case to ``out``/cases.jsonl (a long run can be inspected while it runs)."""
     with open(out / "cases.jsonl", "a") as fh:
         fh.write(json.dumps(res.to_json(), default=lambda v: None if isinstance(v, float)
                             and math.isnan(v) else v) + "\n")
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,13 +1,14 @@
 """Effect discovery on the measured Crazyflie flights, trained on some logs and tested on others.
 
-``python -m pinquad.realdiscovery [--data DIR]``:
+``python -m pinquad.realdiscovery [--data DIR]`` (command line ``pinquad.cli.realdiscovery``,
+table ``pinquad.report.realdiscovery``):
 
 1. every flight of the split is identified as ``offline --log`` does (``realdata``:
    100 Hz observations, band-limited inertia M-step with the nuisance air-speed moment)
-   and discovery (``pinquad.discovery.discover.discover.discover``, effects fitted on the base posterior)
-   is run on it alone: what each flight names by itself;
+   and discovery (``pinquad.discovery.discover.discover``, effects fitted on the base
+   posterior) is run on it alone: what each flight names by itself;
 2. the effects named by at least half of the training flights are fitted on all training
-   flights together (profiled ML of ``pinquad.discovery.discover``: summed expected Gram
+   flights together (profiled ML of ``pinquad.discovery.selection``: summed expected Gram
    matrices, mass and inertia re-fitted with the effects' coefficients, the wrench row
    variances profiled out); standard errors by leave-one-flight-out jackknife;
 3. on each test flight (never used in step 2) the wrench residual of its own smoothed
@@ -24,16 +25,28 @@ four random flights, which spend little time there (jana28 0.5 s).
 
 from __future__ import annotations
 
-import argparse
-import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.io.datadir import default_data_dir
+from pinquad.discovery.discover import discover
+from pinquad.discovery.library import SPECS
+from pinquad.discovery.residuals import (
+    block_grams,
+    compute_residuals,
+    effect_columns,
+    heldout_rms,
+)
+from pinquad.discovery.result import DiscoveryConfig
+from pinquad.discovery.selection import ProfiledFit, profiled_fit
+from pinquad.io.sdlog import read_sdflight
+from pinquad.realdata.dataset import default_guess
+from pinquad.realdata.identify import identify_real
+from pinquad.realdata.model import corrected, plain_theta
+from pinquad.realdata.observations import build_observations
+from pinquad.realdata.raw import raw_from_sdflight
 
 Array = NDArray[np.float64]
 
@@ -67,15 +80,6 @@ class FlightFit:
 
 def fit_flight(path: Path, max_iterations: int = 60) -> FlightFit:
     """Base identification (``realdata.identify_real``) and discovery of one log."""
-    from pinquad.discovery.discover import DiscoveryConfig, discover
-    from pinquad.experiments.recorded import plain_theta
-    from pinquad.io.sdlog import read_sdflight
-    from pinquad.realdata.dataset import default_guess
-    from pinquad.realdata.identify import identify_real
-    from pinquad.realdata.model import corrected
-    from pinquad.realdata.observations import build_observations
-    from pinquad.realdata.raw import raw_from_sdflight
-
     raw = raw_from_sdflight(read_sdflight(path))
     real = build_observations(raw)
     mass0, inertia0, _ = default_guess("crazyflie21")
@@ -91,29 +95,22 @@ def fit_flight(path: Path, max_iterations: int = 60) -> FlightFit:
 
 
 def _gram(fit: FlightFit, effects: tuple[str, ...]) -> tuple[Array, int]:
-    from pinquad.discovery.discover import _effect_columns, _grams, _residuals
-
-    res = _residuals(fit.obs, fit.posterior, fit.theta.gravity, 2.0)
-    phi, fixed = _effect_columns(res, list(effects), None)
-    return _grams(res, phi, fixed).sum(axis=0), int(res.idx.size)
+    res = compute_residuals(fit.obs, fit.posterior, fit.theta.gravity, 2.0)
+    phi, fixed = effect_columns(res, list(effects), None)
+    return block_grams(res, phi, fixed).sum(axis=0), int(res.idx.size)
 
 
-def pooled_fit(fits: list[FlightFit], effects: tuple[str, ...]):
+def pooled_fit(fits: list[FlightFit], effects: tuple[str, ...]) -> ProfiledFit:
     """Profiled ML of (pi, c) on all flights in ``fits`` together (module docstring)."""
-    from pinquad.discovery.discover import _fit
-    from pinquad.sim.effects import SPECS
-
     grams = [_gram(f, effects) for f in fits]
     g = sum(gr for gr, _ in grams)
     n = sum(k for _, k in grams)
     pi0 = np.r_[np.mean([f.mass for f in fits]), np.mean([f.inertia for f in fits], axis=0)]
     p = sum(SPECS[e].n_coefficients for e in effects)
-    return _fit(g, n, pi0, p)
+    return profiled_fit(g, n, pi0, p)
 
 
 def _split_coefficients(c: Array, effects: tuple[str, ...]) -> dict[str, Array]:
-    from pinquad.sim.effects import SPECS
-
     out, j = {}, 0
     for e in effects:
         k = SPECS[e].n_coefficients
@@ -141,11 +138,9 @@ def evaluate(fit: FlightFit, pi: Array, coeffs: dict[str, Array],
              steps_mask: NDArray[np.bool_] | None = None) -> dict[str, float]:
     """RMS per axis of 0.1-s means of the test flight's wrench residual (whole flight, or
     the steps in ``steps_mask``)."""
-    from pinquad.discovery.discover import _heldout_rms, _residuals
-
-    res = _residuals(fit.obs, fit.posterior, fit.theta.gravity, 2.0)
+    res = compute_residuals(fit.obs, fit.posterior, fit.theta.gravity, 2.0)
     window = max(int(round(0.1 / fit.obs.dt)), 1)
-    return _heldout_rms(res, pi, coeffs, np.ones(res.n_blocks, dtype=bool), window, steps_mask)
+    return heldout_rms(res, pi, coeffs, np.ones(res.n_blocks, dtype=bool), window, steps_mask)
 
 
 def run_split(name: str, data: Path, cache: dict[str, FlightFit]) -> dict:
@@ -203,97 +198,3 @@ def run_split(name: str, data: Path, cache: dict[str, FlightFit]) -> dict:
         entry["test_rms"][f.name] = {"before": before, "after": after,
                                      "min_height_m": f.min_height, "max_speed_m_s": f.max_speed}
     return entry
-
-
-def table(results: dict) -> str:
-    """Markdown: per split the effects, coefficients and the test flights' before/after."""
-    from pinquad.sim.effects import SPECS
-
-    lines = ["| split | train (lowest height, top speed) | named per flight (own discovery) | "
-             "pooled effect: coefficients ± leave-one-flight-out SE | test flight | "
-             "force_x before -> after [mN] | force_y | force_z |", "|---|---|---|---|---|---|---|---|"]
-    for name, r in results.items():
-        named = "; ".join(f"{k}: {', '.join(v) or '-'}" for k, v in r["named_by_flight"].items())
-        co = "; ".join(
-            f"{e}: " + ", ".join(f"{n} {v:.4g} ± {s:.2g}" for n, v, s in
-                                 zip(SPECS[e].coefficient_names, r["coefficients"][e],
-                                     r["stderr_leave_one_flight_out"][e], strict=True))
-            for e in r["pooled_effects"]) or "none"
-        for i, (t, rms) in enumerate(r["test_rms"].items()):
-            b, a = rms["before"], rms["after"]
-            cells = " | ".join(f"{1e3 * b[x]:.2f} -> {1e3 * a[x]:.2f} ({100 * (a[x] / b[x] - 1):+.0f} %)"
-                               for x in ("force_x", "force_y", "force_z"))
-            tr = ", ".join(f"{n} ({r['flights'][n][0]:.2f} m, {r['flights'][n][1]:.1f} m/s)"
-                           for n in r["train"])
-            lead = (f"| {name} | {tr} | {named} | {co} |" if i == 0
-                    else "| | | | |")
-            lines.append(f"{lead} {t} ({r['flights'][t][0]:.2f} m, {r['flights'][t][1]:.1f} m/s) | "
-                         f"{cells} |")
-    lines += ["", "The split's own effect fitted alone on the training flights, test flights' force "
-              "residual RMS before -> after:", ""]
-    for name, r in results.items():
-        tg = r["target"]
-        co = ", ".join(f"{n} {v:.4g}" for n, v in zip(SPECS[tg["effect"]].coefficient_names,
-                                                       tg["coefficients"], strict=True))
-        for t, rms in tg["test_rms"].items():
-            b, a = rms["before"], rms["after"]
-            words = ", ".join(
-                f"{x} {1e3 * b[x]:.2f} -> {1e3 * a[x]:.2f} mN ({100 * (a[x] / b[x] - 1):+.0f} %)"
-                for x in ("force_x", "force_y", "force_z"))
-            low = tg.get("near_floor", {}).get(t)
-            if low is not None and np.isfinite(low["before"]["force_z"]):
-                b, a = low["before"], low["after"]
-                words += (f"; below {100 * NEAR_FLOOR_M:.0f} cm ({low['seconds']:.1f} s of the "
-                          f"flight): force_z {1e3 * b['force_z']:.2f} -> {1e3 * a['force_z']:.2f} mN "
-                          f"({100 * (a['force_z'] / b['force_z'] - 1):+.0f} %)")
-            lines.append(f"- {name}: {tg['effect']} alone ({co}) on {t}: {words}")
-    return "\n".join(lines)
-
-
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m pinquad.realdiscovery",
-                                description="Effect discovery on the measured Crazyflie flights: "
-                                            "train on some logs, test on others.")
-    p.add_argument("--data", type=Path, default=None,
-                   help="imrc_brushed/ directory (default: ../shared/data/crazyflie/imrc_brushed "
-                        "next to the repository)")
-    p.add_argument("--splits", nargs="*", default=list(SPLITS), choices=list(SPLITS))
-    p.add_argument("--out", type=Path, default=None, help="write realdiscovery.json/.md here")
-    args = p.parse_args(argv)
-    data = args.data or default_data_dir() / "imrc_brushed"
-    if (data / "imrc_brushed").is_dir():
-        data = data / "imrc_brushed"
-    if not data.is_dir():
-        print(f"error: {data}: no such directory; expected the Crazyflie flight logs "
-              "(imrc_brushed/)", file=sys.stderr)
-        return 2
-    t0 = time.perf_counter()
-    cache: dict[str, FlightFit] = {}
-    results = {}
-    try:
-        for s in args.splits:
-            print(f"split {s}: train {', '.join(SPLITS[s][0])}; test {', '.join(SPLITS[s][1])}; "
-                  f"effect {SPLITS[s][2]}",
-                  flush=True)
-            results[s] = run_split(s, data, cache)
-    except (FileNotFoundError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    text = table(results)
-    print(text)
-    for s, r in results.items():
-        if "refit" in r:
-            print(f"{s}: training mass {1e3 * r['base']['mass']:.2f} g -> {1e3 * r['refit']['mass']:.2f} g "
-                  f"with {', '.join(r['pooled_effects'])}")
-    print(f"{time.perf_counter() - t0:.0f} s")
-    if args.out is not None:
-        from pinquad.io.runs import atomic_write_json
-
-        args.out.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(args.out / "realdiscovery.json", results)
-        (args.out / "realdiscovery.md").write_text(text + "\n")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

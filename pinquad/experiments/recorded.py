@@ -29,7 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.discovery.discover import DiscoveryConfig, discover
+from pinquad.discovery.discover import discover
+from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
@@ -39,7 +40,7 @@ from pinquad.models.sources import observations
 from pinquad.models.ssm import Observations, Theta
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
-from pinquad.realdata.model import RealTheta, corrected
+from pinquad.realdata.model import RealTheta, corrected, plain_theta
 from pinquad.realdata.observations import build_observations, options_for_sensor
 from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient
@@ -133,12 +134,6 @@ def initial_guess(log: FlightLog) -> tuple[float, Array, str]:
         raise ValueError(f"{meta.source}: initial guess must be positive; got mass {mass0} kg, "
                          f"inertia diagonal {np.diag(inertia0).tolist()} kg m^2")
     return mass0, inertia0, "; ".join(parts)
-
-
-def plain_theta(theta: Theta) -> Theta:
-    """The plain :class:`~pinquad.models.ssm.Theta` of a measured run's ``RealTheta`` (its
-    nuisance moment travels in ``realdata.corrected`` observations instead)."""
-    return Theta(theta.mass, np.asarray(theta.inertia), theta.noise, theta.gravity)
 
 
 def default_sensor(log: FlightLog) -> str:
@@ -272,22 +267,35 @@ def discovery_config(kind: str) -> DiscoveryConfig:
     return DiscoveryConfig(**DISCOVERY_SETTINGS.get(kind, {}))
 
 
-def run_discovery(result: LogResult, figs: Path | None = None) -> dict:
-    """Effect discovery (``pinquad.discovery.discover.discover``) on the reported run: the
-    DESIGN 4.3 ``discovery`` section, figures written to ``figs`` (when given) and named
-    relative to the run directory. A numerical failure of the refit is reported in the
-    section (key ``error``) instead of stopping the run: the identification stands
-    without it."""
+@dataclass(frozen=True)
+class DiscoveryOutcome:
+    """Effect discovery on a log's reported run: its result, or why there is none (a
+    numerical failure of the refit is reported, not raised: the identification stands
+    without it)."""
+
+    result: DiscoveryResult | None
+    error: str | None = None
+
+
+def run_discovery(result: LogResult) -> DiscoveryOutcome:
+    """Effect discovery (``pinquad.discovery.discover``) on the reported run, with the
+    settings for the log's kind (``DISCOVERY_SETTINGS``)."""
     start = result.discovery_start
     if start is None:
-        return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
-                "validation": "not run", "error": "no EM run to start from"}
+        return DiscoveryOutcome(None, "no EM run to start from")
     try:
-        out = discover(start.obs, start.theta, start.posterior, cfg=discovery_config(result.kind),
-                       figures_dir=figs)
+        found = discover(start.obs, start.theta, start.posterior, cfg=discovery_config(result.kind))
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+        return DiscoveryOutcome(None, f"discovery failed numerically: {exc}")
+    return DiscoveryOutcome(found)
+
+
+def discovery_section(outcome: DiscoveryOutcome) -> dict:
+    """The DESIGN 4.3 ``discovery`` section of report.json; figure paths (if drawn) named
+    relative to the run directory (``figures/<name>``)."""
+    if outcome.result is None:
         return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
-                "validation": "not run", "error": f"discovery failed numerically: {exc}"}
-    section = out.to_report()
+                "validation": "not run", "error": outcome.error}
+    section = outcome.result.to_report()
     section["figures"] = [f"figures/{Path(f).name}" for f in section["figures"]]
     return section

@@ -66,3 +66,9 @@ def torque_features(mean: Array, thrust: Array) -> Array:
     rot = rotation_from_euler(mean[:, 6:9])
     v_body = np.einsum("kji,kj->ki", rot, mean[:, 3:6])
     return np.column_stack([thrust, v_body, mean[:, 9:12]])
+
+
+def plain_theta(theta: Theta) -> Theta:
+    """The plain :class:`~pinquad.models.ssm.Theta` of a measured run's :class:`RealTheta`
+    (its nuisance moment travels in :func:`corrected` observations instead)."""
+    return Theta(theta.mass, np.asarray(theta.inertia), theta.noise, theta.gravity)

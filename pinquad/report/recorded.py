@@ -10,13 +10,13 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import wrap_angle
-from pinquad.discovery.discover import discovery_markdown
 from pinquad.experiments.recorded import LogResult
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import write_log
 from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 from pinquad.models.ssm import Observations
 from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS
+from pinquad.report.discovery import discovery_markdown
 from pinquad.report.offline import plot_trajectory
 
 Array = NDArray[np.float64]

@@ -1,14 +1,11 @@
-"""The effect library: physical effects the base rigid-body model leaves out (DESIGN 4.4).
+"""The simulator's side of the effect vocabulary: physical effects the base rigid-body
+model leaves out (DESIGN 4.4), injected into the true vehicle.
 
-Every effect exists twice:
-
-* simulator side: a factory returning a ``pinquad.sim.simulator.simulator.Disturbance`` that injects the
-  effect into the true vehicle with a documented coefficient;
-* estimator side: an :class:`EffectSpec` whose ``features`` give the extra body wrench the
-  effect adds to one transition k -> k+1 as a linear function of its coefficients
-  (``wrench_k = Phi_k c``), evaluated at the smoothed state and the logged command, and
-  whose ``correct`` folds identified coefficients back into the observations so the
-  unchanged E-step / M-step can refit mass and inertia.
+Each factory returns a ``pinquad.sim.simulator.Disturbance`` with a documented
+coefficient. The estimator's side (features of the extra wrench, folding identified
+coefficients back into the observations) is ``pinquad.discovery.library``; the names and
+constants both use are in ``pinquad.core.effect_vocabulary``, so neither side imports the
+other.
 
 Forms (body frame: x forward, y left, z up; v_b = R^T v the body velocity [m/s]; F the
 collective thrust [N]; all wrenches at the body origin):
@@ -42,41 +39,24 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.conventions import rotation_from_euler  # noqa: F401 (re-exported for tests)
+from pinquad.core.conventions import rotation_from_euler
+from pinquad.core.effect_vocabulary import (
+    COEFFICIENT_NAMES,
+    CRAZYFLIE_DRAG,
+    GROUND_EFFECT_RADIUS,
+    ground_effect_gain,
+)
 from pinquad.sim.simulator import Disturbance
 
 Array = NDArray[np.float64]
 
-EFFECT_NAMES = ("drag", "ground_effect", "com_offset", "wind", "motor_lag", "gyro_bias")
-"""The discovery vocabulary of DESIGN 4.4."""
-
-CRAZYFLIE_DRAG = (0.0062, 0.0062, 0.0070)
-"""Linear rotor-drag coefficients of a hovering Crazyflie 2.x [N s/m] (module docstring)."""
-CRAZYFLIE_ROTOR_RADIUS = 0.0235
-"""Crazyflie 2.x propeller radius [m]."""
-GROUND_EFFECT_RADIUS = 0.046
-"""Effective radius r [m] of the ground-effect law: the Crazyflie's arm, i.e. the
-footprint of the four rotors together (a single rotor's 0.0235 m reaches only ~1 cm)."""
-
-
-# --------------------------------------------------------------------------------------
-# simulator side
-# --------------------------------------------------------------------------------------
-
 
 def _disturbance(**kwargs) -> Disturbance:
     return Disturbance(**kwargs)
-
-
-def ground_effect_gain(z: Array | float, radius: float = GROUND_EFFECT_RADIUS) -> Array:
-    """g(z) = (r / (4 max(z, r/2)))^2 [-], the relative thrust gain per unit k_ge."""
-    zc = np.maximum(np.asarray(z, dtype=float), 0.5 * radius)
-    return (radius / (4.0 * zc)) ** 2
 
 
 def drag(coefficients: tuple[float, float, float] | Array = CRAZYFLIE_DRAG) -> Disturbance:
@@ -156,129 +136,5 @@ def injected_coefficients(name: str, disturbance_args: dict | None = None) -> di
     full = {k: p.default for k, p in sig.parameters.items()}
     full.update(args)
     first = np.atleast_1d(np.asarray(next(iter(full.values())), dtype=float))
-    names = SPECS[name].coefficient_names
+    names = COEFFICIENT_NAMES[name]
     return {n: float(first[i]) for i, n in enumerate(names)}
-
-
-# --------------------------------------------------------------------------------------
-# estimator side
-# --------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class TransitionData:
-    """What an effect's features see of the transitions k -> k+1 used for fitting.
-
-    x (K, 12): smoothed state at k; inputs (K, 4): logged command [F (N), M (N m)] at k;
-    applied_history (N, 4): the whole logged command sequence (for lags); index (K,):
-    the step k of each row; dt [s].
-    """
-
-    x: Array
-    inputs: Array
-    applied_history: Array
-    index: NDArray[np.int64]
-    dt: float
-
-
-def lagged_inputs(inputs: Array, time_constant: float, dt: float) -> Array:
-    """u_k = u_{k-1} + dt/(tau_m + dt) (u_cmd,k - u_{k-1}), u_0 = u_cmd,0: (N, 4)."""
-    a = dt / (max(time_constant, 0.0) + dt)
-    out = np.empty_like(inputs)
-    out[0] = inputs[0]
-    for k in range(1, inputs.shape[0]):
-        out[k] = out[k - 1] + a * (inputs[k] - out[k - 1])
-    return out
-
-
-@dataclass(frozen=True)
-class EffectSpec:
-    """Estimator side of one effect.
-
-    name: DESIGN 4.4 name; coefficient_names / units: one per coefficient; rows: the
-    residual rows it explains (0-5: body force x, y, z, torque x, y, z; "gyro" effects
-    use the gyro measurement residuals instead); feature_name: the explaining feature
-    (for figures); nonlinear: coefficient enters nonlinearly (motor_lag: searched on a
-    grid, ``features`` then takes the coefficient and returns the wrench itself).
-    """
-
-    name: str
-    coefficient_names: tuple[str, ...]
-    units: tuple[str, ...]
-    rows: tuple[int, ...]
-    feature_name: str
-    nonlinear: bool = False
-
-    @property
-    def n_coefficients(self) -> int:
-        return len(self.coefficient_names)
-
-
-SPECS: dict[str, EffectSpec] = {
-    "drag": EffectSpec("drag", ("D_x", "D_y", "D_z"), ("N s/m",) * 3, (0, 1, 2),
-                       "body velocity [m/s]"),
-    "ground_effect": EffectSpec("ground_effect", ("k_ge",), ("-",), (2,),
-                                "thrust x ground gain F g(z) [N]"),
-    "com_offset": EffectSpec("com_offset", ("c_x", "c_y"), ("m", "m"), (3, 4), "thrust [N]"),
-    "wind": EffectSpec("wind", ("w_x", "w_y"), ("N", "N"), (0, 1, 2),
-                       "world x/y axis in body frame [-]"),
-    "motor_lag": EffectSpec("motor_lag", ("tau_m",), ("s",), (2, 3, 4, 5),
-                            "command rate du/dt", nonlinear=True),
-    "gyro_bias": EffectSpec("gyro_bias", ("b_x", "b_y", "b_z"), ("rad/s",) * 3, (),
-                            "time [s]"),
-}
-
-
-def wrench_features(name: str, data: TransitionData,
-                    ground_radius: float = GROUND_EFFECT_RADIUS) -> Array:
-    """Phi (K, 6, p) with the effect's extra body wrench [N, N m] = Phi @ c (linear effects)."""
-    k = data.x.shape[0]
-    if name == "drag":
-        v_b = np.einsum("kji,kj->ki", rotation_from_euler(data.x[:, 6:9]), data.x[:, 3:6])
-        phi = np.zeros((k, 6, 3))
-        for i in range(3):
-            phi[:, i, i] = -v_b[:, i]
-        return phi
-    if name == "ground_effect":
-        phi = np.zeros((k, 6, 1))
-        phi[:, 2, 0] = data.inputs[:, 0] * ground_effect_gain(data.x[:, 2], ground_radius)
-        return phi
-    if name == "com_offset":
-        phi = np.zeros((k, 6, 2))
-        phi[:, 4, 0] = data.inputs[:, 0]
-        phi[:, 3, 1] = -data.inputs[:, 0]
-        return phi
-    if name == "wind":
-        rot = rotation_from_euler(data.x[:, 6:9])
-        phi = np.zeros((k, 6, 2))
-        phi[:, 0:3, 0] = rot[:, 0, :]  # R^T e_x: row 0 of R as a column
-        phi[:, 0:3, 1] = rot[:, 1, :]
-        return phi
-    raise ValueError(f"{name!r} is not a linear wrench effect")
-
-
-def lag_wrench(data: TransitionData, time_constant: float) -> Array:
-    """(K, 6) extra wrench u_lagged - u_cmd of ``motor_lag`` (thrust and torque rows)."""
-    lagged = lagged_inputs(data.applied_history, time_constant, data.dt)
-    out = np.zeros((data.index.size, 6))
-    out[:, 2:6] = lagged[data.index] - data.applied_history[data.index]
-    return out
-
-
-def explaining_feature(name: str, data: TransitionData, row: int) -> Array:
-    """(K,) the scalar a figure plots residual row ``row`` against."""
-    if name == "drag":
-        v_b = np.einsum("kji,kj->ki", rotation_from_euler(data.x[:, 6:9]), data.x[:, 3:6])
-        return v_b[:, min(row, 2)]
-    if name == "ground_effect":
-        return data.x[:, 2]
-    if name == "com_offset":
-        return data.inputs[:, 0]
-    if name == "wind":
-        rot = rotation_from_euler(data.x[:, 6:9])
-        return rot[:, 0, min(row, 2)]
-    if name == "motor_lag":
-        hist = data.applied_history
-        rate = np.gradient(hist, data.dt, axis=0)
-        return rate[data.index, max(row - 2, 0)]
-    return data.index * data.dt

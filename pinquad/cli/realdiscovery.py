@@ -1,0 +1,69 @@
+"""``python -m pinquad.realdiscovery``: effect discovery on the measured Crazyflie flights,
+trained on some logs and tested on others (``pinquad.experiments.realdiscovery``; table
+by ``pinquad.report.realdiscovery``)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from pinquad.experiments.realdiscovery import SPLITS, FlightFit, run_split
+from pinquad.io.datadir import default_data_dir
+from pinquad.io.runs import atomic_write_json
+from pinquad.report.realdiscovery import realdiscovery_markdown
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m pinquad.realdiscovery``."""
+    p = argparse.ArgumentParser(prog="python -m pinquad.realdiscovery",
+                                description="Effect discovery on the measured Crazyflie flights: "
+                                            "train on some logs, test on others.")
+    p.add_argument("--data", type=Path, default=None,
+                   help="imrc_brushed/ directory (default: ../shared/data/crazyflie/imrc_brushed "
+                        "next to the repository)")
+    p.add_argument("--splits", nargs="*", default=list(SPLITS), choices=list(SPLITS))
+    p.add_argument("--out", type=Path, default=None, help="write realdiscovery.json/.md here")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the splits, print the table (and the training mass with the pooled effects),
+    write realdiscovery.json/.md to ``--out`` if given. Returns the exit code."""
+    args = build_parser().parse_args(argv)
+    data = args.data or default_data_dir() / "imrc_brushed"
+    if (data / "imrc_brushed").is_dir():
+        data = data / "imrc_brushed"
+    if not data.is_dir():
+        print(f"error: {data}: no such directory; expected the Crazyflie flight logs "
+              "(imrc_brushed/)", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    cache: dict[str, FlightFit] = {}
+    results = {}
+    try:
+        for s in args.splits:
+            print(f"split {s}: train {', '.join(SPLITS[s][0])}; test {', '.join(SPLITS[s][1])}; "
+                  f"effect {SPLITS[s][2]}",
+                  flush=True)
+            results[s] = run_split(s, data, cache)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    text = realdiscovery_markdown(results)
+    print(text)
+    for s, r in results.items():
+        if "refit" in r:
+            print(f"{s}: training mass {1e3 * r['base']['mass']:.2f} g -> {1e3 * r['refit']['mass']:.2f} g "
+                  f"with {', '.join(r['pooled_effects'])}")
+    print(f"{time.perf_counter() - t0:.0f} s")
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(args.out / "realdiscovery.json", results)
+        (args.out / "realdiscovery.md").write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

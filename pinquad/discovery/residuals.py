@@ -1,0 +1,163 @@
+"""Residual statistics of a base-model fit at one posterior: the body-wrench residual
+rho_k = Y_k pi - tau_k (6,) [N, N m] of each used transition, the gyro residual
+y_gyro,k - omega_k|N [rad/s], the attitude-kinematics residual [rad/s], their blocks
+(alternating train / held-out), per-block expected Gram matrices, and held-out RMS per
+axis of window means. The method is in ``pinquad.discovery.discover``'s docstring."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.protocol import Posterior
+from pinquad.core.conventions import euler_rate_matrix_inv, wrap_angle
+from pinquad.discovery.library import TransitionData, lag_wrench, wrench_features
+from pinquad.discovery.result import ATT_AXES, AXES, GYRO_AXES, DiscoveryConfig
+from pinquad.models.ssm import Observations
+from pinquad.mstep.stats import transition_mask
+from pinquad.mstep.updates import regressor_stats
+
+Array = NDArray[np.float64]
+
+
+def window_steps(cfg: DiscoveryConfig, dt: float) -> int:
+    """Steps per averaging window of the residual RMS (``cfg.window_seconds`` / dt, >= 1)."""
+    return max(int(round(cfg.window_seconds / dt)), 1)
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Per-transition quantities at one posterior.
+
+    idx (K,): steps k of the used transitions; block (K,): block number; y (K, 6, 4);
+    tau (K, 6); corr (B, 6, 4, 4): posterior-covariance part of E[Y^T Y] per block;
+    data: effect features' view; gyro_res (N, 3) with NaN where unobserved;
+    gyro_block (N,): block of each step; att_res (N, 3) [rad/s]: the attitude-kinematics
+    residual (``ATT_AXES``) of transition k -> k+1, NaN on the last step and on excluded
+    transitions.
+    """
+
+    idx: NDArray[np.int64]
+    block: NDArray[np.int64]
+    y: Array
+    tau: Array
+    corr: Array
+    data: TransitionData
+    gyro_res: Array
+    gyro_block: NDArray[np.int64]
+    n_blocks: int
+    att_res: Array
+
+
+def step_blocks(obs: Observations, seconds: float) -> NDArray[np.int64]:
+    """(N,) block number of each step."""
+    return np.floor((obs.t - obs.t[0]) / seconds).astype(np.int64)
+
+
+def compute_residuals(obs: Observations, post: Posterior, gravity: float, block_seconds: float
+                      ) -> Residuals:
+    """The ``Residuals`` of ``post`` on ``obs`` (gravity [m/s^2]; blocks of
+    ``block_seconds`` [s] from the first step)."""
+    steps_block = step_blocks(obs, block_seconds)
+    n_blocks = int(steps_block.max()) + 1
+    stats = regressor_stats(post, obs, gravity)
+    idx = np.flatnonzero(transition_mask(obs))
+    block = steps_block[idx]
+    corr = np.zeros((n_blocks, 6, 4, 4))
+    base_ex = obs.exclude if obs.exclude.size else np.zeros(obs.n, dtype=bool)
+    for b in range(n_blocks):
+        sel = block == b
+        if not sel.any():
+            continue
+        ex = base_ex.copy() | (steps_block != b)
+        sb = regressor_stats(post, replace(obs, exclude=ex), gravity)
+        corr[b] = sb.a - np.einsum("kap,kaq->apq", stats.y[sel], stats.y[sel])
+    data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
+                          index=idx, dt=obs.dt)
+    gyro_res = np.full((obs.n, 3), np.nan)
+    if "gyro" in obs.channels:
+        i = obs.channels.index("gyro")
+        gyro_res = obs.ys[:, 3 * i:3 * i + 3] - post.mean[:, 9:12]
+    euler, rates = post.mean[:, 6:9], post.mean[:, 9:12]
+    att_res = np.full((obs.n, 3), np.nan)
+    att_res[idx] = (wrap_angle(euler[idx + 1] - euler[idx]) / obs.dt
+                    - np.einsum("kij,kj->ki", euler_rate_matrix_inv(euler[idx]), rates[idx]))
+    return Residuals(idx, block, stats.y, stats.tau, corr, data, gyro_res, steps_block, n_blocks,
+                     att_res)
+
+
+def effect_columns(res: Residuals, effects: Sequence[str], lag: float | None
+                   ) -> tuple[Array, Array]:
+    """Linear feature columns Phi (K, 6, p) of ``effects`` (wrench effects only) and the
+    fixed extra wrench (K, 6) of motor_lag at time constant ``lag`` (zero if absent)."""
+    cols = [wrench_features(e, res.data) for e in effects
+            if e not in ("motor_lag", "gyro_bias")]
+    k = res.y.shape[0]
+    phi = np.concatenate(cols, axis=2) if cols else np.zeros((k, 6, 0))
+    fixed = lag_wrench(res.data, lag) if lag is not None and lag > 0 else np.zeros((k, 6))
+    return phi, fixed
+
+
+def block_grams(res: Residuals, phi: Array, fixed: Array, window: int = 0) -> Array:
+    """Per-block expected Gram matrices G (B, 6, q, q), q = 4 + p + 1, of
+    z = [Y, -Phi, -(tau + fixed)] so that rho - Phi c = z [pi, c, 1].
+
+    window > 0: Gram matrices of the means of z over ``window`` consecutive steps (the
+    low-frequency part the selection gain is measured on; no covariance correction)."""
+    z = np.concatenate([res.y, -phi, -(res.tau + fixed)[:, :, None]], axis=2)
+    q = z.shape[2]
+    g = np.zeros((res.n_blocks, 6, q, q))
+    if window > 0:
+        key = res.block * 1_000_000 + res.idx // window
+        uniq, inv = np.unique(key, return_inverse=True)
+        zs = np.zeros((uniq.size, 6, q))
+        np.add.at(zs, inv, z)
+        zs /= np.bincount(inv)[:, None, None]
+        np.add.at(g, uniq // 1_000_000, np.einsum("kaq,kar->kaqr", zs, zs))
+        return g
+    np.add.at(g, res.block, np.einsum("kaq,kar->kaqr", z, z))
+    g[:, :, 0:4, 0:4] += res.corr
+    return g
+
+
+def window_rms(values: Array, block: NDArray[np.int64], steps: NDArray[np.int64], window: int
+               ) -> float:
+    """RMS of means over windows of ``window`` consecutive steps (within one block)."""
+    ok = ~np.isnan(values)
+    if not ok.any():
+        return float("nan")
+    key = block[ok] * 100000 + steps[ok] // max(window, 1)
+    _, inv = np.unique(key, return_inverse=True)
+    sums = np.bincount(inv, values[ok])
+    counts = np.bincount(inv)
+    return float(np.sqrt(np.mean((sums / counts) ** 2)))
+
+
+def heldout_rms(res: Residuals, pi: Array, coeffs: dict[str, Array], test: NDArray[np.bool_],
+                 window: int, steps_mask: NDArray[np.bool_] | None = None) -> dict[str, float]:
+    """RMS per axis of ``window``-step means of the residual on the blocks in ``test``
+    (and, if given, only on the steps k with steps_mask[k])."""
+    wrench = [e for e in coeffs if e not in ("motor_lag", "gyro_bias")]
+    phi, fixed = effect_columns(res, wrench, float(coeffs["motor_lag"][0]) if "motor_lag" in coeffs
+                                 else None)
+    c = np.concatenate([coeffs[e] for e in wrench]) if wrench else np.zeros(0)
+    rho = (np.einsum("kap,p->ka", res.y, pi) - res.tau - fixed
+           - np.einsum("kap,p->ka", phi, c))
+    sel = test[res.block]
+    if steps_mask is not None:
+        sel = sel & steps_mask[res.idx]
+    out = {a: window_rms(rho[sel, i], res.block[sel], res.idx[sel], window)
+           for i, a in enumerate(AXES)}
+    g = res.gyro_res - (coeffs["gyro_bias"] if "gyro_bias" in coeffs else 0.0)
+    gsel = test[res.gyro_block]
+    steps = np.arange(g.shape[0])
+    if steps_mask is not None:
+        gsel = gsel & steps_mask
+    for i, a in enumerate(GYRO_AXES):
+        out[a] = window_rms(g[gsel, i], res.gyro_block[gsel], steps[gsel], window)
+    for i, a in enumerate(ATT_AXES):
+        out[a] = window_rms(res.att_res[gsel, i], res.gyro_block[gsel], steps[gsel], window)
+    return out

@@ -1,0 +1,174 @@
+"""Discovery's settings and results: ``DiscoveryConfig``, ``CandidateScore``, the data of
+the report's figures (``EffectEvidence``) and ``DiscoveryResult`` (the DESIGN 4.3
+``discovery`` section). The method is in ``pinquad.discovery.discover``'s docstring."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.protocol import Posterior
+from pinquad.core.effect_vocabulary import EFFECT_NAMES
+from pinquad.discovery.library import SPECS
+from pinquad.models.ssm import Theta
+
+Array = NDArray[np.float64]
+
+AXES = ("force_x", "force_y", "force_z", "torque_x", "torque_y", "torque_z")
+"""The body-wrench residual rows rho_k = Y_k pi - tau_k [N (force), N m (torque)]."""
+ATT_AXES = ("att_rate_x", "att_rate_y", "att_rate_z")
+"""The attitude-kinematics residual (Theta_{k+1} - Theta_k)/dt - E^{-1}(Theta_k) omega_k
+[rad/s] of the smoothed means, per Euler angle (roll, pitch, yaw)."""
+GYRO_AXES = ("gyro_x", "gyro_y", "gyro_z")
+"""The gyro measurement residual y_gyro,k - omega_k|N [rad/s], per body axis."""
+
+
+@dataclass(frozen=True)
+class DiscoveryConfig:
+    """Settings of the discovery loop.
+
+    block_seconds [s]: length of the alternating train/held-out blocks;
+    window_seconds [s]: averaging window of the reported residual RMS;
+    min_heldout_gain [-]: minimum relative held-out SSE reduction on the candidate's rows
+    (calibrated on clean flights, see ``python -m pinquad.discovery``);
+    max_effects: stop after this many; candidates: effect names searched;
+    refit_passes: coefficient/EM alternations of the refit; em_iterations: E-steps per EM
+    run of the refit (at most; the compiled E-step covers ``QuadSSM`` and ``EffectSSM``);
+    restart_em: start the refit EM from the paper's warm-up (fixed Q0/R0) rather than
+    the base fit's noise, which absorbed the missing effect (a refit that kept it and ran
+    10 E-steps left drag flights' held-out force residual at 2.4x a clean flight's);
+    full_refit: also refit on all transitions for the reported estimates (else the
+    training-block refit is reported); refit_em: False skips the EM refit (mass and
+    coefficients fitted on the base posterior's force rows with the base inertia held:
+    measured flights, whose inertia comes from a band-limited M-step, and quick checks);
+    joint_iterations, joint_tol: after the passes, at most this many single-E-step
+    updates of coefficients and parameters together, until the coefficients change by
+    less than joint_tol (relative; ``pinquad.discovery.refit``).
+    """
+
+    block_seconds: float = 2.0
+    window_seconds: float = 0.1
+    min_heldout_gain: float = 0.10
+    max_effects: int = 3
+    candidates: tuple[str, ...] = EFFECT_NAMES
+    refit_passes: int = 2
+    em_iterations: int = 100
+    restart_em: bool = True
+    full_refit: bool = True
+    refit_em: bool = True
+    joint_iterations: int = 60
+    joint_tol: float = 1e-3
+
+
+DEFAULT_CONFIG = DiscoveryConfig()
+"""The default settings (frozen: safe as a shared argument default)."""
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """One candidate's test in one round.
+
+    gain: relative held-out SSE reduction on its rows [-]; d_loglik_heldout: held-out
+    Gaussian log-likelihood gain [nats]; d_bic: training 2 dJ - p log n (> 0 passes);
+    coefficients: fitted on the training blocks.
+    """
+
+    effect: str
+    round: int
+    gain: float
+    d_loglik_heldout: float
+    d_bic: float
+    coefficients: tuple[float, ...]
+    passed: bool
+
+
+@dataclass(frozen=True)
+class ScatterSeries:
+    """One series of a scatter panel: label (a residual axis), x (n,) and y (n,) in the
+    panel's units."""
+
+    label: str
+    x: Array
+    y: Array
+
+
+@dataclass(frozen=True)
+class ScatterPanel:
+    """One panel of an effect's figure: title, axis labels (with units) and its series."""
+
+    title: str
+    x_label: str
+    y_label: str
+    series: tuple[ScatterSeries, ...]
+
+
+@dataclass(frozen=True)
+class EffectEvidence:
+    """What the report draws for one selected effect (``pinquad.discovery.evidence``): the
+    held-out residual of its main rows against its explaining feature, before (base
+    model) and after (refit with the effects)."""
+
+    effect: str
+    before: ScatterPanel
+    after: ScatterPanel
+
+
+@dataclass(frozen=True)
+class DiscoveryResult:
+    """What discovery found.
+
+    selected: effect names in the order found; coefficients / stderr: name -> (p,) in the
+    units of ``pinquad.discovery.library.SPECS`` (stderr by block jackknife); scores: every
+    candidate test of every round; rms_before / rms_after: held-out residual RMS per axis
+    (``AXES`` [N, N m], ``GYRO_AXES`` [rad/s], ``ATT_AXES`` [rad/s]); mass [kg], inertia
+    (3, 3) [kg m^2]: after the refit (the base estimates if nothing was selected); theta:
+    refit parameters; posterior: its E-step; validation: how before/after was measured;
+    evidence: one per selected effect, the data of its figure; figures: paths of the
+    figures drawn from it (set by ``pinquad.report.discovery.draw_discovery_figures``;
+    empty until drawn).
+    """
+
+    selected: tuple[str, ...]
+    coefficients: dict[str, Array]
+    stderr: dict[str, Array]
+    scores: tuple[CandidateScore, ...]
+    rms_before: dict[str, float]
+    rms_after: dict[str, float]
+    mass: float
+    inertia: Array
+    theta: Theta
+    posterior: Posterior
+    validation: str
+    evidence: tuple[EffectEvidence, ...] = field(default_factory=tuple)
+    figures: tuple[str, ...] = field(default_factory=tuple)
+
+    def to_report(self) -> dict:
+        """The DESIGN 4.3 ``discovery`` section (plus candidate scores and refit estimates)."""
+        selected = []
+        for name in self.selected:
+            spec = SPECS[name]
+            best = [s for s in self.scores if s.effect == name and s.passed][-1]
+            selected.append({
+                "effect": name,
+                "coefficients": {n: float(v) for n, v in zip(spec.coefficient_names,
+                                                              self.coefficients[name], strict=True)},
+                "stderr": {n: float(v) for n, v in zip(spec.coefficient_names,
+                                                        self.stderr[name], strict=True)},
+                "units": dict(zip(spec.coefficient_names, spec.units, strict=True)),
+                "evidence": {"heldout_gain": best.gain, "d_loglik_heldout": best.d_loglik_heldout,
+                             "d_bic_train": best.d_bic, "round": best.round,
+                             "rows": [AXES[r] for r in spec.rows] or list(GYRO_AXES)},
+            })
+        return {
+            "selected": selected,
+            "residual_rms_before": dict(self.rms_before),
+            "residual_rms_after": dict(self.rms_after),
+            "validation": self.validation,
+            "candidates": [{"effect": s.effect, "round": s.round, "heldout_gain": s.gain,
+                            "d_loglik_heldout": s.d_loglik_heldout, "d_bic_train": s.d_bic,
+                            "selected": s.passed} for s in self.scores],
+            "refit": {"mass": self.mass, "inertia": np.asarray(self.inertia).tolist()},
+            "figures": list(self.figures),
+        }

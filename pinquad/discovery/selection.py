@@ -1,0 +1,262 @@
+"""Fitting and scoring candidate effects on the training blocks: the profiled maximum
+likelihood of (pi, c) over summed expected Gram matrices, the motor-lag time constant by
+grid plus golden section, the gyro offset as a mean, each candidate's held-out test
+(SSE gain, BIC, held-out likelihood), the coefficients of a set of effects at a
+posterior and their block-jackknife standard errors. The method is in
+``pinquad.discovery.discover``'s docstring."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize, minimize_scalar
+
+from estimators.protocol import Posterior
+from pinquad.discovery.library import SPECS
+from pinquad.discovery.residuals import (
+    Residuals,
+    block_grams,
+    compute_residuals,
+    effect_columns,
+    window_rms,
+    window_steps,
+)
+from pinquad.discovery.result import CandidateScore, DiscoveryConfig
+from pinquad.models.ssm import Observations, Theta
+
+Array = NDArray[np.float64]
+
+LAG_GRID = np.concatenate([[0.0], np.geomspace(0.002, 0.25, 28)])
+"""Time constants tau_m [s] the motor-lag search starts from (0, then 2 ms to 0.25 s)."""
+
+
+@dataclass(frozen=True)
+class ProfiledFit:
+    """The profiled ML fit of one summed Gram matrix: pi (4,) = [m (kg), I_xx, I_yy, I_zz
+    (kg m^2)]; c (p,) the effects' coefficients; objective: J at the optimum; row_var (6,):
+    the profiled wrench row variances s_j / n [N^2, (N m)^2]; n: transitions."""
+
+    pi: Array
+    c: Array
+    objective: float
+    row_var: Array
+    n: int
+
+
+def _objective(theta_full: Array, gram: Array, n: int) -> tuple[float, Array]:
+    """J (module docstring of ``discover``) at theta_full = [pi, c, 1] and its gradient."""
+    s = np.einsum("q,aqr,r->a", theta_full, gram, theta_full)
+    s = np.maximum(s, 1e-300)
+    val = 0.5 * n * float(np.sum(np.log(s))) - n * (3.0 * math.log(theta_full[0])
+                                                     + float(np.sum(np.log(theta_full[1:4]))))
+    grad = n * np.einsum("aqr,r,a->q", gram, theta_full, 1.0 / s)
+    grad[0] -= 3.0 * n / theta_full[0]
+    grad[1:4] -= n / theta_full[1:4]
+    return val, grad
+
+
+def profiled_fit(gram: Array, n: int, pi0: Array, p: int, hold_inertia: bool = False
+                 ) -> ProfiledFit:
+    """Profiled ML over (log pi, c) of J (module docstring) for the summed Gram (6, q, q).
+
+    hold_inertia: the inertia stays at ``pi0[1:4]`` and only (log m, c) move (J's inertia
+    log det term is then constant): the measured-flight M-step fits the mass on the same
+    full-band force rows, but its inertia on band-limited torque rows this fit must not
+    undo."""
+    free = np.array([True] + [not hold_inertia] * 3)
+    scale_c = np.ones(p)
+    if p:
+        # c from weighted LS at pi0 (starting point and parameter scale)
+        w = 1.0 / np.maximum(np.einsum("q,aqr,r->a", np.r_[pi0, np.zeros(p), 1.0], gram,
+                                       np.r_[pi0, np.zeros(p), 1.0]), 1e-300)
+        gw = np.einsum("a,aqr->qr", w, gram)
+        cc = gw[4:4 + p, 4:4 + p]
+        rhs = -(gw[4:4 + p, 0:4] @ pi0 + gw[4:4 + p, -1])
+        c0 = np.linalg.lstsq(cc, rhs, rcond=None)[0]
+        scale_c = np.maximum(np.abs(c0), np.sqrt(np.maximum(np.diag(np.linalg.pinv(cc)), 1e-30)))
+    else:
+        c0 = np.zeros(0)
+    n_free = int(free.sum())
+
+    def unpack(v: Array) -> Array:
+        # log-parameter steps clipped at e^+-20: a BFGS line search from a base fit far
+        # off (a CoM torque can put the inertia 100x off) must not overflow
+        pi = pi0.copy()
+        pi[free] *= np.exp(np.clip(v[:n_free], -20.0, 20.0))
+        return np.concatenate([pi, v[n_free:] * scale_c, [1.0]])
+
+    def fun(v: Array) -> tuple[float, Array]:
+        th = unpack(v)
+        val, g = _objective(th, gram, n)
+        gv = np.concatenate([(g[0:4] * th[0:4])[free], g[4:4 + p] * scale_c])
+        return val, gv
+
+    v0 = np.concatenate([np.zeros(n_free), c0 / scale_c])
+    out = minimize(fun, v0, jac=True, method="BFGS", options={"gtol": 1e-8, "maxiter": 500})
+    th = unpack(out.x)
+    s = np.einsum("q,aqr,r->a", th, gram, th)
+    return ProfiledFit(th[0:4], th[4:4 + p], float(out.fun), s / n, n)
+
+
+def _heldout_sse(fit: ProfiledFit, gram: Array) -> Array:
+    th = np.concatenate([fit.pi, fit.c, [1.0]])
+    return np.einsum("q,aqr,r->a", th, gram, th)
+
+
+def _heldout_loglik(sse: Array, n_test: int, fit: ProfiledFit) -> float:
+    return float(-0.5 * np.sum(sse / fit.row_var) - 0.5 * n_test * np.sum(np.log(fit.row_var))
+                 + n_test * (3.0 * math.log(fit.pi[0]) + np.sum(np.log(fit.pi[1:4]))))
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """A set of wrench effects fitted on a set of blocks: linear coefficients by effect,
+    the lag time constant (or None), the fit, and the held-out SSE per row (6,)."""
+
+    coefficients: dict[str, Array]
+    lag: float | None
+    fit: ProfiledFit
+    heldout_sse: Array
+    n_test: int
+    heldout_sse_window: Array
+    train_var_window: Array
+
+
+def fit_model(res: Residuals, effects: Sequence[str], train: NDArray[np.bool_], pi0: Array,
+               window: int = 10, hold_inertia: bool = False) -> ModelFit:
+    """Fit pi and the wrench effects' coefficients on the blocks ``train`` (B,) bool
+    (``hold_inertia``: mass and coefficients, the inertia held at ``pi0``'s)."""
+    wrench_effects = [e for e in effects if e != "gyro_bias"]
+    n_train = int(np.isin(res.block, np.flatnonzero(train)).sum())
+    n_test = int(np.isin(res.block, np.flatnonzero(~train)).sum())
+    phi, _ = effect_columns(res, wrench_effects, None)
+    p = phi.shape[2]
+
+    def fit_at(lag: float | None) -> tuple[ProfiledFit, Array]:
+        _, fixed = effect_columns(res, [], lag)
+        g = block_grams(res, phi, fixed)
+        return (profiled_fit(g[train].sum(axis=0), n_train, pi0, p, hold_inertia),
+                g[~train].sum(axis=0))
+
+    lag = None
+    if "motor_lag" in wrench_effects:
+        vals = [fit_at(t)[0].objective for t in LAG_GRID]
+        i = int(np.argmin(vals))
+        lo, hi = LAG_GRID[max(i - 1, 0)], LAG_GRID[min(i + 1, LAG_GRID.size - 1)]
+        if hi > lo:
+            opt = minimize_scalar(lambda t: fit_at(float(t))[0].objective, bounds=(lo, hi),
+                                  method="bounded", options={"xatol": 1e-5})
+            lag = float(opt.x) if opt.fun <= vals[i] else float(LAG_GRID[i])
+        else:
+            lag = float(LAG_GRID[i])
+    fit, g_test = fit_at(lag)
+    _, fixed = effect_columns(res, [], lag)
+    gw = block_grams(res, phi, fixed, window)
+    th = np.concatenate([fit.pi, fit.c, [1.0]])
+    sse_w = np.einsum("q,baqr,r->ba", th, gw, th)
+    coeffs: dict[str, Array] = {}
+    j = 0
+    for e in wrench_effects:
+        if e == "motor_lag":
+            coeffs[e] = np.array([lag])
+            continue
+        n_c = SPECS[e].n_coefficients
+        coeffs[e] = fit.c[j:j + n_c].copy()
+        j += n_c
+    return ModelFit(coeffs, lag, fit, _heldout_sse(fit, g_test), n_test,
+                     sse_w[~train].sum(axis=0), sse_w[train].sum(axis=0))
+
+
+def gyro_fit(res: Residuals, train_steps: NDArray[np.bool_]) -> tuple[Array, Array, Array]:
+    """Gyro bias (3,) = mean training residual; held-out SSE (3,) without and with it."""
+    e = res.gyro_res
+    ok = ~np.isnan(e)
+    tr = ok & train_steps[:, None]
+    te = ok & ~train_steps[:, None]
+    bias = np.array([float(np.mean(e[tr[:, i], i])) if tr[:, i].any() else 0.0 for i in range(3)])
+    sse0 = np.array([float(np.sum(e[te[:, i], i] ** 2)) for i in range(3)])
+    sse1 = np.array([float(np.sum((e[te[:, i], i] - bias[i]) ** 2)) for i in range(3)])
+    return bias, sse0, sse1
+
+
+def score_candidate(res: Residuals, current: Sequence[str], cand: str, pi0: Array, rnd: int,
+                    cfg: DiscoveryConfig, train: NDArray[np.bool_]) -> CandidateScore:
+    """Test adding ``cand`` to the effects ``current`` (module docstring)."""
+    if cand == "gyro_bias":
+        train_steps = train[res.gyro_block]
+        bias, sse0, sse1 = gyro_fit(res, train_steps)
+        ok = ~np.isnan(res.gyro_res)
+        tr = ok & train_steps[:, None]
+        var0 = np.array([np.mean(res.gyro_res[tr[:, i], i] ** 2) for i in range(3)])
+        var1 = np.array([np.var(res.gyro_res[tr[:, i], i]) for i in range(3)])
+        n_tr = tr.sum(axis=0)
+        n_te = (ok & ~train_steps[:, None]).sum(axis=0)
+        window = window_steps(cfg, res.data.dt)
+        steps = np.arange(res.gyro_res.shape[0])
+        te_steps = ~train_steps
+        w0 = np.array([window_rms(res.gyro_res[te_steps, i], res.gyro_block[te_steps],
+                                   steps[te_steps], window) for i in range(3)])
+        w1 = np.array([window_rms(res.gyro_res[te_steps, i] - bias[i], res.gyro_block[te_steps],
+                                   steps[te_steps], window) for i in range(3)])
+        gain = 1.0 - float(np.sum(w1**2) / np.sum(w0**2))
+        d_bic = float(np.sum(n_tr * np.log(var0 / var1)) - 3 * math.log(max(n_tr.sum(), 2)))
+        ll0 = -0.5 * np.sum(sse0 / var0 + n_te * np.log(var0))
+        ll1 = -0.5 * np.sum(sse1 / var1 + n_te * np.log(var1))
+        passed = gain >= cfg.min_heldout_gain and d_bic > 0 and ll1 > ll0
+        return CandidateScore(cand, rnd, gain, float(ll1 - ll0), d_bic, tuple(bias), passed)
+    window = window_steps(cfg, res.data.dt)
+    base = fit_model(res, current, train, pi0, window)
+    ext = fit_model(res, [*current, cand], train, pi0, window)
+    rows = list(SPECS[cand].rows)
+    w = 1.0 / base.train_var_window[rows]
+    gain = 1.0 - float(np.sum(ext.heldout_sse_window[rows] * w)
+                       / np.sum(base.heldout_sse_window[rows] * w))
+    p = SPECS[cand].n_coefficients
+    d_bic = 2.0 * (base.fit.objective - ext.fit.objective) - p * math.log(base.fit.n)
+    d_ll = (_heldout_loglik(ext.heldout_sse, ext.n_test, ext.fit)
+            - _heldout_loglik(base.heldout_sse, base.n_test, base.fit))
+    passed = gain >= cfg.min_heldout_gain and d_bic > 0 and d_ll > 0
+    return CandidateScore(cand, rnd, gain, float(d_ll), float(d_bic),
+                          tuple(float(v) for v in ext.coefficients[cand]), passed)
+
+
+def estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],
+                           cfg: DiscoveryConfig, train: NDArray[np.bool_],
+                           hold_inertia: bool = False
+                           ) -> tuple[dict[str, Array], Residuals, ModelFit]:
+    """The coefficients of ``effects`` (name -> (p,)) fitted on the training blocks
+    ``train`` (B,) at the posterior ``post``, with the residuals and the model fit they
+    came from (``hold_inertia``: the inertia held at ``theta``'s)."""
+    res = compute_residuals(obs, post, theta.gravity, cfg.block_seconds)
+    train = train[: res.n_blocks]
+    pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
+    mf = fit_model(res, effects, train, pi0, hold_inertia=hold_inertia)
+    coeffs = dict(mf.coefficients)
+    if "gyro_bias" in effects:
+        coeffs["gyro_bias"] = gyro_fit(res, train[res.gyro_block])[0]
+    return coeffs, res, mf
+
+
+def jackknife(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],
+               cfg: DiscoveryConfig, train: NDArray[np.bool_], hold_inertia: bool = False
+               ) -> dict[str, Array]:
+    """Block-jackknife standard errors of the coefficients (robust to the residuals'
+    serial correlation within a block)."""
+    blocks = np.flatnonzero(train)
+    draws: dict[str, list[Array]] = {e: [] for e in effects}
+    for b in blocks:
+        t = train.copy()
+        t[b] = False
+        c, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, t, hold_inertia)
+        for e in effects:
+            draws[e].append(c[e])
+    nb = blocks.size
+    out = {}
+    for e in effects:
+        d = np.asarray(draws[e])
+        out[e] = np.sqrt((nb - 1) / nb * np.sum((d - d.mean(axis=0)) ** 2, axis=0))
+    return out
