@@ -167,7 +167,8 @@ def test_structured_jacobian_product(flight, kinematic):
         if kinematic:
             transition_kinematic(x, desc.dt, x_next, jac)
         else:
-            transition_quad(desc, x, rng.normal(size=4), x_next, jac)
+            transition_quad(x, rng.normal(size=4), desc.dt, desc.mass, desc.inertia,
+                            desc.inertia_inv, desc.gravity, x_next, jac)
         assert not np.any(jac[~pattern])
         a = rng.normal(size=(12, 12))
         p = a @ a.T

@@ -2,11 +2,12 @@
 still compute what a model computes (``pinquad.models`` may grow new terms), checked at
 a probe state and cached per code identity.
 
-Checked, at the first and the last transition (and the first reset one, if any):
-transition x + dt f and its Jacobian, Q (to 1e-12 of the array's largest entry: Q's
-off-diagonal entries are cancellation noise of order 1e-16 of its diagonal, in either
-evaluation order), H (a row selector onto ``state_of_row``), R = diag(meas_var), and the
-wrapped residual of Euler rows, exactly.
+Checked, at the first and the last transition (and the first reset one, if any), to
+1e-12 of each array's largest entry (Q's off-diagonal entries are cancellation noise of
+order 1e-16 of its diagonal, in either evaluation order): the transition x + dt f, its
+Jacobian F and Q, as the forward pass itself computes them (``kernel_step``); and
+exactly: H (a row selector onto ``state_of_row``), R = diag(meas_var), and the wrapped
+residual of Euler rows.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.kernels import wrap
-from pinquad.estep.dynamics import process_cov, transition
+from pinquad.estep.passes import filter_arrays, forward_into
 from pinquad.models import ssm
 from pinquad.models.kernel import KINEMATIC, STATE_DIM, KernelDescription
 from pinquad.models.ssm import QuadSSM
@@ -36,22 +37,33 @@ def _close(ours: Array, ref: Array) -> bool:
     return bool(np.all(np.abs(ours - ref) <= 1e-12 * max(float(np.max(np.abs(ref))), 1e-300)))
 
 
+def kernel_step(desc: KernelDescription, x: Array, k: int) -> tuple[Array, Array, Array]:
+    """(x + dt f (12,), F (12, 12), Q_k (12, 12)) of transition k -> k+1 at state x, from
+    the forward pass itself (two steps, nothing observed): from P_0 = 0 the predicted
+    covariance is Q_k (symmetrised), from P_0 = I the stored product F P_0 is F (through
+    the block-pattern product, so an entry outside the pattern shows as a mismatch)."""
+    step = desc._replace(inputs=desc.inputs[k:k + 2], resets=desc.resets[k:k + 2])
+    ys = np.full((2, desc.meas_var.shape[0]), np.nan)
+    x = np.ascontiguousarray(x, dtype=float)
+    work = filter_arrays(2)
+    forward_into(step, x, np.zeros((STATE_DIM, STATE_DIM)), ys, True, work)
+    x_next, q = work.p_mean[1].copy(), work.p_cov[1].copy()
+    forward_into(step, x, np.eye(STATE_DIM), ys, True, work)
+    return x_next, work.fps[0].copy(), q
+
+
 def agrees_with_model(model: QuadSSM, desc: KernelDescription) -> bool:
     """Whether the kernels, given ``desc``, compute what ``model`` computes (module
     docstring)."""
     n_steps = model.obs.n
     x = np.asarray(model.obs.x0, dtype=float) + _PROBE
-    x_next = np.empty(STATE_DIM)
-    jac = np.empty((STATE_DIM, STATE_DIM))
-    q = np.empty((STATE_DIM, STATE_DIM))
     resets = desc.resets
     probes = {0, max(n_steps - 2, 0)}
     if resets[:max(n_steps - 1, 0)].any():
         probes.add(int(np.flatnonzero(resets[:n_steps - 1])[0]))
     for k in probes:
         ref_x, ref_jac = model.transition(x, k)
-        transition(desc, x, k, x_next, jac)
-        process_cov(desc, x, k, q)
+        x_next, jac, q = kernel_step(desc, x, k)
         ref_q = model.process_cov(x, k)
         y_pred, h = model.measure(x, k)
         if not (_close(x_next, ref_x) and _close(jac, ref_jac) and _close(q, ref_q)

@@ -20,10 +20,9 @@ from pinquad.models.kernel import STATE_DIM as _N
 
 
 @njit(cache=True)
-def effect_dynamics(desc, x, x_next, jac):
+def effect_dynamics(x, dt, mass, drag, wind, x_next, jac):
     """Add EffectSSM's lateral body forces (module docstring) to ``transition_quad``'s
-    x_next (12,) and jac (12, 12); uses desc's dt, mass, drag, wind."""
-    dt, mass, drag, wind = desc.dt, desc.mass, desc.drag, desc.wind
+    x_next (12,) and jac (12, 12): dt [s], mass [kg], drag D (3,), wind (3,)."""
     rot = np.empty((3, 3))
     rotation(x, rot)
     f_b = np.empty(3)

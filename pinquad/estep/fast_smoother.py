@@ -13,13 +13,14 @@ passes write into, and the public entry points ``smooth_quad``, ``loglik_quad`` 
 
     pinquad.models.kernel     a model's KernelDescription (kind + constant arrays), the
                               one argument the kernels take
-    passes.py                 the EKF forward and RTS backward passes (the equations)
-    dynamics.py               transition, Q and F P, dispatched on the model kind
+    passes.py                 the EKF forward and RTS backward passes (the equations),
+                              the per-step model pieces dispatched on the model kind
     quad_kernels.py           QuadSSM and the force-free warm-up KinematicSSM
     full_kernels.py           the ten-parameter FullQuadSSM's dynamic rows and Q
     effect_kernels.py         EffectSSM's lateral drag and wind forces
     linalg.py                 Cholesky factor and solve, copies
-    agreement.py              the check that the kernels still compute what a model does
+    agreement.py              the check that the kernels (run through the forward pass
+                              itself) still compute what a model does
 
 EM's force-free warm-up model (``KinematicSSM``) runs through the same passes with its
 own transition kernel, and ``loglik_quad`` runs the forward pass alone (no stored

@@ -8,9 +8,7 @@ Spatial inertia about the body origin O, M_O = [[m 1, -[h]x], [[h]x, I_O]], h = 
     Q over the velocity and rate rows: dt G diag(S) G^T, G = M_O^-1 with its force rows
     turned by R (S (6,) [N^2 s, (N m)^2 s] the wrench noise intensities).
 
-The kinematic rows are QuadSSM's (``quad_kernels.transition_quad``). The kernels take
-the model's :class:`~pinquad.models.kernel.KernelDescription` ``desc`` (m_inv (6, 6),
-first_moment h (3,) [kg m], i_o (3, 3) [kg m^2], s_wrench (6,)).
+The kinematic rows are QuadSSM's (``quad_kernels.transition_quad``).
 """
 
 from __future__ import annotations
@@ -24,10 +22,10 @@ from pinquad.models.kernel import STATE_DIM as _N
 
 
 @njit(cache=True)
-def full_dynamics(desc, x, u, x_next, jac):
+def full_dynamics(x, u, dt, gravity, m_inv, h, i_o, x_next, jac):
     """Replace the velocity and rate rows of ``transition_quad``'s x_next (12,) and jac
-    (12, 12) by those of FullQuadSSM (module docstring); u (4,) = [F, M]."""
-    dt, gravity, m_inv, h, i_o = desc.dt, desc.gravity, desc.m_inv, desc.first_moment, desc.i_o
+    (12, 12) by those of FullQuadSSM (module docstring): u (4,) = [F, M], dt [s],
+    gravity [m/s^2], m_inv = M_O^-1 (6, 6), h = m c (3,), i_o = I_O (3, 3)."""
     wx, wy, wz = x[9], x[10], x[11]
     w = np.array([wx, wy, wz])
     iw = i_o @ w
@@ -74,12 +72,12 @@ def full_dynamics(desc, x, u, x_next, jac):
 
 
 @njit(cache=True)
-def process_cov_full(desc, x, q):
-    """Q (12, 12) of FullQuadSSM's flight process covariance at x: the kinematic
-    diagonal, and over the velocity and rate rows dt G diag(S) G^T (module docstring)."""
-    if process_cov_start(desc, q):
+def process_cov_full(x, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q):
+    """Q (12, 12) of FullQuadSSM's flight process covariance at x: fixed, or the
+    kinematic diagonal q_kin (6,) and over the velocity and rate rows dt G diag(S) G^T
+    (S = s_wrench (6,), G from m_inv (6, 6); module docstring)."""
+    if process_cov_start(use_fixed, fixed_q, q_kin, q):
         return
-    dt, m_inv, s_wrench = desc.dt, desc.m_inv, desc.s_wrench
     rot = np.empty((3, 3))
     rotation(x, rot)
     g = m_inv.copy()

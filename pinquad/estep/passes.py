@@ -14,10 +14,13 @@ Forward pass (``estimators.ekf``), steps k = 0 .. N-1, prior (m^-_0, P^-_0) = (x
                                                    equal for the optimal gain; W^T W is
                                                    symmetric by construction)
         log p(y) += -1/2 (|white|^2 + 2 sum log L_ii + |o| log 2 pi)
-    predict (``dynamics``: the model's transition and Q at the filtered mean):
+    predict (the model's transition and Q at the filtered mean, by ``desc.kind``:
+    ``quad_kernels`` for QUAD and KINEMATIC, with ``full_kernels``' dynamic rows and Q
+    for FULL, with ``effect_kernels``' forces for EFFECT):
         m^-_{k+1} = m_k + dt f(m_k, u_k),  F_k = I + dt df/dx (m_k, u_k)
         P^-_{k+1} = F_k P_k F_k^T + Q_k(m_k)      (symmetrised; F P and F (F P)^T skip
                                                    the entries outside F's block pattern)
+        Q_k += diag(reset_var) on the transitions marked in ``desc.resets``
 
 Backward pass (``estimators.rts``), k = N-2 .. 0:
 
@@ -41,8 +44,16 @@ from numba import njit
 from numpy.typing import NDArray
 
 from pinquad.core.kernels import wrap
-from pinquad.estep.dynamics import f_times, process_cov, transition
+from pinquad.estep.effect_kernels import effect_dynamics, f_times_effect
+from pinquad.estep.full_kernels import f_times_full, full_dynamics, process_cov_full
 from pinquad.estep.linalg import chol_solve, cholesky, copy_mat, copy_vec, symmetrise
+from pinquad.estep.quad_kernels import (
+    f_times_quad,
+    process_cov_quad,
+    transition_kinematic,
+    transition_quad,
+)
+from pinquad.models.kernel import EFFECT, FULL, KINEMATIC
 from pinquad.models.kernel import STATE_DIM as _N
 
 Array = NDArray[np.float64]
@@ -86,6 +97,18 @@ def posterior_arrays(n_steps: int) -> PosteriorArrays:
 
 
 @njit(cache=True)
+def _f_times(kind, f, p, out):
+    """out = F p (12, 12) with the block pattern of the Jacobian F of a model of this
+    kind (entries outside the pattern are exact zeros and are skipped)."""
+    if kind == FULL:
+        f_times_full(f, p, out)
+    elif kind == EFFECT:
+        f_times_effect(f, p, out)
+    else:
+        f_times_quad(f, p, out)
+
+
+@njit(cache=True)
 def forward_into(desc, x0, p0, ys, store, work):
     """EKF forward pass (module docstring) of the model ``desc`` from the prior x0 (12,),
     P0 (12, 12) over ys (N, m) (NaN: not observed). With store, writes the per-step
@@ -94,7 +117,15 @@ def forward_into(desc, x0, p0, ys, store, work):
     (log p(y) [nats], first step whose innovation covariance was not positive definite
     or -1)."""
     f_mean, f_cov, p_mean, p_cov, fps = work
+    # Unpacked once: taking an array out of a NamedTuple costs a reference-count pair,
+    # which inside the loop (a dozen arrays a step) made the pass a third slower.
+    kind, dt, mass, gravity, use_fixed = desc.kind, desc.dt, desc.mass, desc.gravity, desc.use_fixed
+    inputs, inertia, inertia_inv = desc.inputs, desc.inertia, desc.inertia_inv
     meas_var, state_of_row, is_angle = desc.meas_var, desc.state_of_row, desc.is_angle
+    fixed_q, q_kin, s_f, q_tau = desc.fixed_q, desc.q_kin, desc.s_f, desc.q_tau
+    resets, reset_var = desc.resets, desc.reset_var
+    m_inv, first_moment, i_o, s_wrench = desc.m_inv, desc.first_moment, desc.i_o, desc.s_wrench
+    drag, wind = desc.drag, desc.wind
     n_steps, m = ys.shape
     mean = x0.copy()
     cov = p0.copy()
@@ -173,16 +204,30 @@ def forward_into(desc, x0, p0, ys, store, work):
             copy_vec(mean, f_mean[k])
             copy_mat(cov, f_cov[k])
         if k + 1 < n_steps:
-            process_cov(desc, mean, k, q)
-            transition(desc, mean, k, x_next, jac)
-            f_times(desc, jac, cov, fp)
+            if kind == FULL:
+                process_cov_full(mean, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q)
+            else:
+                process_cov_quad(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
+            if resets[k]:
+                for i in range(_N):
+                    q[i, i] += reset_var[i]
+            if kind == KINEMATIC:
+                transition_kinematic(mean, dt, x_next, jac)
+            else:
+                u = inputs[k]
+                transition_quad(mean, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
+                if kind == FULL:
+                    full_dynamics(mean, u, dt, gravity, m_inv, first_moment, i_o, x_next, jac)
+                elif kind == EFFECT:
+                    effect_dynamics(mean, dt, mass, drag, wind, x_next, jac)
+            _f_times(kind, jac, cov, fp)
             if store:
                 copy_mat(fp, fps[k])
             # F P F^T = F (F P)^T (P symmetric)
             for r in range(_N):
                 for c in range(_N):
                     fp_t[r, c] = fp[c, r]
-            f_times(desc, jac, fp_t, new_cov)
+            _f_times(kind, jac, fp_t, new_cov)
             for r in range(_N):
                 for c in range(_N):
                     new_cov[r, c] += q[r, c]

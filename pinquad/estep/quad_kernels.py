@@ -12,8 +12,9 @@ QuadSSM (``pinquad.vehicle.model.state_derivative_and_jacobian``), explicit Eule
 
 KinematicSSM: p' = v, v' = 0, Theta' = E^{-1} omega, omega' = 0, Q = diag(fixed_q).
 
-The kernels take the model's :class:`~pinquad.models.kernel.KernelDescription` ``desc``
-and write into given arrays: x_next (12,), jac (12, 12), q (12, 12).
+The kernels take the few constants they use (``dynamics`` unpacks them from the
+model's :class:`~pinquad.models.kernel.KernelDescription`) and write into given arrays:
+x_next (12,), jac (12, 12), q (12, 12).
 """
 
 from __future__ import annotations
@@ -29,12 +30,10 @@ from pinquad.models.kernel import STATE_DIM as _N
 
 
 @njit(cache=True)
-def transition_quad(desc, x, u, x_next, jac):
+def transition_quad(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac):
     """x_next = x + dt f(x, u), jac = I + dt df/dx, f as in
-    pinquad.vehicle.model.state_derivative_and_jacobian (u (4,) = [F, M]; uses desc's
-    dt, mass, inertia, inertia_inv, gravity)."""
-    dt, mass, gravity = desc.dt, desc.mass, desc.gravity
-    inertia, inertia_inv = desc.inertia, desc.inertia_inv
+    pinquad.vehicle.model.state_derivative_and_jacobian (u (4,) = [F, M] [N, N m];
+    dt [s], mass [kg], inertia and its inverse (3, 3), gravity [m/s^2])."""
     phi, theta, psi = x[6], x[7], x[8]
     wx, wy, wz = x[9], x[10], x[11]
     sf, cf = math.sin(phi), math.cos(phi)
@@ -151,16 +150,15 @@ def transition_kinematic(x, dt, x_next, jac):
 
 
 @njit(cache=True)
-def process_cov_start(desc, q):
-    """q = diag(fixed_q) (returns True: Q is complete), or zero but for the position and
-    Euler rows' kinematic variances q_kin (returns False: the dynamic blocks follow)."""
+def process_cov_start(use_fixed, fixed_q, q_kin, q):
+    """q = diag(fixed_q (12,)) (returns True: Q is complete), or zero but for the
+    position and Euler rows' kinematic variances q_kin (6,) (returns False: the dynamic
+    blocks follow)."""
     fill(q, 0.0)
-    if desc.use_fixed:
-        fixed_q = desc.fixed_q
+    if use_fixed:
         for i in range(_N):
             q[i, i] = fixed_q[i]
         return True
-    q_kin = desc.q_kin
     for i in range(3):
         q[i, i] = q_kin[i]
         q[6 + i, 6 + i] = q_kin[3 + i]
@@ -168,11 +166,11 @@ def process_cov_start(desc, q):
 
 
 @njit(cache=True)
-def process_cov_quad(desc, x, q):
-    """Q (12, 12) of QuadSSM's flight process covariance at x (no reset term)."""
-    if process_cov_start(desc, q):
+def process_cov_quad(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
+    """Q (12, 12) of QuadSSM's flight process covariance at x (no reset term): fixed, or
+    structured from q_kin (6,), S_f = s_f (3,) and q_tau (3, 3) (module docstring)."""
+    if process_cov_start(use_fixed, fixed_q, q_kin, q):
         return
-    dt, mass, s_f, q_tau = desc.dt, desc.mass, desc.s_f, desc.q_tau
     g = np.empty((3, 3))
     rotation(x, g)
     for r in range(3):
