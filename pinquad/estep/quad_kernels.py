@@ -12,7 +12,7 @@ QuadSSM (``pinquad.vehicle.model.state_derivative_and_jacobian``), explicit Eule
 
 KinematicSSM: p' = v, v' = 0, Theta' = E^{-1} omega, omega' = 0, Q = diag(fixed_q).
 
-The kernels take the few constants they use (``dynamics`` unpacks them from the
+The kernels take the few constants they use (``passes.forward_into`` unpacks them from the
 model's :class:`~pinquad.models.kernel.KernelDescription`) and write into given arrays:
 x_next (12,), jac (12, 12), q (12, 12).
 """
