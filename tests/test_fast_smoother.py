@@ -30,7 +30,9 @@ from estimators.protocol import Posterior
 from estimators.rts import smooth
 from pinquad.estep import fast_smoother as fs
 from pinquad.estep.fast_smoother import loglik_quad, posterior_arrays, smooth_quad
+from pinquad.estep.quad_kernels import f_times_quad, transition_kinematic, transition_quad
 from pinquad.identification.em import initial_theta
+from pinquad.models.kernel import kernel_description
 from pinquad.models.sources import observations
 from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta, kinematic_floor
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
@@ -151,8 +153,7 @@ def test_structured_jacobian_product(flight, kinematic):
     transition kernels leave every one of them exactly zero, at random states too, and
     the structured product equals the dense one."""
     obs = _observations(flight, "B")
-    consts = fs._kernel_inputs(QuadSSM(obs, _theta(obs, "structured")), obs.ys.shape[1])
-    dt, mass, inertia, inertia_inv, gravity = consts[:5]
+    desc = kernel_description(QuadSSM(obs, _theta(obs, "structured")))
     pattern = np.zeros((12, 12), dtype=bool)
     for r in range(3):
         pattern[r, [r, r + 3]] = True
@@ -164,14 +165,14 @@ def test_structured_jacobian_product(flight, kinematic):
     for _ in range(50):
         x = rng.normal(size=12)
         if kinematic:
-            fs._transition_kinematic(x, dt, x_next, jac)
+            transition_kinematic(x, desc.dt, x_next, jac)
         else:
-            fs._transition(x, rng.normal(size=4), dt, mass, inertia, inertia_inv, gravity,
-                           x_next, jac)
+            transition_quad(x, rng.normal(size=4), desc.dt, desc.mass, desc.inertia,
+                            desc.inertia_inv, desc.gravity, x_next, jac)
         assert not np.any(jac[~pattern])
         a = rng.normal(size=(12, 12))
         p = a @ a.T
-        fs._f_times(jac, p, out)
+        f_times_quad(jac, p, out)
         assert np.allclose(out, jac @ p, rtol=1e-14, atol=1e-14 * np.abs(jac @ p).max())
 
 

@@ -1,9 +1,9 @@
 """``python -m pinquad.bench --profile``: where our compiled E-step's time goes.
 
-The stage timings call the compiled E-step's internal passes (its private ``_prepared``,
-``_filter_arrays``, ``_forward_into``, ``_backward_into``) exactly as ``smooth_quad``
-calls them: a profiler of that module's insides, so it names them; if they change, the
-stages are reported unavailable (``stages_error``) and the rest of the profile stands.
+The stage timings call the compiled E-step's passes (``fast_smoother.prepare``,
+``filter_arrays``, ``posterior_arrays`` and ``estep.passes.forward_into`` /
+``backward_into``) exactly as ``smooth_quad`` calls them; if they fail, the stages are
+reported unavailable (``stages_error``) and the rest of the profile stands.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from pinquad.estep import fast_smoother as fs
+from pinquad.estep.passes import backward_into, forward_into
 from pinquad.experiments.bench import median
 from pinquad.experiments.bench_cases import load_case
 
@@ -68,24 +69,19 @@ def profile_estep(case_path: Path, runs: int = 5) -> dict:
         # workspace is reused between calls; the posterior's arrays are fresh each call)
         stages: dict[str, list[float]] = {"checks": [], "forward": [], "backward": [],
                                           "output arrays": []}
-        x0, p0 = model.initial()
-        x0 = np.ascontiguousarray(x0, dtype=float)
-        p0 = np.ascontiguousarray(p0, dtype=float)
-        inputs = np.ascontiguousarray(model.obs.inputs, dtype=float)
         for _ in range(runs):
             gc.collect()
             t0 = time.perf_counter()
-            prep = fs._prepared(model, ys)
+            prep = fs.prepare(model, ys)
             if prep is None:
                 raise ValueError("the compiled kernels do not cover this model")
-            ys_c, consts = prep
             t1 = time.perf_counter()
-            fwd = fs._filter_arrays(ys_c.shape[0])
-            fs._forward_into(x0, p0, inputs, ys_c, *consts, True, *fwd)
+            fwd = fs.filter_arrays(prep.ys.shape[0])
+            forward_into(prep.desc, prep.x0, prep.p0, prep.ys, True, fwd)
             t2 = time.perf_counter()
-            post = fs.posterior_arrays(ys_c.shape[0])
+            post = fs.posterior_arrays(prep.ys.shape[0])
             t3 = time.perf_counter()
-            fs._backward_into(*fwd, *post)
+            backward_into(fwd, post)
             t4 = time.perf_counter()
             stages["checks"].append(t1 - t0)
             stages["forward"].append(t2 - t1)

@@ -21,7 +21,8 @@ class EffectSSM(QuadSSM):
     D (3,) [N s/m] or None, wind (2,) [N, world] or None. The body z part travels in the
     thrust input (``corrected_observations``), where the M-step sees it too. The Jacobian
     adds -dt R P diag(D) R^T / m on the velocity block (the attitude dependence is left
-    out). ``pinquad.estep.fast_smoother`` has a compiled kernel for it (``_effect_dynamics``)."""
+    out). The compiled E-step has a kernel for it (``pinquad.estep.effect_kernels``, described
+    by ``pinquad.models.kernel.kernel_description``)."""
 
     def __init__(self, obs: Observations, theta: Theta, drag: Array | None = None,
                  wind: Array | None = None):
@@ -30,6 +31,17 @@ class EffectSSM(QuadSSM):
         self._wind = np.zeros(3)
         if wind is not None:
             self._wind[:2] = np.asarray(wind, dtype=float)[:2]
+
+    @property
+    def drag(self) -> Array:
+        """D (3,) [N s/m], the body-frame drag coefficients (D[2] travels in the thrust
+        input, not in this transition); a copy."""
+        return self._drag.copy()
+
+    @property
+    def wind(self) -> Array:
+        """[w_x, w_y, 0] (3,) [N], the wind force in the world frame; a copy."""
+        return self._wind.copy()
 
     def transition(self, x: Array, k: int) -> tuple[Array, Array]:
         nxt, jac = super().transition(x, k)

@@ -59,6 +59,21 @@ class FullQuadSSM(QuadSSM):
         self._first_moment = self.pi[1:4].copy()
         self._i_o = self._m_o[3:6, 3:6].copy()
 
+    @property
+    def spatial_inertia_inv(self) -> Array:
+        """M_O^-1 (6, 6), the inverse spatial inertia about O (linear rows first); a copy."""
+        return self._m_inv.copy()
+
+    @property
+    def first_moment(self) -> Array:
+        """h = m c (3,) [kg m], the body's first moment of mass about O; a copy."""
+        return self._first_moment.copy()
+
+    @property
+    def inertia_origin(self) -> Array:
+        """I_O (3, 3) [kg m^2], the rotational inertia about O (body frame); a copy."""
+        return self._i_o.copy()
+
     def _accelerations(self, x: Array, u: Array) -> tuple[Array, Array]:
         """[a_O; omega'] (6,) and its derivative w.r.t. omega (6, 3)."""
         w = x[9:12]

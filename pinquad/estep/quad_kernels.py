@@ -1,0 +1,213 @@
+"""Compiled transition, process covariance and F P product of
+:class:`~pinquad.models.ssm.QuadSSM` and of its force-free warm-up
+:class:`~pinquad.models.ssm.KinematicSSM` (numba; state x (12,) = [p, v, Theta, omega]
+[m, m/s, rad, rad/s], world position and velocity, Euler roll-pitch-yaw, body rates).
+
+QuadSSM (``pinquad.vehicle.model.state_derivative_and_jacobian``), explicit Euler:
+
+    p' = v,  v' = R e3 F / m - g e3,  Theta' = E^{-1}(Theta) omega,
+    omega' = I^{-1} (M - omega x I omega);  x_{k+1} = x_k + dt f,  F_k = I + dt df/dx
+    Q = diag(fixed_q)  or  blockdiag(q_pos I3, dt (R/m) diag(S_f) (R/m)^T,
+                                     q_euler I3, dt I^{-1} diag(S_tau) I^{-1})
+
+KinematicSSM: p' = v, v' = 0, Theta' = E^{-1} omega, omega' = 0, Q = diag(fixed_q).
+
+The kernels take the few constants they use (``passes.forward_into`` unpacks them from the
+model's :class:`~pinquad.models.kernel.KernelDescription`) and write into given arrays:
+x_next (12,), jac (12, 12), q (12, 12).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from pinquad.core.kernels import rotation
+from pinquad.estep.linalg import fill
+from pinquad.models.kernel import STATE_DIM as _N
+
+
+@njit(cache=True)
+def transition_quad(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac):
+    """x_next = x + dt f(x, u), jac = I + dt df/dx, f as in
+    pinquad.vehicle.model.state_derivative_and_jacobian (u (4,) = [F, M] [N, N m];
+    dt [s], mass [kg], inertia and its inverse (3, 3), gravity [m/s^2])."""
+    phi, theta, psi = x[6], x[7], x[8]
+    wx, wy, wz = x[9], x[10], x[11]
+    sf, cf = math.sin(phi), math.cos(phi)
+    st, ct = math.sin(theta), math.cos(theta)
+    sp, cp = math.sin(psi), math.cos(psi)
+    tt = st / ct
+    f_over_m = u[0] / mass
+    fill(jac, 0.0)
+    f = x_next  # holds f until the last loop turns it into x + dt f
+    f[0] = x[3]
+    f[1] = x[4]
+    f[2] = x[5]
+    jac[0, 3] = 1.0
+    jac[1, 4] = 1.0
+    jac[2, 5] = 1.0
+
+    f[3] = f_over_m * (cf * st * cp + sf * sp)
+    f[4] = f_over_m * (cf * st * sp - sf * cp)
+    f[5] = f_over_m * (cf * ct) - gravity
+    jac[3, 6] = f_over_m * (-sf * st * cp + cf * sp)
+    jac[3, 7] = f_over_m * (cf * ct * cp)
+    jac[3, 8] = f_over_m * (-cf * st * sp + sf * cp)
+    jac[4, 6] = f_over_m * (-sf * st * sp - cf * cp)
+    jac[4, 7] = f_over_m * (cf * ct * sp)
+    jac[4, 8] = f_over_m * (cf * st * cp + sf * sp)
+    jac[5, 6] = f_over_m * (-sf * ct)
+    jac[5, 7] = f_over_m * (-cf * st)
+
+    a = sf * wy + cf * wz
+    f[6] = wx + tt * a
+    f[7] = cf * wy - sf * wz
+    f[8] = a / ct
+    jac[6, 6] = tt * (cf * wy - sf * wz)
+    jac[6, 7] = a / (ct * ct)
+    jac[6, 9] = 1.0
+    jac[6, 10] = sf * tt
+    jac[6, 11] = cf * tt
+    jac[7, 6] = -sf * wy - cf * wz
+    jac[7, 10] = cf
+    jac[7, 11] = -sf
+    jac[8, 6] = (cf * wy - sf * wz) / ct
+    jac[8, 7] = a * st / (ct * ct)
+    jac[8, 10] = sf / ct
+    jac[8, 11] = cf / ct
+
+    iw0 = inertia[0, 0] * wx + inertia[0, 1] * wy + inertia[0, 2] * wz
+    iw1 = inertia[1, 0] * wx + inertia[1, 1] * wy + inertia[1, 2] * wz
+    iw2 = inertia[2, 0] * wx + inertia[2, 1] * wy + inertia[2, 2] * wz
+    r0 = u[1] - (wy * iw2 - wz * iw1)
+    r1 = u[2] - (wz * iw0 - wx * iw2)
+    r2 = u[3] - (wx * iw1 - wy * iw0)
+    for r in range(3):
+        f[9 + r] = inertia_inv[r, 0] * r0 + inertia_inv[r, 1] * r1 + inertia_inv[r, 2] * r2
+    # d(omega x I omega)/d omega = [omega]x I - [I omega]x, row by row
+    for c in range(3):
+        d0 = -wz * inertia[1, c] + wy * inertia[2, c]
+        d1 = wz * inertia[0, c] - wx * inertia[2, c]
+        d2 = -wy * inertia[0, c] + wx * inertia[1, c]
+        if c == 0:
+            d1 -= iw2
+            d2 += iw1
+        elif c == 1:
+            d0 += iw2
+            d2 -= iw0
+        else:
+            d0 -= iw1
+            d1 += iw0
+        for r in range(3):
+            jac[9 + r, 9 + c] = -(inertia_inv[r, 0] * d0 + inertia_inv[r, 1] * d1
+                                  + inertia_inv[r, 2] * d2)
+    for r in range(_N):
+        x_next[r] = x[r] + dt * f[r]
+        for c in range(_N):
+            jac[r, c] = dt * jac[r, c]
+        jac[r, r] += 1.0
+
+
+@njit(cache=True)
+def transition_kinematic(x, dt, x_next, jac):
+    """KinematicSSM.transition (the force-free warm-up model: p' = v, v' = 0,
+    Theta' = E^{-1} omega, omega' = 0), written with the same expressions in the same
+    order as pinquad.models.ssm so the two agree to the last bit (dt [s])."""
+    phi, theta = x[6], x[7]
+    wx, wy, wz = x[9], x[10], x[11]
+    sf, cf = math.sin(phi), math.cos(phi)
+    st, ct = math.sin(theta), math.cos(theta)
+    tt = st / ct
+    a = sf * wy + cf * wz
+    for r in range(_N):
+        x_next[r] = x[r]
+    for r in range(3):
+        x_next[r] += dt * x[3 + r]
+    x_next[6] += dt * (wx + tt * a)
+    x_next[7] += dt * (cf * wy - sf * wz)
+    x_next[8] += dt * a / ct
+    fill(jac, 0.0)
+    for r in range(_N):
+        jac[r, r] = 1.0
+    jac[0, 3] = dt
+    jac[1, 4] = dt
+    jac[2, 5] = dt
+    jac[6, 6] += dt * tt * (cf * wy - sf * wz)
+    jac[6, 7] = dt * a / (ct * ct)
+    jac[6, 9] = dt
+    jac[6, 10] = dt * sf * tt
+    jac[6, 11] = dt * cf * tt
+    jac[7, 6] = dt * (-sf * wy - cf * wz)
+    jac[7, 10] = dt * cf
+    jac[7, 11] = -dt * sf
+    jac[8, 6] = dt * (cf * wy - sf * wz) / ct
+    jac[8, 7] = dt * a * st / (ct * ct)
+    jac[8, 10] = dt * sf / ct
+    jac[8, 11] = dt * cf / ct
+
+
+@njit(cache=True)
+def process_cov_start(use_fixed, fixed_q, q_kin, q):
+    """q = diag(fixed_q (12,)) (returns True: Q is complete), or zero but for the
+    position and Euler rows' kinematic variances q_kin (6,) (returns False: the dynamic
+    blocks follow)."""
+    fill(q, 0.0)
+    if use_fixed:
+        for i in range(_N):
+            q[i, i] = fixed_q[i]
+        return True
+    for i in range(3):
+        q[i, i] = q_kin[i]
+        q[6 + i, 6 + i] = q_kin[3 + i]
+    return False
+
+
+@njit(cache=True)
+def process_cov_quad(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
+    """Q (12, 12) of QuadSSM's flight process covariance at x (no reset term): fixed, or
+    structured from q_kin (6,), S_f = s_f (3,) and q_tau (3, 3) (module docstring)."""
+    if process_cov_start(use_fixed, fixed_q, q_kin, q):
+        return
+    g = np.empty((3, 3))
+    rotation(x, g)
+    for r in range(3):
+        for c in range(3):
+            g[r, c] = g[r, c] / mass
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for j in range(3):
+                acc += (g[r, j] * s_f[j]) * g[c, j]
+            q[3 + r, 3 + c] = dt * acc
+            q[9 + r, 9 + c] = q_tau[r, c]
+
+
+@njit(cache=True)
+def f_times_quad(f, p, out):
+    """out = F p for a transition Jacobian F (12 x 12) with the block pattern of
+    ``transition_quad`` / ``transition_kinematic`` (rows 0-2: columns r, r+3; rows 3-5: r,
+    6-8; rows 6-8: 6-11; rows 9-11: 9-11; every other entry is an exact zero, so leaving
+    it out of the sums changes nothing)."""
+    for r in range(3):
+        f0 = f[r, r]
+        f1 = f[r, r + 3]
+        for c in range(_N):
+            out[r, c] = f0 * p[r, c] + f1 * p[r + 3, c]
+    for r in range(3, 6):
+        f0 = f[r, r]
+        f6, f7, f8 = f[r, 6], f[r, 7], f[r, 8]
+        for c in range(_N):
+            out[r, c] = f0 * p[r, c] + f6 * p[6, c] + f7 * p[7, c] + f8 * p[8, c]
+    for r in range(6, 9):
+        f6, f7, f8 = f[r, 6], f[r, 7], f[r, 8]
+        f9, f10, f11 = f[r, 9], f[r, 10], f[r, 11]
+        for c in range(_N):
+            out[r, c] = (f6 * p[6, c] + f7 * p[7, c] + f8 * p[8, c] + f9 * p[9, c]
+                         + f10 * p[10, c] + f11 * p[11, c])
+    for r in range(9, 12):
+        f9, f10, f11 = f[r, 9], f[r, 10], f[r, 11]
+        for c in range(_N):
+            out[r, c] = f9 * p[9, c] + f10 * p[10, c] + f11 * p[11, c]
