@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("pinquad", "estimators", "viz")
+PACKAGES = ("pinquad", "estimators", "viz", "flightgen")
 MAX_LINES = 600
 # Imported inside functions on purpose: heavy optional dependencies and the viewer, which
 # a command loads only when asked for (--view, --estep gtsam, benchmark peers).
