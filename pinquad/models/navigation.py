@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.ekf import predict, update
-from pinquad.core.conventions import GRAVITY
+from pinquad.core.conventions import GRAVITY, rotation_and_derivatives
 from pinquad.core.params import FROZEN_SENSOR_NOISE, SensorNoise
 from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta, kinematic_floor
 
@@ -88,33 +88,13 @@ class SensorANavModel:
 
     def transition(self, x: Array, k: int) -> tuple[Array, Array]:
         dt = self.dt
-        phi, theta, psi = float(x[6]), float(x[7]), float(x[8])
+        phi, theta = float(x[6]), float(x[7])
         wx, wy, wz = float(x[9]), float(x[10]), float(x[11])
         sf, cf = math.sin(phi), math.cos(phi)
         st, ct = math.sin(theta), math.cos(theta)
-        sp, cp = math.sin(psi), math.cos(psi)
         tt = st / ct
         fb = self._accel(k)
-        rot = np.array([
-            [ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp],
-            [ct * sp, sf * st * sp + cf * cp, cf * st * sp - sf * cp],
-            [-st, sf * ct, cf * ct],
-        ])
-        d_phi = np.array([
-            [0.0, cf * st * cp + sf * sp, -sf * st * cp + cf * sp],
-            [0.0, cf * st * sp - sf * cp, -sf * st * sp - cf * cp],
-            [0.0, cf * ct, -sf * ct],
-        ])
-        d_theta = np.array([
-            [-st * cp, sf * ct * cp, cf * ct * cp],
-            [-st * sp, sf * ct * sp, cf * ct * sp],
-            [-ct, -sf * st, -cf * st],
-        ])
-        d_psi = np.array([
-            [-ct * sp, -sf * st * sp - cf * cp, -cf * st * sp + sf * cp],
-            [ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp],
-            [0.0, 0.0, 0.0],
-        ])
+        rot, d_rot = rotation_and_derivatives(x[6:9])
         a = sf * wy + cf * wz
         nxt = x.copy()
         nxt[0:3] += dt * x[3:6]
@@ -124,9 +104,7 @@ class SensorANavModel:
         nxt[8] += dt * a / ct
         jac = np.eye(12)
         jac[0, 3] = jac[1, 4] = jac[2, 5] = dt
-        jac[3:6, 6] = dt * d_phi @ fb
-        jac[3:6, 7] = dt * d_theta @ fb
-        jac[3:6, 8] = dt * d_psi @ fb
+        jac[3:6, 6:9] = dt * np.einsum("ijk,j->ik", d_rot, fb)
         jac[6, 6] += dt * tt * (cf * wy - sf * wz)
         jac[6, 7] = dt * a / (ct * ct)
         jac[6, 9] = dt
