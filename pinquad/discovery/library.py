@@ -8,19 +8,7 @@ nonlinear ``motor_lag``; ``explaining_feature`` is what a figure plots a residua
 against. The simulator's side (the injected disturbances) is ``pinquad.sim.effects``; the
 names and constants both use are ``pinquad.core.effect_vocabulary``.
 
-Forms (body frame: x forward, y left, z up; v_b = R^T v the body velocity [m/s]; F the
-collective thrust [N]; all wrenches at the body origin):
-
-====================  ===========================================  ==========================
-name                  extra body wrench / effect                   coefficients (units)
-====================  ===========================================  ==========================
-``drag``              f = -diag(D) v_b                             D (3,) [N s/m]
-``ground_effect``     f_z = k_ge F (r / (4 max(z, r/2)))^2         k_ge [-], r [m] fixed
-``com_offset``        tau = (-c) x (F e3) = F [-c_y, c_x, 0]       c_x, c_y [m] (CoM)
-``wind``              f = R^T [w_x, w_y, 0]                        w_x, w_y [N] (world)
-``motor_lag``         tau_m du/dt = u_cmd - u  (all 4 channels)    tau_m [s]
-``gyro_bias``         gyro = omega + b                             b (3,) [rad/s]
-====================  ===========================================  ==========================
+The forms and coefficients of each effect are tabled in ``pinquad.core.effect_vocabulary``.
 
 ``motor_lag`` is discretised by backward Euler: u_k = u_{k-1} + dt / (tau_m + dt)
 (u_cmd,k - u_{k-1}).

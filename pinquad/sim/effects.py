@@ -7,19 +7,7 @@ coefficients back into the observations) is ``pinquad.discovery.library``; the n
 constants both use are in ``pinquad.core.effect_vocabulary``, so neither side imports the
 other.
 
-Forms (body frame: x forward, y left, z up; v_b = R^T v the body velocity [m/s]; F the
-collective thrust [N]; all wrenches at the body origin):
-
-====================  ===========================================  ==========================
-name                  extra body wrench / effect                   coefficients (units)
-====================  ===========================================  ==========================
-``drag``              f = -diag(D) v_b                             D (3,) [N s/m]
-``ground_effect``     f_z = k_ge F (r / (4 max(z, r/2)))^2         k_ge [-], r [m] fixed
-``com_offset``        tau = (-c) x (F e3) = F [-c_y, c_x, 0]       c_x, c_y [m] (CoM)
-``wind``              f = R^T [w_x, w_y, 0]                        w_x, w_y [N] (world)
-``motor_lag``         tau_m du/dt = u_cmd - u  (all 4 channels)    tau_m [s]
-``gyro_bias``         gyro = omega + b                             b (3,) [rad/s]
-====================  ===========================================  ==========================
+The forms and coefficients of each effect are tabled in ``pinquad.core.effect_vocabulary``.
 
 ``ground_effect`` is the first-order Cheeseman-Bennett law T/T_inf = 1 + (r/4z)^2 with a
 gain k_ge (k_ge = 1: one isolated rotor of radius r; measured multirotors show more) and
