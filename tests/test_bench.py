@@ -77,7 +77,22 @@ def test_case_round_trip(case, tmp_path):
     np.testing.assert_array_equal(back.ys, case.ys)
     np.testing.assert_array_equal(back.lin.f, case.lin.f)
     assert back.obs.channels == case.obs.channels
-    assert mean_error(case.lin.m0, case.lin.m0) == 0.0
+    np.testing.assert_array_equal(back.lin.m0, case.lin.m0)
+
+
+def test_mean_error_against_a_hand_computed_case():
+    """mean_error = max_k,i |mean - ref| / scale_i, scale_i = max_k |ref_ki| (1 where that
+    is below 1e-3); the worked numbers below are computed by hand."""
+    ref = np.array([[2.0, 1e-4, -10.0],
+                    [-4.0, -5e-4, 5.0]])
+    mean = ref + np.array([[0.4, 0.0, 0.0],
+                           [0.0, 0.0, 0.0]])
+    assert mean_error(mean, ref) == pytest.approx(0.4 / 4.0, rel=1e-15)
+    mean[1, 1] += 0.3  # a near-zero component: scaled by 1, not by 5e-4
+    assert mean_error(mean, ref) == pytest.approx(0.3, rel=1e-12)
+    mean[0, 2] -= 5.0  # 5 / max|-10, 5| = 0.5
+    assert mean_error(mean, ref) == pytest.approx(0.5, rel=1e-15)
+    assert mean_error(ref, ref) == 0.0
 
 
 def test_helpers():

@@ -66,12 +66,13 @@ def test_clean_flight_selects_nothing(clean):
     obs, res = clean
     out = discover(obs, res.theta, res.posterior, cfg=FAST)
     assert out.selected == ()
-    assert out.rms_after == out.rms_before
-    # the Monte Carlo's clean-twin floor is the same "before" measurement
+    # nothing selected: "after" is the base model's held-out residual, computed here
+    # independently of discover() by the Monte Carlo's clean-twin floor, as is "before"
     floor = base_heldout_rms(obs, res.theta, res.posterior, FAST)
-    assert set(floor) == set(out.rms_before) and len(floor) == 12
-    np.testing.assert_allclose([floor[a] for a in out.rms_before], list(out.rms_before.values()),
-                               rtol=1e-12)
+    assert set(floor) == set(out.rms_before) == set(out.rms_after) and len(floor) == 12
+    for rms in (out.rms_before, out.rms_after):
+        np.testing.assert_allclose([rms[a] for a in floor], list(floor.values()), rtol=1e-12)
+    assert all(v > 0 for v in floor.values())
     rep = out.to_report()
     assert rep["selected"] == []
 
@@ -160,9 +161,9 @@ def test_compiled_e_step_takes_the_effect_model(dragged, monkeypatch):
             fast = fast_smoother.smooth_quad(model, obs.ys)
         slow = smooth(model, obs.ys)
         assert fast.loglik == pytest.approx(slow.loglik, rel=1e-9)
-        np.testing.assert_allclose(fast.mean, slow.mean, rtol=1e-7, atol=1e-9)
-        np.testing.assert_allclose(fast.cov, slow.cov, rtol=1e-6, atol=1e-12)
-        np.testing.assert_allclose(fast.cross_cov, slow.cross_cov, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(fast.mean, slow.mean, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(fast.cov, slow.cov, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(fast.cross_cov, slow.cross_cov, rtol=1e-9, atol=1e-12)
     # the lateral force really moves the smoothed velocities (the kernel is not a no-op)
     plain = fast_smoother.smooth_quad(QuadSSM(obs, res.theta), obs.ys)
     assert np.max(np.abs(fast.mean[:, 3:5] - plain.mean[:, 3:5])) > 1e-4
@@ -292,10 +293,13 @@ def test_drag_and_wind_refit_reaches_the_clean_twins_floor(tmp_path):
 
 
 def test_ground_effect_coefficient_converges_in_the_joint_refinement():
-    """Ground effect (k_ge = 1) on the Monte Carlo's seed-2000 flight: the refit's
-    coefficient/EM passes alone leave k_ge at 0.93 (each E-step leans towards the model it
-    was given); refined one E-step at a time with the parameters it reaches 1.00, and the
-    held-out vertical force residual drops by more than half."""
+    """Ground effect (k_ge = 1) on the Monte Carlo's seed-2000 flight: refined one E-step
+    at a time with the parameters the joint refinement reaches k_ge within 5 % of the
+    truth and the held-out vertical force residual drops by more than half. The refit's
+    coefficient/EM passes alone left k_ge at 0.93 when this was written (each E-step
+    leans towards the model it was given); that is documented, not pinned: the passes
+    must name the effect with a physical coefficient (within 10 %), and the joint
+    refinement must land no further from the truth than they do, beyond the 5 %."""
     from pinquad.experiments.discovery_mc import case_seed, simulate_log
 
     log, _ = simulate_log(("ground_effect",), case_seed(0, "ground_effect", 0))
@@ -308,7 +312,8 @@ def test_ground_effect_coefficient_converges_in_the_joint_refinement():
     assert out.selected == passes_only.selected == ("ground_effect",)
     k_passes = float(passes_only.coefficients["ground_effect"][0])
     k_joint = float(out.coefficients["ground_effect"][0])
-    assert k_passes < 0.95 and abs(k_joint - 1.0) < 0.05, (k_passes, k_joint)
+    assert abs(k_joint - 1.0) < 0.05, (k_passes, k_joint)
+    assert abs(k_passes - 1.0) < 0.10, (k_passes, k_joint)
     assert out.rms_after["force_z"] < 0.5 * out.rms_before["force_z"]
 
 

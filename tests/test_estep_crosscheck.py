@@ -64,6 +64,7 @@ from estimators.factor_graph import SolveInfo
 from estimators.iterated import LinearisedAbout
 from estimators.protocol import Array, Posterior
 from pinquad.core.conventions import wrap_angle
+from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification import em, fisher
 from pinquad.models import sources
@@ -272,3 +273,80 @@ def test_offline_command_with_the_map_e_steps(tmp_path, estep):
     report = json.loads((out / "report.json").read_text())
     assert report["source"]["estep"] == estep
     assert report["em"]["iterations"] >= 1
+    # the estimates: EM from the paper's start (m0 = 1 g, I0) did not lower the
+    # likelihood and, after CLI_ITERATIONS E-steps, is nearer the truth than its start
+    (cycle,) = report["cycles"]
+    assert cycle["sensor"] == "B" and cycle["mstep"] == "regressor"
+    loglik = np.asarray(cycle["em"]["loglik"])
+    assert loglik.size == CLI_ITERATIONS and np.all(np.diff(loglik) >= -1e-9 * np.abs(loglik[1:]))
+    est = np.r_[cycle["estimates"]["mass"], np.diag(cycle["estimates"]["inertia"])]
+    truth = np.r_[TRUE_MASS, np.diag(TRUE_INERTIA)]
+    start = np.r_[PAPER_INITIAL_MASS, np.diag(np.asarray(PAPER_INITIAL_INERTIA))]
+    assert np.all(np.isfinite(est)) and np.all(est > 0)
+    assert np.all(np.abs(est - truth) < np.abs(start - truth)), (est, start)
+    assert cycle["estimates"] == report["estimates"]
+
+
+@pytest.fixture(scope="module")
+def simulated_offline(tmp_path_factory):
+    """``python -m pinquad.offline`` in its simulated mode with the default M-steps
+    (``--mstep both``: regressor and the paper's), one sensor-B cycle."""
+    out = tmp_path_factory.mktemp("offline") / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "pinquad.offline", "--cycles", "1", "--sensor", "B", "--jobs",
+         "1", "--no-information", "--out", str(out)],
+        capture_output=True, text=True, cwd=ROOT, timeout=900)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["source"]["msteps"] == ["regressor", "paper"]
+    cycles = {c["mstep"]: c for c in report["cycles"]}
+    assert set(cycles) == {"regressor", "paper"}
+    return report, cycles
+
+
+def _relative_errors(cycle) -> Array:
+    est = np.r_[cycle["estimates"]["mass"], np.diag(cycle["estimates"]["inertia"])]
+    truth = np.r_[cycle["truth"]["mass"], np.diag(cycle["truth"]["inertia"])]
+    np.testing.assert_allclose(truth, np.r_[TRUE_MASS, np.diag(TRUE_INERTIA)])
+    return (est - truth) / truth
+
+
+def test_simulated_offline_command_regressor_estimates(simulated_offline):
+    """docs/paper.md's bounds: mass within 0.2 % and every inertia entry within 3 % of
+    the truth (regressor M-step, every cycle); EM converged and did not lower the
+    likelihood."""
+    report, cycles = simulated_offline
+    cyc = cycles["regressor"]
+    assert cyc["sensor"] == "B" and cyc["em"]["converged"]
+    loglik = np.asarray(cyc["em"]["loglik"])
+    assert np.all(np.diff(loglik) >= -1e-9 * np.abs(loglik[1:]))
+    err = _relative_errors(cyc)
+    assert abs(err[0]) <= 0.002, err
+    assert np.all(np.abs(err[1:]) <= 0.03), err
+    assert report["estimates"] == cyc["estimates"]
+
+
+def test_simulated_offline_command_paper_mstep(simulated_offline):
+    """The paper's M-step, which the default command runs beside ours: mass within
+    0.2 % (docs/paper.md: both M-steps), inertia within its documented worst on sensor B
+    (7.3 / 6.3 / 14.9 %, docs/paper.md), a different estimate from the regressor's on the
+    same log (it is a different M-step), and its statistics row in the report."""
+    report, cycles = simulated_offline
+    cyc = cycles["paper"]
+    assert cyc["sensor"] == "B" and cyc["seed"] == cycles["regressor"]["seed"]
+    err = _relative_errors(cyc)
+    assert abs(err[0]) <= 0.002, err
+    assert np.all(np.abs(err[1:]) <= [0.073, 0.063, 0.149]), err
+    assert np.all(np.abs(err - _relative_errors(cycles["regressor"])) > 1e-4)
+    rows = [r for r in report["statistics"] if r["mstep"] == "paper"]
+    assert [r["param"] for r in rows] == ["mass", "Ixx", "Iyy", "Izz"]
+    np.testing.assert_allclose([r["max_rel_err"] for r in rows], np.abs(err), rtol=1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason="the paper's M-step misses the 3 % inertia target: "
+                   "measured -5.0 / -5.0 / -14.3 % (I_xx / I_yy / I_zz, sensor B, seed 0); "
+                   "docs/paper.md: up to 14.9 %, |bias| > std in all 9 cases")
+def test_simulated_offline_command_paper_mstep_inertia_target(simulated_offline):
+    """The project's inertia target (3 %, docs/paper.md) for the paper's M-step."""
+    _, cycles = simulated_offline
+    assert np.all(np.abs(_relative_errors(cycles["paper"])[1:]) <= 0.03)

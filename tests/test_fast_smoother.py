@@ -45,7 +45,17 @@ SEED = int(os.environ.get("PINQUAD_FAST_SMOOTHER_SEED", "3"))
 
 @pytest.fixture(scope="module")
 def flight():
-    return simulate(SimConfig(), np.random.default_rng(SEED))
+    """One flight per sensor set, each flown with that sensor (SimConfig(sensor=...)), so
+    that B's log carries velocity and Euler angles and C's velocity."""
+    return {s: simulate(SimConfig(sensor=s), np.random.default_rng(SEED)) for s in "ABC"}
+
+
+# the fraction of finite samples each source's channels carry on its own flight: B and
+# C's pos, vel, Euler every 2nd step and gyro every step (sim/sensors.py); A's position
+# and velocity are the onboard filter's estimate, every step (models/sources.py)
+SAMPLED = {"A": {"pos": 1.0, "vel": 1.0, "gyro": 1.0},
+           "B": {"pos": 0.5, "vel": 0.5, "euler": 0.5, "gyro": 1.0},
+           "C": {"pos": 0.5, "vel": 0.5, "gyro": 1.0}}
 
 
 def _observations(flight, source: str) -> Observations:
@@ -53,12 +63,24 @@ def _observations(flight, source: str) -> Observations:
     sample at all and 5 % of the entries dropped, so that every update path (nothing,
     an arbitrary subset, everything observed) runs."""
     rng = np.random.default_rng(SEED + 100)
-    log = flight_log(flight, source, rng).slice(0, N_STEPS)
+    log = flight_log(flight[source]).slice(0, N_STEPS)
     obs = observations(log, source)
     ys = obs.ys.copy()
     ys[rng.random(ys.shape) < 0.05] = np.nan
     ys[[7, 8, 250]] = np.nan
     return replace(obs, ys=ys)
+
+
+@pytest.mark.parametrize("source", ["A", "B", "C"])
+def test_each_source_carries_its_channels(flight, source):
+    """The comparisons below are only as good as their data: each source's log holds
+    every one of its channels at the sensor set's rate (no channel left all-NaN)."""
+    obs = observations(flight_log(flight[source]).slice(0, N_STEPS), source)
+    assert obs.channels == tuple(SAMPLED[source])
+    finite = np.isfinite(obs.ys).mean(axis=0)
+    for i, ch in enumerate(obs.channels):
+        np.testing.assert_allclose(finite[3 * i:3 * i + 3], SAMPLED[source][ch], atol=0.01,
+                                   err_msg=f"{source}: {ch}")
 
 
 def _theta(obs: Observations, kind: str) -> Theta:
@@ -234,15 +256,23 @@ def test_wrapped_euler_residuals(flight):
     """Euler measurements shifted by whole turns (and yaw across +-pi) give the generic
     answer, which wraps every angle residual to (-pi, pi]."""
     obs = _observations(flight, "B")
+    assert obs.channels[2] == "euler"
     ys = obs.ys.copy()
     euler = slice(6, 9)
     ys[::3, euler] += 2.0 * np.pi
     ys[1::5, euler] -= 4.0 * np.pi
-    obs = replace(obs, ys=ys)
-    model = QuadSSM(obs, _theta(obs, "structured"))
-    fast = smooth_quad(model, obs.ys)
-    _assert_same_posterior(fast, smooth(model, obs.ys))
+    shifted = np.isfinite(ys[:, euler]) & ((np.arange(obs.n) % 3 == 0)
+                                          | (np.arange(obs.n) % 5 == 1))[:, None]
+    assert shifted.sum() > 100  # finite angles really moved by whole turns
+    wrapped = replace(obs, ys=ys)
+    model = QuadSSM(wrapped, _theta(obs, "structured"))
+    fast = smooth_quad(model, wrapped.ys)
+    _assert_same_posterior(fast, smooth(model, wrapped.ys))
     assert np.all(np.abs(fast.mean[:, 6:9]) < np.pi)
+    # a whole turn is no change: the posterior is that of the unshifted angles
+    plain = smooth_quad(QuadSSM(obs, model.theta), obs.ys)
+    np.testing.assert_allclose(fast.mean, plain.mean, rtol=0, atol=1e-9)
+    assert fast.loglik == pytest.approx(plain.loglik, rel=1e-9)
 
 
 def test_other_models_use_the_generic_smoother(linear_case):

@@ -155,9 +155,9 @@ def test_compiled_e_step_equals_the_generic_one_on_the_full_model():
     slow = smooth(model, obs.ys)
     assert fast_ll == pytest.approx(run_filter(model, obs.ys).loglik, rel=1e-9)
     assert fast.loglik == pytest.approx(slow.loglik, rel=1e-9)
-    np.testing.assert_allclose(fast.mean, slow.mean, rtol=1e-7, atol=1e-9)
-    np.testing.assert_allclose(fast.cov, slow.cov, rtol=1e-6, atol=1e-12)
-    np.testing.assert_allclose(fast.cross_cov, slow.cross_cov, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(fast.mean, slow.mean, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(fast.cov, slow.cov, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(fast.cross_cov, slow.cross_cov, rtol=1e-9, atol=1e-12)
 
 
 def test_full_mstep_recovers_all_ten_parameters_from_noise_free_transitions():

@@ -64,14 +64,26 @@ def test_remembered_statistics_add_up_to_the_whole_window():
     assert remember_leaving(first, post, obs, 0, g, math.inf) is first
 
 
+@pytest.fixture(scope="module")
+def cycles():
+    """Sensor A, seed 1, cycle 0 from the paper's start, flown once per memory setting."""
+    return {}
+
+
+def _cycle(cycles, memory_s):
+    if memory_s not in cycles:
+        cycles[memory_s] = online.run_online_cycle(("A", 1, 0, memory_s))
+    return cycles[memory_s]
+
+
 @pytest.mark.parametrize("memory_s", [math.inf, None])
-def test_one_closed_loop_flight_from_the_papers_start(memory_s):
+def test_one_closed_loop_flight_from_the_papers_start(cycles, memory_s):
     """Sensor A, the source whose window-only I_zz was the widest: from m0 = 1 g and the
     paper's I0 the vehicle lifts off, passes every waypoint within 0.15 m and does not
-    crash. With the default memory the converged estimate (median of the last 10 % of
-    updates) is within 0.5 % (mass) and 5 % (inertia) of the truth; window-only (the
-    paper's scheme) only the mass bound is asserted: this seed's I_zz is 11 % off."""
-    cycle = online.run_online_cycle(("A", 1, 0, memory_s))
+    crash, and the converged estimate (median of the last 10 % of updates) has the mass
+    within 0.5 % of the truth (docs/online.md's targets). With the default memory the
+    inertia is within 5 % too; window-only, see the next test."""
+    cycle = _cycle(cycles, memory_s)
     assert cycle.lifted_off and not cycle.crashed
     assert cycle.miss.max() <= 0.15
     conv = online.converged_estimate(cycle.history)
@@ -79,6 +91,24 @@ def test_one_closed_loop_flight_from_the_papers_start(memory_s):
     assert error[0] <= 0.005
     if memory_s is not None:
         assert np.all(error[1:] <= 0.05), error
+
+
+@pytest.mark.xfail(strict=True, reason="window-only (the paper's scheme) misses the 5 % "
+                   "inertia target: this flight's converged I_zz is 11 % off (docs/online.md: "
+                   "49/60 within 5 %, every failure I_zz, up to 16.6 %)")
+def test_window_only_inertia_within_the_target(cycles):
+    """The same 5 % inertia target for the window-only estimator."""
+    conv = online.converged_estimate(_cycle(cycles, None).history)
+    error = np.abs(conv - TRUTH) / TRUTH
+    assert np.all(error[1:] <= 0.05), error
+
+
+def test_update_latency_is_measured_for_the_benchmark():
+    """The update latency is the benchmark's figure (``python -m pinquad.bench``, online
+    section: p50 / p99), not a test's: here only that it measures one positive wall time
+    per update."""
+    lat = online.measure_update_latency(n_updates=3, window=200)
+    assert lat.shape == (3,) and np.all(np.isfinite(lat)) and np.all(lat > 0)
 
 
 def test_online_command_and_replay(tmp_path):
@@ -134,7 +164,8 @@ def test_replay_of_a_measured_flight_converges_to_the_offline_answer():
     mass0, inertia0, _ = default_guess("crazyflie21")
     hist, lat = stream_em(real.obs, mass0, inertia0, real.log.meta.gravity,
                           rotor_acc=real.rotor_acc)
-    assert hist.shape[0] > 150 and np.all(lat < 1.0)
+    # the update latency is measured by ``python -m pinquad.bench``, not asserted here
+    assert hist.shape[0] > 150 and lat.shape == (hist.shape[0],)
     assert abs(hist[-1, 2] / SCALE_MASS - 1.0) < 0.015
     offline, _, _ = identify_real(real, mass0, inertia0, information=False)
     np.testing.assert_allclose(hist[-1, 3:5], offline.inertia[:2], rtol=0.10)

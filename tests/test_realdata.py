@@ -135,8 +135,9 @@ def test_faulty_log_is_repaired_and_its_mass_is_near_the_scale():
     rebuilt from its PWM. The mass is 2.5 % above the scale, not within the issue's
     1.5 %: all faulty flights sit 2-3 % above the clean ones, and the excess is in the
     measured speeds (M2-M4, and M1 where its doubled reading is there), so the repair does
-    not cause it; the test holds what is achieved, and that the scale is within two total
-    standard errors."""
+    not cause it. This test holds the README's documented range for the faulty flights
+    (+2.5 to +3.4 %; jana20 is the +2.5 % one, held to 3 %) and that the scale is within two total standard
+    errors; test_faulty_log_mass_within_the_target asserts the 1.5 % target (xfail)."""
     ident = identified("jana20")
     rel = ident.mass / SCALE_MASS - 1.0
     assert abs(rel) < 0.03, rel
@@ -148,26 +149,74 @@ def test_faulty_log_is_repaired_and_its_mass_is_near_the_scale():
     # model-free mass, and the three measured motors alone already carry 3/4 of a vehicle
     # heavier than the scale's: M1 would need to carry less of the thrust than on any
     # clean log (jana00 has the lowest M1 share, 0.92).
+    # (motor_split's arithmetic is checked against hand-computed numbers in
+    # test_motor_split_of_a_hand_built_hover)
     split = ident.motor_split
     assert split is not None and split.rebuilt == (0,)
-    assert split.mass_if(split.share[0]) == pytest.approx(ident.quasi_static_mass, rel=1e-9)
-    assert split.share.sum() == pytest.approx(4.0, rel=1e-12)
     clean = identified("jana00").motor_split
     assert clean is not None and not clean.rebuilt
     assert split.share_for(SCALE_MASS) < clean.share[0] < split.share[0]
-    assert clean.measured_mass == pytest.approx(identified("jana00").quasi_static_mass, rel=1e-12)
-    assert clean.all_measured_mass == pytest.approx(clean.measured_mass, rel=1e-12)
     # Where M1's half-count reading is there (doubled), no speed comes from PWM: the
     # mass these transitions balance agrees with the repaired flight's, so the excess
     # does not come from the PWM map either.
     assert any("counts one pulse in 2" in note for note in ident.notes)
     assert split.all_measured_rows > 500
     assert split.all_measured_mass == pytest.approx(ident.quasi_static_mass, rel=0.01)
-    assert split.all_measured_mass > 1.015 * SCALE_MASS
     # Without the repair every airborne row is implausible: nothing left to identify.
     with pytest.raises(ValueError, match="no usable actuation"):
         load_real(FLIGHTS / "jana20", RealDataOptions(faults="exclude"),
                   thrust_coefficient(STAND))
+
+
+@pytest.mark.xfail(strict=True, reason="jana20 (faulty rpm, repaired) measured: EM mass "
+                   "+2.5 % and model-free all-measured mass +2.3 % above the scale; every "
+                   "faulty flight sits 2-3 % above the clean ones (README: +2.5 to +3.4 %)")
+def test_faulty_log_mass_within_the_target():
+    """The issue's target for the mass of every log, faulty or not: within 1.5 % of the
+    scale's 34.7 g, by EM and by the model-free balance over the all-measured rows."""
+    ident = identified("jana20")
+    assert abs(ident.mass / SCALE_MASS - 1.0) < 0.015, ident.mass
+    assert abs(ident.motor_split.all_measured_mass / SCALE_MASS - 1.0) < 0.015
+
+
+def test_motor_split_of_a_hand_built_hover():
+    """motor_split / quasi_static_mass on a hand-built level-and-tilted hover whose
+    answers are known: mass m = 34.7 g held by F = m g / cos(roll); motor i carries
+    omega_i^2 in the ratio 0.8 : 1 : 1.1 : 1.1 (shares of the four-motor mean); motor 0
+    rebuilt from PWM in the first half of the rows. Then m_qs = m, the shares are the
+    ratios, the measured motors carry (1 - 0.8 / 4) m, and m_qs over the second half
+    (all measured) is m."""
+    from types import SimpleNamespace
+
+    from pinquad.realdata.mass_balance import motor_split
+
+    n, g, m = 400, 9.81, 0.0347
+    roll = np.where(np.arange(n) % 2 == 0, 0.0, 0.2)
+    euler = np.column_stack([roll, np.zeros(n), np.zeros(n)])
+    thrust = m * g / np.cos(roll)
+    ratio = np.array([0.8, 1.0, 1.1, 1.1])
+    rpm = np.sqrt(ratio)[None, :] * np.linspace(15000.0, 16000.0, n)[:, None]
+    velocity = np.zeros((n, 3))
+    velocity[:, 0] = 0.3  # steady lateral speed: no vertical acceleration
+    fraction = np.r_[np.full(n // 2, 0.5), np.zeros(n - n // 2)]
+    obs = SimpleNamespace(n=n, dt=0.01, t=0.01 * np.arange(n), exclude=np.zeros(n, bool),
+                          inputs=np.column_stack([thrust, np.zeros((n, 3))]))
+    log = SimpleNamespace(euler=euler, velocity=velocity, rpm=rpm,
+                          meta=SimpleNamespace(gravity=g))
+    real = SimpleNamespace(obs=obs, log=log, repaired=(0,), rebuilt_fraction=fraction)
+    assert quasi_static_mass(real) == pytest.approx(m, rel=1e-12)
+    split = motor_split(real)
+    np.testing.assert_allclose(split.share, ratio, rtol=1e-12)
+    assert split.rebuilt == (0,)
+    assert split.measured_mass == pytest.approx(m * (1.0 - 0.8 / 4.0), rel=1e-12)
+    assert split.mass_if(0.8) == pytest.approx(m, rel=1e-12)
+    assert split.share_for(m) == pytest.approx(0.8, rel=1e-12)
+    assert split.all_measured_rows == n - n // 2 - 1  # the last row starts no transition
+    assert split.all_measured_mass == pytest.approx(m, rel=1e-12)
+    # with no motor rebuilt every row is all-measured and the measured motors carry m
+    full = motor_split(SimpleNamespace(obs=obs, log=log, repaired=(), rebuilt_fraction=None))
+    assert full.measured_mass == pytest.approx(m, rel=1e-12)
+    assert full.all_measured_rows == n - 1
 
 
 def _env() -> dict[str, str]:
@@ -205,7 +254,11 @@ def test_offline_cli_identifies_a_real_log(tmp_path):
     run = report["runs"][0]
     assert abs(run["model_free_mass"] / est["mass"] - 1) < 0.005
     assert run["motor_split"]["rebuilt_motors"] == []
-    assert run["motor_split"]["measured_motors_mass"] == pytest.approx(run["model_free_mass"])
+    # the report carries the in-process model-free figures of the same log
+    assert run["model_free_mass"] == pytest.approx(identified("jana00").quasi_static_mass,
+                                                   rel=1e-9)
+    assert run["motor_split"]["measured_motors_mass"] == pytest.approx(
+        identified("jana00").motor_split.measured_mass, rel=1e-9)
     md = (out / "report.md").read_text()
     assert "model-free check" in md
     assert "- note: motion capture:" in md and "- excluded: total:" in md

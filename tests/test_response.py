@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from functools import cache
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -89,16 +90,32 @@ def test_closed_loop_disturbance_makes_the_gain_fall_while_em_keeps_the_inertia(
     assert np.max(np.abs(loud.em_rel_error)) < 0.05
 
 
-def test_measured_flight_pipeline_reads_a_closed_loop_flight_high():
-    """The README's caveat on the measured-flight inertia: the band-passed M-step of
-    ``realdata`` on a simulated closed-loop flight (sensor B, the simulator's own torque
-    noise) reads the inertia more than 8 % high on every axis, while direct EM on the
-    same flight is within 2 %. If the pipeline is fixed, this fails: update the README."""
+@cache
+def _closed_loop_response():
+    """``realdata``'s band-passed M-step and direct EM on one simulated closed-loop flight
+    (sensor B, the simulator's own torque noise; ~50 s, so computed once)."""
     from pinquad.realdata.response import simulated_response
 
-    sim = simulated_response(1.0, seed=0, sensor="B")
-    assert np.max(np.abs(sim.em_rel_error)) < 0.02
-    assert np.all(sim.band_rel_error > 0.08), sim.band_rel_error
+    return simulated_response(1.0, seed=0, sensor="B")
+
+
+def test_direct_em_on_a_closed_loop_flight_is_within_target():
+    """Direct EM on the simulated closed-loop flight reads every inertia entry within 2 %
+    of the truth (paper.md: every regressor estimate within 3 %)."""
+    sim = _closed_loop_response()
+    assert np.max(np.abs(sim.em_rel_error)) < 0.02, sim.em_rel_error
+
+
+@pytest.mark.xfail(strict=True, reason="the README's caveat: the band-passed M-step reads a "
+                   "closed-loop flight high, measured +14.3 / +12.2 / +14.2 % (I_xx / I_yy / "
+                   "I_zz, seed 0, sensor B) where direct EM is within 0.8 %; when the pipeline "
+                   "is fixed this passes: update the README")
+def test_measured_flight_pipeline_reads_a_closed_loop_flight_within_target():
+    """The measured-flight pipeline (``realdata``'s band-passed M-step) should read the
+    simulated closed-loop flight's inertia like any estimate of ours: within 3 % of the
+    truth on every axis (paper.md's inertia target)."""
+    sim = _closed_loop_response()
+    assert np.all(np.abs(sim.band_rel_error) < 0.03), sim.band_rel_error
 
 
 def test_simulate_rejects_a_non_positive_factor():
