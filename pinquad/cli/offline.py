@@ -107,7 +107,7 @@ def run_simulation(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     print(f"pinquad offline: {len(sensors)} sensor(s) x {args.cycles} cycles, seeds from base "
           f"{args.seed}, E-step {args.estep}, M-step(s) {', '.join(msteps)}, {args.jobs} worker(s)")
-    try:
+    with writer:
         results = run_cycles(jobs, args.jobs)
         elapsed = time.perf_counter() - t0
         summary = summarize(results)
@@ -126,9 +126,6 @@ def run_simulation(args: argparse.Namespace) -> int:
         write_offline_run(writer, results, summary, tables, msteps, sensors, source,
                           (flown.waypoints, flown.start), elapsed)
         final = writer.publish()
-    except BaseException:
-        writer.abort()
-        raise
     print(f"run written to {final}")
     return _view(final) if args.view else 0
 
@@ -169,7 +166,7 @@ def run_log(args: argparse.Namespace) -> int:
     print(f"\n{seconds:.1f} s")
 
     writer = RunWriter(args.out or new_run_dir("log"))
-    try:
+    with writer:
         discovery = None
         if result.runs[0].mstep == "full" and not args.no_discover:
             print("\neffect discovery: not run (it works on the diagonal model: run "
@@ -185,9 +182,6 @@ def run_log(args: argparse.Namespace) -> int:
         report = report_json(result, str(args.log), args.estep, seconds, discovery)
         write_log_run(writer, result, report, report_markdown(result, str(args.log), discovery))
         final = writer.publish()
-    except BaseException:
-        writer.abort()
-        raise
     print(f"run written to {final}")
     return _view(final) if args.view else 0
 

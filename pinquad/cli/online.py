@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     out_dir = args.out or new_run_dir("online")
     writer = RunWriter(out_dir)
     t0 = time.perf_counter()
-    try:
+    with writer:
         with ProcessPoolExecutor(max_workers=args.jobs) as pool:
             results = list(tqdm(pool.map(run_online_cycle, jobs), total=len(jobs),
                                 desc="online cycles", file=sys.stderr))
@@ -91,9 +91,6 @@ def main(argv: list[str] | None = None) -> int:
         report["run_logs"] = write_online_logs(results, writer)
         atomic_write_json(writer.path("report.json"), report)
         final = writer.publish()
-    except BaseException:
-        writer.abort()
-        raise
     print(f"run written to {final}")
     if args.view:
         from viz.__main__ import main as viz_main  # the viewer (viser) only when asked for
@@ -144,7 +141,7 @@ def replay(args: argparse.Namespace) -> int:
         print(f"| {r[1]:.2f} | {r[2]:.5g} | {r[3]:.4g} | {r[4]:.4g} | {r[5]:.4g} |")
     if args.out:
         writer = RunWriter(args.out)
-        try:
+        with writer:
             atomic_write_json(writer.path("report.json"), {
                 "schema": REPORT_SCHEMA,
                 "source": {"kind": "log", "path": str(args.log), "mode": "online-replay",
@@ -161,7 +158,4 @@ def replay(args: argparse.Namespace) -> int:
                                         "inertia_diag": hist[:, 3:6].tolist()}}],
             })
             writer.publish()
-        except BaseException:
-            writer.abort()
-            raise
     return 0

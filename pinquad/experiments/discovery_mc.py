@@ -47,6 +47,7 @@ from pinquad.discovery.discover import base_heldout_rms
 from pinquad.experiments.recorded import (
     LogOptions,
     discovery_section,
+    discovery_start,
     identify_log,
     run_discovery,
 )
@@ -190,7 +191,7 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
         twin_result = identify_log(twin_back, options)
         twin_run = twin_result.runs[0]
         twin = np.r_[twin_run.mass, np.diag(twin_run.inertia)] / truth - 1.0
-        start = twin_result.discovery_start
+        start = discovery_start(twin_result.runs[0])
         twin_rms = base_heldout_rms(start.obs, start.theta, start.posterior)
     return CaseResult(condition, seed, tuple(s["effect"] for s in section["selected"]), coef_err,
                       coefs, est / truth - 1.0, base / truth - 1.0,

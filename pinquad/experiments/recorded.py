@@ -93,7 +93,7 @@ class LogResult:
     observations the E-step saw, the smoothed means (N, 12) of the reported run, the
     initial guess in words, exclusions and notes, the kind of log (``sdlog``,
     ``measured-table``, ``simulated``), the thrust coefficient and actuation-fault notes
-    of a measured flight, and discovery's starting point."""
+    of a measured flight. Discovery starts from ``discovery_start(runs[0])``."""
 
     runs: tuple[Identification, ...]
     log: FlightLog
@@ -105,7 +105,6 @@ class LogResult:
     kind: str
     kf: ThrustCoefficient | None = None
     faults: tuple[str, ...] = ()
-    discovery_start: DiscoveryStart | None = None
 
 
 DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
@@ -203,8 +202,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
     assert first is not None
     real, smoothed = first
     return LogResult(tuple(runs), real.log, real.obs, smoothed, guess, real.excluded,
-                     real.notes, kind, kf=real.kf, faults=tuple(real.faults.notes),
-                     discovery_start=discovery_start(runs[0]))
+                     real.notes, kind, kf=real.kf, faults=tuple(real.faults.notes))
 
 
 def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity: float,
@@ -247,8 +245,7 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
     excluded = (f"{n_ex} transitions: touching the floor (the log's contact flags)",
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
     return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
-                     tuple(log.meta.notes), "simulated",
-                     discovery_start=discovery_start(run))
+                     tuple(log.meta.notes), "simulated")
 
 
 def identify_log(log: FlightLog, options: LogOptions | None = None) -> LogResult:
@@ -280,9 +277,10 @@ class DiscoveryOutcome:
 def run_discovery(result: LogResult) -> DiscoveryOutcome:
     """Effect discovery (``pinquad.discovery.discover``) on the reported run, with the
     settings for the log's kind (``DISCOVERY_SETTINGS``)."""
-    start = result.discovery_start
-    if start is None:
-        return DiscoveryOutcome(None, "no EM run to start from")
+    try:
+        start = discovery_start(result.runs[0])
+    except ValueError as exc:
+        return DiscoveryOutcome(None, str(exc))
     try:
         found = discover(start.obs, start.theta, start.posterior, cfg=discovery_config(result.kind))
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:

@@ -106,11 +106,6 @@ class Identification:
         ten-parameter model was fitted."""
         return None if self.full is None else np.asarray(self.full.com)
 
-    @property
-    def noise(self) -> Theta | None:
-        """The final parameters (``theta``; the name older callers use)."""
-        return self.theta
-
 
 def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, estep: str,
              mstep: str, max_iterations: int, information: bool,

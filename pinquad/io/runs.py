@@ -73,7 +73,8 @@ class RunWriter:
     """Collect a run's files in a hidden staging directory, then publish them at once.
 
     ``publish()`` renames the staging directory to the target, so a reader never sees a
-    partly written run; if the run fails, the staging directory is removed.
+    partly written run; if the run fails, the staging directory is removed. Used as a
+    context manager (``with writer:``), an exception leaving the block aborts the run.
     """
 
     def __init__(self, target: str | Path):
@@ -97,3 +98,11 @@ class RunWriter:
 
     def abort(self) -> None:
         shutil.rmtree(self.staging, ignore_errors=True)
+
+    def __enter__(self) -> RunWriter:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: object) -> None:
+        if exc_type is not None:
+            self.abort()
