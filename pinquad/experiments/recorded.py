@@ -36,7 +36,7 @@ from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
 from pinquad.identification.identify import Identification, identify
 from pinquad.io.logs import FlightLog
-from pinquad.models.sources import observations
+from pinquad.models.sources import floor_contact, observations
 from pinquad.models.ssm import Observations, Theta
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
@@ -227,8 +227,10 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
     sensors = list(options.sensors) or [default_sensor(log)]
     runs: list[Identification] = []
     first = None
+    # floor contact: the log's flags, else found from the data (models.contact)
+    contact = floor_contact(log, mass0)
     for sensor in sensors:
-        obs = observations(log, sensor)
+        obs = observations(log, sensor, contact)
         for mstep in options.msteps:
             if mstep == "full":
                 run = _full(obs, sensor, mass0, inertia0, log.meta.gravity, options)
@@ -242,7 +244,7 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
     assert first is not None
     obs, run = first
     n_ex = int(obs.exclude[: obs.n - 1].sum())
-    excluded = (f"{n_ex} transitions: touching the floor (the log's contact flags)",
+    excluded = (f"{contact.transitions()} transitions: {contact.describe()}",
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
     return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
                      tuple(log.meta.notes), "simulated")

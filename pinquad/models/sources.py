@@ -11,15 +11,20 @@ C: position, velocity, gyro ("partial", no attitude).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
 from estimators.ekf import run_filter
+from pinquad.core.conventions import rotation_from_euler
 from pinquad.io.logs import FlightLog
+from pinquad.models.contact import ContactDetection, ContactSettings, detect_floor_contact
 from pinquad.models.navigation import NavTuning, SensorANavModel
 from pinquad.models.ssm import Observations
 
 Array = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
 
 SOURCE_CHANNELS = {
     "A": ("pos", "vel", "gyro"),
@@ -44,11 +49,65 @@ def sensor_a_estimate(log: FlightLog, tuning: NavTuning | None = None) -> Array:
     return run_filter(model, ys).filtered_mean
 
 
-def observations(log: FlightLog, source: str) -> Observations:
+@dataclass(frozen=True)
+class FloorContact:
+    """The log's rows touching the floor and where that came from.
+
+    rows (N,) bool: the rows treated as contact; source: ``flags`` (the log's contact
+    column) or ``data`` (found by ``models.contact.detect_floor_contact``, margin
+    included); detection: the detector's result (also run beside the flags, to compare),
+    None if the log has no height or thrust to run it on.
+    """
+
+    rows: BoolArray
+    source: str
+    detection: ContactDetection | None
+
+    def transitions(self) -> int:
+        """Transitions k -> k+1 touching a contact row at either end."""
+        return int((self.rows[:-1] | self.rows[1:]).sum())
+
+    def describe(self) -> str:
+        """The report's exclusion line (without the count)."""
+        if self.source == "flags":
+            words = "touching the floor (the log's contact flags)"
+            if self.detection is not None:
+                det = self.detection.widened
+                flagged = self.rows[:-1] | self.rows[1:]
+                found = det[:-1] | det[1:]
+                words += (f"; found from the data: {int(found.sum())} transitions, "
+                          f"{int((found & flagged).sum())} of the {int(flagged.sum())} flagged")
+            return words
+        assert self.detection is not None
+        return (f"touching the floor, found from the data (no contact flags: "
+                f"{self.detection.describe()})")
+
+
+def floor_contact(log: FlightLog, mass_guess: float,
+                  settings: ContactSettings | None = None) -> FloorContact:
+    """The log's contact rows: its contact flags if it has them, else those found from
+    the data (``detect_floor_contact`` on height, vertical velocity, thrust and R_33 with
+    ``mass_guess`` [kg], widened by the settings' margin)."""
+    detection = None
+    if log.thrust is not None and np.isfinite(log.position[:, 2]).any():
+        tilt = rotation_from_euler(log.euler)[:, 2, 2]
+        detection = detect_floor_contact(log.t, log.position[:, 2], log.velocity[:, 2],
+                                         log.thrust, tilt, mass_guess, log.meta.gravity,
+                                         settings)
+    if log.contact is not None:
+        return FloorContact(log.contact.copy(), "flags", detection)
+    rows = detection.widened if detection is not None else np.zeros(log.n, dtype=bool)
+    return FloorContact(rows, "data", detection)
+
+
+def observations(log: FlightLog, source: str, contact: FloorContact | None = None
+                 ) -> Observations:
     """Build the E-step's observations of a log for source A, B or C.
 
-    Transitions into or out of a contact row (log.contact) are excluded from the M-step;
-    those into one are also resets for the E-step (``Observations.resets``).
+    Transitions into or out of a contact row are excluded from the M-step; those into one
+    are also resets for the E-step (``Observations.resets``). The contact rows are
+    ``contact.rows``; without it, the log's contact flags, else none (the data-based
+    detection needs a mass guess: pass ``floor_contact(log, mass_guess)``).
     """
     if log.thrust is None or log.torque is None:
         raise ValueError("the log has no thrust/torque actuation; convert rotor speeds first")
@@ -73,13 +132,14 @@ def observations(log: FlightLog, source: str) -> Observations:
             x0[sl] = _first_valid(ys[:, 3 * i:3 * i + 3])
     exclude = np.zeros(log.n, dtype=bool)
     resets = np.zeros(log.n, dtype=bool)
-    if log.contact is not None:
+    rows = contact.rows if contact is not None else log.contact
+    if rows is not None:
         # a transition touching the floor at either end is not free flight
-        exclude |= log.contact
-        exclude[:-1] |= log.contact[1:]
+        exclude |= rows
+        exclude[:-1] |= rows[1:]
         # touching down, the floor stops and levels the vehicle within the step: the
         # smoother must not carry the flight dynamics across that (ssm.RESET_VAR)
-        resets[:-1] = log.contact[1:]
+        resets[:-1] = rows[1:]
     inputs = np.column_stack([log.thrust, log.torque])
     return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
                         p0=p0, exclude=exclude, resets=resets)
