@@ -20,17 +20,22 @@ Quantities on the log's uniform grid t_k = t_0 + k dt (rows k = 0 .. N-1):
 * The mass m [kg] is a thrust balance over the rows clearly airborne
   (z_k - z_f > ``clearance``, at least ``min_airborne`` seconds of them):
   m = sum_k F_k c_k / sum_k ((v_{k+1} - v_k) / dt + g);
-  the guess (sidecar or the vehicle's default) is used only when the log has less
-  airborne time than that. A 30 % wrong guess therefore does not move the detection;
-  with the guess itself a hover at the floor level would read as a 0.3 g upward
-  residual.
+  over all rows when the log has less airborne time than that (a flat flight never
+  climbs clear of its lowest level; a log spent wholly on the floor then shows no
+  contact). The guess (sidecar or the vehicle's default) is used only if that balance
+  is not positive. A 30 % wrong guess therefore does not move the detection; with the
+  guess itself a hover at the floor level would read as a 0.3 g upward residual (and
+  did on the brushless figure-8s, flown flat at 0.33-0.44 m with the brushed kf).
 
 A step is in contact when it is at the floor and
 
-* **resting**: |v_k| < ``rest_speed`` and the residual over ``rest_window`` seconds
+* **resting**: |v_k| < ``rest_speed`` and the horizontal speed |v_xy,k| < ``rest_speed``
+  (friction holds a vehicle on the floor; a pass low over the floor in ground effect,
+  which also decelerates the vehicle with the thrust below its weight, moves
+  sideways: jana20 at 6 cm, 0.3-0.5 m/s), and the residual over ``rest_window`` seconds
   r_k > max(``rest_accel``, ``noise_factor`` s_rest), i.e. the vehicle neither falls nor
   rises as the thrust says (thrust below weight, the floor carrying the rest); the whole
-  run of steps at the floor with |v| < rest_speed that holds such a step is marked; or
+  run of steps at the floor that still, holding such a step, is marked; or
 * **striking**: the residual over ``impact_window`` seconds r_k > max(``impact_accel``,
   ``noise_factor`` s_impact) with the height within ``floor_band`` of z_f somewhere in
   that window (the vertical velocity stopped or reversed abruptly at the floor level);
@@ -184,13 +189,15 @@ def thrust_balance_mass(v: Array, thrust_up: Array, dt: float, rows: BoolArray,
 
 def detect_floor_contact(t: Array, height: Array, vertical_velocity: Array | None,
                          thrust: Array, tilt: Array | None, mass_guess: float,
-                         gravity: float = 9.81,
-                         settings: ContactSettings | None = None) -> ContactDetection:
+                         gravity: float = 9.81, settings: ContactSettings | None = None,
+                         horizontal_speed: Array | None = None) -> ContactDetection:
     """Find the steps where the vehicle rests on or strikes the floor (module docstring).
 
     t (N,) [s] uniform; height (N,) [m] world z (NaN: not sampled); vertical_velocity
-    (N,) [m/s] or None (then differentiated from the height); thrust (N,) [N]; tilt (N,)
-    R_33 [-] or None (level); mass_guess [kg]; gravity [m/s^2].
+    (N,) [m/s] or None (then differentiated from the height); horizontal_speed (N,)
+    [m/s] or None (not used, NaN rows interpolated); thrust (N,) [N]; tilt (N,)
+    R_33 [-] or None (level); mass_guess [kg]; gravity [m/s^2]. NaN thrust or tilt
+    rows are interpolated.
     """
     s = settings or ContactSettings()
     t = np.asarray(t, dtype=float)
@@ -206,7 +213,7 @@ def detect_floor_contact(t: Array, height: Array, vertical_velocity: Array | Non
         v = np.gradient(z, t)
     c = np.ones(n) if tilt is None else _fill(t, np.asarray(tilt, dtype=float))
     c = np.where(np.isfinite(c), c, 1.0)
-    thrust_up = np.asarray(thrust, dtype=float) * c
+    thrust_up = _fill(t, np.asarray(thrust, dtype=float)) * c
 
     sampled = np.asarray(height, dtype=float)
     floor = float(np.nanmin(_running_median(sampled, max(1, round(0.5 * s.sustain / dt)))))
@@ -214,11 +221,13 @@ def detect_floor_contact(t: Array, height: Array, vertical_velocity: Array | Non
     at_floor = above < s.floor_band
     airborne = above > s.clearance
 
+    # A log that never climbs clear of its lowest level is a flat flight far more often
+    # than a log spent on the floor: balance over all its rows then.
+    balance_rows = airborne if airborne.sum() * dt >= s.min_airborne else np.ones(n, bool)
     mass, mass_from = float(mass_guess), "guess"
-    if airborne.sum() * dt >= s.min_airborne:
-        m_data = thrust_balance_mass(v, thrust_up, dt, airborne, gravity)
-        if np.isfinite(m_data) and m_data > 0:
-            mass, mass_from = m_data, "data"
+    m_data = thrust_balance_mass(v, thrust_up, dt, balance_rows, gravity)
+    if np.isfinite(m_data) and m_data > 0:
+        mass, mass_from = m_data, "data"
     accel = np.nan_to_num(thrust_up / mass - gravity)
 
     h_rest = max(1, round(0.5 * s.rest_window / dt))
@@ -229,6 +238,9 @@ def detect_floor_contact(t: Array, height: Array, vertical_velocity: Array | Non
     thr_imp = max(s.impact_accel, s.noise_factor * _spread(r_imp, ~at_floor))
 
     still = at_floor & (np.abs(v) < s.rest_speed)
+    if horizontal_speed is not None:
+        sideways = _fill(t, np.asarray(horizontal_speed, dtype=float))
+        still &= ~(sideways >= s.rest_speed)  # NaN (never sampled): not used
     rest_seed = still & (np.nan_to_num(r_rest, nan=-np.inf) > thr_rest)
     resting = _runs_touching(still, rest_seed)
     floor_near = _dilate(at_floor, h_imp)

@@ -93,7 +93,8 @@ def floor_contact(log: FlightLog, mass_guess: float,
         tilt = rotation_from_euler(log.euler)[:, 2, 2]
         detection = detect_floor_contact(log.t, log.position[:, 2], log.velocity[:, 2],
                                          log.thrust, tilt, mass_guess, log.meta.gravity,
-                                         settings)
+                                         settings, np.hypot(log.velocity[:, 0],
+                                                            log.velocity[:, 1]))
     if log.contact is not None:
         return FloorContact(log.contact.copy(), "flags", detection)
     rows = detection.widened if detection is not None else np.zeros(log.n, dtype=bool)

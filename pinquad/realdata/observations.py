@@ -17,7 +17,9 @@ dt = 0.01 s:
 
 Transitions k -> k+1 the M-step must skip (``Observations.exclude``): ground contact and
 the take-off / landing around it (height below ``contact_height`` at low speed, or rotors
-below flight speed, widened by ``contact_margin`` seconds), implausible rotor readings
+below flight speed, or found resting on / striking the floor by the detector shared with
+logs that carry thrust and torques, ``models.contact``; widened by ``contact_margin``
+seconds), implausible rotor readings
 (``faults.detect_actuation_faults``) unless repaired from the PWM commands, bins with no
 actuation sample (the input there is interpolated only so the E-step can pass over it).
 """
@@ -32,9 +34,12 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.core.conventions import rotation_from_euler
 from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
 from pinquad.io.sdlog import is_sdlog, read_sdflight
+from pinquad.models.contact import ContactSettings, detect_floor_contact
 from pinquad.models.ssm import Observations
+from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.faults import (
     PARTNER,
     ActuationFaultReport,
@@ -348,14 +353,21 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     exclude = np.zeros(k, dtype=bool)
 
     # Ground contact: near the floor and slow, or rotors below flight speed; widened by
-    # the margin because take-off and landing mix contact forces and ground effect.
+    # the margin because take-off and landing mix contact forces and ground effect. Also
+    # what the shared detector (models.contact) finds from height, velocity and thrust.
     z = position[:, 2]
     z_fill = interp_nan(grid, z)
     speed = np.linalg.norm(np.nan_to_num(vel), axis=1)
     rotors_idle = np.isfinite(rpm_g).all(axis=1)
     rotors_idle[rotors_idle] = np.median(rpm_g[rotors_idle], axis=1) < options.flight_rpm
     low = np.isfinite(z_fill) & (z_fill < options.contact_height) & (speed < options.contact_speed)
-    contact = low | rotors_idle
+    heuristic = low | rotors_idle
+    mass_guess = (log.meta.mass_guess if log.meta.mass_guess is not None
+                  else default_guess(log.meta.vehicle)[0])
+    detected = detect_floor_contact(
+        grid, z, vel[:, 2], inputs[:, 0], rotation_from_euler(euler)[:, 2, 2], mass_guess,
+        log.meta.gravity, ContactSettings(margin=0.0), np.hypot(vel[:, 0], vel[:, 1])).contact
+    contact = heuristic | detected
     grow = int(round(options.contact_margin / dt))
     if contact.any():
         near = np.convolve(contact.astype(float), np.ones(2 * grow + 1), mode="same") > 0
@@ -364,7 +376,9 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         exclusions.append(Exclusion(
             f"ground contact, take-off or landing (height < {options.contact_height * 100:.0f} "
             f"cm at < {options.contact_speed:g} m/s, or median rotor speed < "
-            f"{options.flight_rpm:.0f} rev/min; {int(contact.sum())} steps, widened by "
+            f"{options.flight_rpm:.0f} rev/min: {int(heuristic.sum())} steps; found from the "
+            f"data by models.contact: {int(detected.sum())} steps, "
+            f"{int((detected & ~heuristic).sum())} of them not in the former; widened by "
             f"{options.contact_margin:g} s)", int(ex[:n_tr].sum())))
         exclude |= ex
     else:
