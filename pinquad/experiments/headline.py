@@ -28,6 +28,7 @@ from pinquad.identification.verdict import (
     judge,
     vehicle_range,
 )
+from pinquad.models.full import FullQuadSSM
 
 Array = NDArray[np.float64]
 
@@ -89,7 +90,8 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
         ev = VerdictEvidence()
     else:
         theta = replace(start.theta, inertia=np.asarray(run.inertia))
-        ev = data_evidence(start.obs, theta, start.posterior.mean, _band(run))
+        model = None if run.full is None else FullQuadSSM(start.obs, theta)
+        ev = data_evidence(start.obs, theta, start.posterior.mean, _band(run), model)
     products = None
     if run.full is not None:
         s = np.asarray(run.full.stderr_inertia)

@@ -170,7 +170,7 @@ def _range_check(name: str, se: float, lo: float, hi: float, scale: float, unit:
     share = 4.0 * se / (hi - lo)
     if share <= th.max_range_share:
         return []
-    return [f"its +-2 standard errors ({se * scale:.3g} {unit} each) cover {100 * share:.0f} % "
+    return [f"its +-2 standard errors ({se * scale:.3g} {unit} each) cover {100 * share:.1f} % "
             f"of the vehicle's range {lo * scale:.3g}-{hi * scale:.3g} {unit} "
             f"(at most {100 * th.max_range_share:.0f} %)"]
 
@@ -269,7 +269,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
 
 
 def torque_share(obs: Observations, mean: Array, inertia: Array,
-                 band: tuple[float, float] | None = None) -> Array:
+                 band: tuple[float, float] | None = None, com: Array | None = None) -> Array:
     """Share of the angular-acceleration variance the torques explain, per body axis (3,).
 
     On the transitions k -> k+1 the M-step uses (not excluded, not reset): the angular
@@ -278,12 +278,18 @@ def torque_share(obs: Observations, mean: Array, inertia: Array,
     logged torques tau_k = inputs[k, 1:4] [N m] and the estimate J (3, 3) [kg m^2];
     R^2_i = max(corr(a_i, u_i), 0)^2 (a free scale and offset: the share any inertia
     could explain). band (lo, hi) [Hz]: both series band-passed first (zero-phase
-    Butterworth), for an M-step that reads the inertia from that band only.
+    Butterworth), for an M-step that reads the inertia from that band only. com (3,) [m]:
+    the centre of mass from the thrust centre (the ten-parameter model), whose thrust
+    moment -c x (0, 0, F_k) joins the torques about the CoM.
     """
     inertia = np.asarray(inertia, dtype=float).reshape(3, 3)
     omega = np.asarray(mean, dtype=float)[:, 9:12]
     accel = np.diff(omega, axis=0) / obs.dt
     tau = obs.inputs[:-1, 1:4]
+    if com is not None:
+        thrust = np.zeros((obs.n - 1, 3))
+        thrust[:, 2] = obs.inputs[:-1, 0]
+        tau = tau - np.cross(np.asarray(com, dtype=float), thrust)
     u = (tau - np.cross(omega[:-1], omega[:-1] @ inertia.T)) @ np.linalg.inv(inertia).T
     if band is not None:
         nyquist = 0.5 / obs.dt
@@ -342,7 +348,9 @@ def data_evidence(obs: Observations, theta: Theta, mean: Array,
                   band: tuple[float, float] | None = None, model=None) -> VerdictEvidence:
     """The evidence of a fit at theta: torque shares on the smoothed means (N, 12) (on the
     M-step's band when it reads the inertia from one) and the EKF's innovation
-    consistency (``model``: default ``QuadSSM(obs, theta)``)."""
+    consistency (``model``: default ``QuadSSM(obs, theta)``; the ten-parameter model's
+    ``FullQuadSSM`` for a fit with a centre of mass)."""
     words = "all frequencies" if band is None else f"{band[0]:g}-{band[1]:g} Hz, the M-step's band"
-    return VerdictEvidence(torque_share(obs, mean, theta.inertia, band), words,
-                           innovation_consistency(obs, theta, model))
+    com = np.asarray(theta.com, dtype=float)
+    return VerdictEvidence(torque_share(obs, mean, theta.inertia, band, com if com.any() else None),
+                           words, innovation_consistency(obs, theta, model))
