@@ -26,6 +26,7 @@ from pinquad.identification.verdict import (
     vehicle_range,
 )
 from pinquad.io.logs import write_log
+from pinquad.io.runs import LOG_REPORT_KEYS
 from pinquad.models.ssm import NoiseModel, Observations, Theta
 
 M, J = CRAZYFLIE21.mass, np.diag(CRAZYFLIE21.inertia).copy()
@@ -155,6 +156,12 @@ def test_untrusted_headline_exits_3_and_still_writes_the_report(noisy_torque_log
     assert set(report) >= {"schema", "source", "estimates", "em", "discovery", "cycles",
                            "base", "verdict"}
     assert set(report["estimates"]) >= {"mass", "inertia", "com", "stderr", "verdict"}
+    for path in LOG_REPORT_KEYS:  # every documented added key is written
+        node = report
+        for key in path.replace("[]", "").split("."):
+            node = node[0] if isinstance(node, list) else node
+            assert key in node, path
+            node = node[key]
     assert report["source"]["log_type"] == "thrust/torque commands, simulator truth"
     assert report["source"]["log_kind"] == "simulated"
     verdict = report["verdict"]

@@ -10,7 +10,13 @@ With ``--log PATH`` it identifies the vehicle of a recorded log (CSV, Parquet or
 Crazyflie micro-SD binary log; ``pinquad.experiments.recorded``) and looks for
 unmodelled effects; the run directory holds report.json (DESIGN 4.3), report.md, the log
 as the E-step saw it (``logs/flight.parquet``), the smoothed state means
-(``logs/flight-smoothed.npy``, (N, 12)) and figures, written whole or not at all.
+(``logs/flight-smoothed.npy``, (N, 12)) and figures, written whole or not at all. Its
+headline (``estimates``) is the estimate under the final model (discovery's refit when
+effects were selected; the base fit under ``base``), each with a verdict
+(``pinquad.identification.verdict``); the command exits 3 when the headline is not
+trusted, after writing the run directory.
+
+Exit codes: 0 success; 2 bad input (nothing written); 3 headline not trusted (written).
 """
 
 from __future__ import annotations
