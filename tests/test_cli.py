@@ -66,6 +66,12 @@ def test_realdata_table_job_on_jana00_weighs_the_vehicle():
     # The scale's mass within the 3 % the realdata tests allow.
     assert result.mass == pytest.approx(SCALE_MASS, rel=0.03)
     assert np.all(np.asarray(result.inertia) > 0.0)
+    # the table's verdict column: the mass of this clean log is trusted, and every
+    # parameter is judged with reasons wherever it is not
+    v = result.verdict
+    assert [p.name for p in v.parameters] == ["mass", "I_xx", "I_yy", "I_zz"]
+    assert v.get("mass").trusted
+    assert all(p.reasons for p in v.parameters if not p.trusted)
 
 
 def test_realdata_table_job_reports_a_missing_log_as_a_reason(tmp_path):

@@ -216,10 +216,20 @@ def test_csv_log_round_trip_names_com_offset(tmp_path):
         assert sel["stderr"][name] > 0
     assert sel["evidence"]["heldout_gain"] > 0.5
     inertia = np.diag(np.asarray(disc["refit"]["inertia"]))
-    base = np.diag(np.asarray(report["estimates"]["inertia"]))
+    base = np.diag(np.asarray(report["base"]["inertia"]))
     truth = np.diag(CRAZYFLIE21.inertia)
     np.testing.assert_allclose(inertia, truth, rtol=0.15)
     assert np.all(np.abs(inertia / truth - 1) < 0.1 * np.abs(base / truth - 1))
+    # the headline is the final model: estimates = the refit, the base fit under "base";
+    # the base's orders-of-magnitude inertia is judged implausible, the refit trusted
+    est = report["estimates"]
+    assert est["mass"] == disc["refit"]["mass"]
+    np.testing.assert_array_equal(np.asarray(est["inertia"]), np.asarray(disc["refit"]["inertia"]))
+    assert set(report["base"]) == set(est)
+    assert report["base"]["verdict"]["overall"] == "implausible"
+    assert est["verdict"]["overall"] == "trusted" == report["verdict"]["overall"]
+    assert report["runs"][0]["estimates"]["verdict"] == report["base"]["verdict"]
+    assert "final" in proc.stdout and "verdict: trusted" in proc.stdout
     for axis in ("torque_x", "torque_y"):
         assert disc["residual_rms_after"][axis] < 0.1 * disc["residual_rms_before"][axis]
     assert "held out" in disc["validation"]
@@ -231,9 +241,14 @@ def test_csv_log_round_trip_names_com_offset(tmp_path):
     out2 = tmp_path / "run-nodisc"
     proc = _offline("--log", str(path), "--mstep", "regressor", "--no-information", "--no-discover",
                     "--out", str(out2))
-    assert proc.returncode == 0, proc.stderr
+    # without discovery the headline is the base fit, whose inertia is implausible for a
+    # Crazyflie: exit 3, the report written all the same
+    assert proc.returncode == 3, proc.stderr
     assert "effect discovery" not in proc.stdout
-    assert json.loads((out2 / "report.json").read_text())["discovery"]["selected"] == []
+    report2 = json.loads((out2 / "report.json").read_text())
+    assert report2["discovery"]["selected"] == []
+    assert report2["verdict"]["overall"] == "implausible"
+    assert report2["estimates"]["mass"] == report2["base"]["mass"]
 
 
 def test_bad_log_gives_a_message_and_no_run(tmp_path):

@@ -10,7 +10,13 @@ With ``--log PATH`` it identifies the vehicle of a recorded log (CSV, Parquet or
 Crazyflie micro-SD binary log; ``pinquad.experiments.recorded``) and looks for
 unmodelled effects; the run directory holds report.json (DESIGN 4.3), report.md, the log
 as the E-step saw it (``logs/flight.parquet``), the smoothed state means
-(``logs/flight-smoothed.npy``, (N, 12)) and figures, written whole or not at all.
+(``logs/flight-smoothed.npy``, (N, 12)) and figures, written whole or not at all. Its
+headline (``estimates``) is the estimate under the final model (discovery's refit when
+effects were selected; the base fit under ``base``), each with a verdict
+(``pinquad.identification.verdict``); the command exits 3 when the headline is not
+trusted, after writing the run directory.
+
+Exit codes: 0 success; 2 bad input (nothing written); 3 headline not trusted (written).
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ import numpy as np
 
 from pinquad.cli.help import HelpFormatter, positive_int
 from pinquad.core.params import PAPER_SCENARIO
+from pinquad.experiments.headline import headline
 from pinquad.experiments.offline_mc import CycleJob, run_cycles
 from pinquad.experiments.recorded import (
     LogOptions,
@@ -40,11 +47,22 @@ from pinquad.report.discovery import draw_discovery_figures
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
 from pinquad.report.recorded import (
     discovery_summary,
+    headline_summary,
     log_table,
     report_json,
     report_markdown,
     write_log_run,
 )
+
+UNTRUSTED = 3
+"""Exit code of a run whose report is written but whose headline estimate is not
+trusted (DESIGN 4.1)."""
+
+EXIT_CODES = ("exit codes: 0 success; 2 bad input or arguments (a message naming the file "
+              "and what was expected, nothing written); 3 (with --log) the run finished and "
+              "its report is written, but the headline estimate (the final model's mass and "
+              "inertia) is not trusted: not identifiable from this log, model not adequate, "
+              "or implausible; report.json's 'verdict' and the printed table say why")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m pinquad.offline",
         description="Offline EM identification of a quadcopter's mass and inertia. Without "
                     "--log: the paper's simulated offline experiment (Tables II and III).",
-        formatter_class=HelpFormatter)
+        epilog=EXIT_CODES, formatter_class=HelpFormatter)
     p.add_argument("--log", type=Path, help="identify from a recorded log (CSV, Parquet or "
                    "Crazyflie micro-SD binary) instead of simulating")
     p.add_argument("--sensor", choices=["A", "B", "C"], action="append",
@@ -139,7 +157,9 @@ def _view(run_dir: Path) -> int:
 def run_log(args: argparse.Namespace) -> int:
     """Identify the vehicle of ``args.log`` and write a run directory (module docstring).
 
-    Raises LogFormatError / ValueError (with the file named) on bad input; returns 0.
+    Raises LogFormatError / ValueError (with the file named) on bad input; returns 0, or
+    ``UNTRUSTED`` (3) when the headline estimate's verdict is not ``trusted`` (the run
+    directory is written either way).
     """
     options = LogOptions(sensors=tuple(args.sensor or ()), msteps=_msteps(args.mstep),
                          estep=args.estep, max_iterations=args.max_iterations,
@@ -155,19 +175,17 @@ def run_log(args: argparse.Namespace) -> int:
                          "measurements do not fit a rigid-body model from the initial "
                          "guess (give mass_guess / inertia_guess in the sidecar)") from None
     seconds = time.perf_counter() - t0
-    print(f"log type: {result.kind}; {result.obs.n} steps of {result.obs.dt * 1e3:.0f} ms")
+    print(f"log: {result.contents}; {result.obs.n} steps of {result.obs.dt * 1e3:.0f} ms")
     print(f"initial guess: {result.guess}")
     for line in result.excluded:
         print(f"excluded: {line}")
     for note in result.notes:
         print(f"note: {note}")
-    print()
-    print(log_table(result))
-    print(f"\n{seconds:.1f} s")
+    print(f"\nEM: {seconds:.1f} s")
 
     writer = RunWriter(args.out or new_run_dir("log"))
     with writer:
-        discovery = None
+        discovery, outcome = None, None
         if result.runs[0].mstep == "full" and not args.no_discover:
             print("\neffect discovery: not run (it works on the diagonal model: run "
                   "--mstep regressor for it)")
@@ -179,11 +197,22 @@ def run_log(args: argparse.Namespace) -> int:
             discovery = discovery_section(outcome)
             print()
             print(discovery_summary(discovery))
-        report = report_json(result, str(args.log), args.estep, seconds, discovery)
-        write_log_run(writer, result, report, report_markdown(result, str(args.log), discovery))
+        top = headline(result, outcome)
+        print()
+        print(log_table(result, top))
+        print()
+        print(headline_summary(top))
+        report = report_json(result, str(args.log), args.estep, seconds, discovery, top)
+        write_log_run(writer, result, report,
+                      report_markdown(result, str(args.log), discovery, top))
         final = writer.publish()
     print(f"run written to {final}")
-    return _view(final) if args.view else 0
+    code = 0 if top.final.verdict.trusted else UNTRUSTED
+    if code:
+        print(f"exit code {UNTRUSTED}: the headline estimate is {top.final.verdict.overall} "
+              "(report written; its verdict says why)", file=sys.stderr)
+    viewed = _view(final) if args.view else 0
+    return viewed or code
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -92,8 +92,12 @@ class LogResult:
     """A recorded log's identification: runs (first = the reported one), the log and the
     observations the E-step saw, the smoothed means (N, 12) of the reported run, the
     initial guess in words, exclusions and notes, the kind of log (``sdlog``,
-    ``measured-table``, ``simulated``), the thrust coefficient and actuation-fault notes
-    of a measured flight. Discovery starts from ``discovery_start(runs[0])``."""
+    ``measured-table``, or ``simulated`` for any log with thrust and torque columns, the
+    key ``DISCOVERY_SETTINGS`` and the report dispatch on), the thrust coefficient and
+    actuation-fault notes of a measured flight, and contents: what the recorded log carries, in words
+    (``log_contents``; ``log`` is the log as the E-step saw it, for a measured flight
+    resampled with the thrust and torques its rotor speeds give). Discovery starts from
+    ``discovery_start(runs[0])``."""
 
     runs: tuple[Identification, ...]
     log: FlightLog
@@ -105,6 +109,23 @@ class LogResult:
     kind: str
     kf: ThrustCoefficient | None = None
     faults: tuple[str, ...] = ()
+    contents: str = ""
+
+
+def log_contents(log: FlightLog) -> str:
+    """What a log carries, in words: its actuation (thrust/torque commands, rotor speeds,
+    motor commands) and, when it has ``true_*`` columns, simulator truth."""
+    if log.thrust is not None:
+        parts = ["thrust/torque commands"]
+    elif log.rpm is not None:
+        parts = ["rotor speeds"]
+    else:
+        parts = ["motor commands"]
+    if log.measured is not None:
+        parts[0] += " (Crazyflie micro-SD log)"
+    if log.truth is not None:
+        parts.append("simulator truth")
+    return ", ".join(parts)
 
 
 DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
@@ -202,7 +223,8 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
     assert first is not None
     real, smoothed = first
     return LogResult(tuple(runs), real.log, real.obs, smoothed, guess, real.excluded,
-                     real.notes, kind, kf=real.kf, faults=tuple(real.faults.notes))
+                     real.notes, kind, kf=real.kf, faults=tuple(real.faults.notes),
+                     contents=log_contents(log))
 
 
 def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity: float,
@@ -247,7 +269,7 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
     excluded = (f"{contact.transitions()} transitions: {contact.describe()}",
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
     return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
-                     tuple(log.meta.notes), "simulated")
+                     tuple(log.meta.notes), "simulated", contents=log_contents(log))
 
 
 def identify_log(log: FlightLog, options: LogOptions | None = None) -> LogResult:

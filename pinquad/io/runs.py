@@ -14,7 +14,27 @@ from typing import Any
 import numpy as np
 
 REPORT_SCHEMA = "pinquad.report/1"
-"""The ``schema`` of every report.json (DESIGN 4.3)."""
+"""The ``schema`` of every report.json (DESIGN 4.3). Its keys keep their meaning; keys
+are only ever added (``LOG_REPORT_KEYS``)."""
+
+LOG_REPORT_KEYS: dict[str, str] = {
+    "estimates": "the estimate under the final model: discovery's refit when effects were "
+                 "selected, else the base fit (DESIGN 4.3 layout plus the keys below)",
+    "estimates.verdict": "{'overall', 'reasons', 'parameters': {name: {'verdict', "
+                         "'reasons'}}}; verdicts: trusted, not identifiable, model not "
+                         "adequate, implausible (pinquad.identification.verdict)",
+    "estimates.model": "the model the estimate was fitted under, in words",
+    "estimates.stderr_note": "how its standard errors were computed",
+    "base": "the base fit (the first run), the same layout as estimates",
+    "verdict": "the headline's verdict, estimates.verdict repeated at the top",
+    "runs[].estimates.verdict": "each run's own verdict",
+    "source.log_type": "what the log carries, in words (thrust/torque commands, rotor "
+                       "speeds, simulator truth)",
+    "source.log_kind": "the internal kind (simulated: thrust/torque columns; sdlog; "
+                       "measured-table)",
+}
+"""Keys a recorded log's report.json (``offline --log``) adds to DESIGN 4.3, by dotted
+path, with their meaning."""
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:

@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.identify import get_smoother, loglik_function
+from pinquad.identification.verdict import EstimateVerdict
 from pinquad.models.ssm import Theta
 from pinquad.realdata.band_mstep import BandStats, RealMStep
 from pinquad.realdata.dataset import SCALE_MASS
@@ -78,7 +79,8 @@ class RealIdentification:
     band-passed regression at the final posterior (``keep_band_stats``); rotor_source:
     how J_r was obtained, in words (set by the table); quasi_static_mass [kg]: the
     model-free check :func:`quasi_static_mass` on the same transitions; motor_split: that
-    check split by motor (:func:`motor_split`).
+    check split by motor (:func:`motor_split`); verdict: the estimate's verdict
+    (``pinquad.identification.verdict``; set by the table, None until judged).
     """
 
     name: str
@@ -106,6 +108,7 @@ class RealIdentification:
     rotor_source: str = ""
     quasi_static_mass: float = float("nan")
     motor_split: MotorSplit | None = None
+    verdict: EstimateVerdict | None = None
 
     @property
     def params(self) -> Array:

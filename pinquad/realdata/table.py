@@ -8,11 +8,19 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge, vehicle_range
 from pinquad.io.logs import LogFormatError
+from pinquad.models.ssm import Observations
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
+from pinquad.realdata.model import RealTheta, corrected, plain_theta
 from pinquad.realdata.observations import RealDataOptions, load_real
 from pinquad.realdata.thrust import thrust_coefficient
+
+Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -39,13 +47,26 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
         kf = thrust_coefficient(job.stand)
         real = load_real(job.path, job.options, kf)
         mass0, inertia0, _ = default_guess("crazyflie21")
-        ident, _, _ = identify_real(real, mass0, inertia0, job.max_iterations,
-                                    job.information, job.band, name=job.path.name,
-                                    fit_rotor_inertia=job.fit_rotor_inertia,
-                                    keep_band_stats=job.keep_band_stats)
+        ident, post, theta = identify_real(real, mass0, inertia0, job.max_iterations,
+                                           job.information, job.band, name=job.path.name,
+                                           fit_rotor_inertia=job.fit_rotor_inertia,
+                                           keep_band_stats=job.keep_band_stats)
     except (LogFormatError, ValueError) as exc:
         return str(exc)
-    return replace(ident, rotor_source=job.rotor_source)
+    return replace(ident, rotor_source=job.rotor_source,
+                   verdict=real_verdict(ident, real.obs, post.mean, theta))
+
+
+def real_verdict(ident: RealIdentification, obs: Observations, mean: Array,
+                 theta: RealTheta) -> EstimateVerdict:
+    """The verdict of a measured flight's estimate (``pinquad.identification.verdict``):
+    its total standard errors against the Crazyflie's range, the torques (with the
+    fitted nuisance moment) explaining the angular acceleration on the M-step's band,
+    and the EKF's innovation consistency at the estimate. mean (N, 12): smoothed states."""
+    plain = replace(plain_theta(theta), inertia=np.diag(ident.inertia))
+    ev = data_evidence(corrected(obs, theta), plain, mean, tuple(ident.band))
+    return judge(ident.mass, np.diag(ident.inertia), ident.se_total, ev,
+                 vehicle_range("crazyflie21"))
 
 
 def run_jobs(jobs: Sequence[TableJob], workers: int) -> list[RealIdentification | str]:

@@ -28,6 +28,25 @@ def _pm(value: float, total: float, stat: float, scale: float, fmt: str = ".2f")
             f"({stat * scale:{fmt}})")
 
 
+def _judged(r: RealIdentification, i: int, scale: float, fmt: str = ".2f") -> str:
+    """Parameter i of [m, I_xx, I_yy, I_zz] as ``value ± total (statistical)``, or, when its
+    verdict is not trusted, ``value (verdict)`` without an error bar."""
+    name = ("mass", "I_xx", "I_yy", "I_zz")[i]
+    v = None if r.verdict is None else r.verdict.get(name)
+    if v is None or v.trusted:
+        return _pm(r.params[i], r.se_total[i], r.se_stat[i], scale, fmt)
+    return f"{r.params[i] * scale:{fmt}} ({v.verdict})"
+
+
+def _verdict_words(r: RealIdentification) -> str:
+    """The overall verdict and, when not trusted, its reasons."""
+    if r.verdict is None:
+        return "-"
+    if r.verdict.trusted:
+        return r.verdict.overall
+    return f"{r.verdict.overall}: " + "; ".join(r.verdict.reasons)
+
+
 def _rotor_words(r: RealIdentification) -> str:
     if not np.isfinite(r.rotor_inertia):
         return f"{r.name} none"
@@ -43,18 +62,17 @@ def format_table(results: Sequence[RealIdentification],
     kf = results[0].kf
     lines = [
         "| log | what was flown | used / excluded transitions (why) | mass [g] | vs 34.7 g | "
-        "I_xx [1e-6 kg m^2] | I_yy | I_zz | EM iterations |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "I_xx [1e-6 kg m^2] | I_yy | I_zz | verdict | EM iterations |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
-        p, tot, st = r.params, r.se_total, r.se_stat
-        within = abs(r.mass - SCALE_MASS) <= 2.0 * tot[0]
+        within = abs(r.mass - SCALE_MASS) <= 2.0 * r.se_total[0]
         lines.append(
             f"| {r.name} | {FLIGHTS.get(r.name, '')} | {r.n_used} / {r.n_excluded} "
-            f"({_short_reasons(r)}) | {_pm(p[0], tot[0], st[0], 1e3)} | "
+            f"({_short_reasons(r)}) | {_judged(r, 0, 1e3)} | "
             f"{100 * r.mass_rel_error:+.2f} %{'' if within else ' (!)'} | "
-            + " | ".join(_pm(p[i], tot[i], st[i], 1e6, ".1f") for i in (1, 2, 3))
-            + f" | {r.iterations}{'' if r.converged else ' (not converged)'} |")
+            + " | ".join(_judged(r, i, 1e6, ".1f") for i in (1, 2, 3))
+            + f" | {_verdict_words(r)} | {r.iterations}{'' if r.converged else ' (not converged)'} |")
     lines += [
         "",
         "value ± total standard error (statistical standard error): statistical = larger of "

@@ -10,8 +10,10 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import wrap_angle
+from pinquad.experiments.headline import Headline
 from pinquad.experiments.recorded import LogResult
 from pinquad.identification.identify import Identification
+from pinquad.identification.verdict import PRODUCTS, EstimateVerdict, ParameterVerdict
 from pinquad.io.logs import write_log
 from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 from pinquad.models.ssm import Observations
@@ -96,25 +98,52 @@ def run_details(r: Identification, kind: str) -> dict:
             "seconds": r.seconds}
 
 
-def log_table(result: LogResult) -> str:
+def pm(v: float, s: float, scale: float, fmt: str) -> str:
+    """``value ± stderr`` scaled (the error left out when not computed)."""
+    return f"{v * scale:{fmt}}" + ("" if not np.isfinite(s) else f" ± {s * scale:{fmt}}")
+
+
+def judged(v: float, s: float, scale: float, fmt: str, verdict: ParameterVerdict | None) -> str:
+    """A number as printed beside its verdict: ``value ± stderr`` when trusted (or not
+    judged), else ``value (verdict: first reason)``: an untrusted estimate never stands as
+    a bare number with a small error bar."""
+    if verdict is None or verdict.trusted:
+        return pm(v, s, scale, fmt)
+    return f"{v * scale:{fmt}} ({verdict.verdict}: {verdict.reasons[0]})"
+
+
+def _estimate_cells(mass: float, inertia: Array, stderr: Array,
+                    verdict: EstimateVerdict | None) -> str:
+    get = (lambda name: None) if verdict is None else verdict.get
+    return (f"{judged(mass, stderr[0], 1e3, '.3f', get('mass'))} | "
+            + " | ".join(judged(inertia[i, i], stderr[i + 1], 1e6, ".2f", get(n))
+                         for i, n in enumerate(("I_xx", "I_yy", "I_zz"))))
+
+
+def log_table(result: LogResult, headline: Headline | None = None) -> str:
     """The printed table: one row per run (mass [g], inertia diagonal [1e-6 kg m^2] with
-    standard errors, EM iterations), the scale / published row and mass checks for the
-    Crazyflie, the ten-parameter model's CoM and products of inertia."""
+    standard errors or, when not trusted, the verdict and its first reason; the overall
+    verdict; EM iterations), the final model's row when discovery refitted it, the scale /
+    published row and mass checks for the Crazyflie, the ten-parameter model's CoM and
+    products of inertia."""
     crazyflie = result.log.meta.vehicle == "crazyflie21"
-    head = "| sensor | M-step | mass [g] | I_xx [1e-6 kg m^2] | I_yy | I_zz | EM iterations |"
-    lines = [head, "|---|---|---|---|---|---|---|"]
-
-    def pm(v: float, s: float, scale: float, fmt: str) -> str:
-        return f"{v * scale:{fmt}}" + ("" if not np.isfinite(s) else f" ± {s * scale:{fmt}}")
-
-    for r in result.runs:
+    head = ("| sensor | M-step | mass [g] | I_xx [1e-6 kg m^2] | I_yy | I_zz | verdict "
+            "| EM iterations |")
+    lines = [head, "|---|---|---|---|---|---|---|---|"]
+    verdicts = (None,) * len(result.runs) if headline is None else headline.run_verdicts
+    for r, v in zip(result.runs, verdicts, strict=True):
         lines.append(
-            f"| {r.sensor} | {r.mstep} | {pm(r.mass, r.stderr[0], 1e3, '.3f')} | "
-            + " | ".join(pm(r.inertia[i, i], r.stderr[i + 1], 1e6, ".2f") for i in range(3))
-            + f" | {r.iterations}{'' if r.converged else ' (not converged)'} |")
+            f"| {r.sensor} | {r.mstep} | {_estimate_cells(r.mass, r.inertia, r.stderr, v)} | "
+            f"{'-' if v is None else v.overall} | "
+            f"{r.iterations}{'' if r.converged else ' (not converged)'} |")
+    if headline is not None and headline.refitted:
+        f = headline.final
+        lines.append(f"| final | {f.model} | "
+                     f"{_estimate_cells(f.mass, f.inertia, f.stderr, f.verdict)} | "
+                     f"{f.verdict.overall} | |")
     if crazyflie:
         lines.append(f"| scale / published | | {SCALE_MASS * 1e3:.1f} | "
-                     + " | ".join(f"{v * 1e6:.2f}" for v in PUBLISHED_INERTIA) + " | |")
+                     + " | ".join(f"{v * 1e6:.2f}" for v in PUBLISHED_INERTIA) + " | | |")
         for r in result.runs:
             lines.append(f"\n{r.sensor}, {r.mstep} M-step: mass {r.mass * 1e3:.2f} g vs "
                          f"{SCALE_MASS * 1e3:.1f} g on the scale: "
@@ -140,18 +169,17 @@ def log_table(result: LogResult) -> str:
                         f"{r.sensor}, model-free mass on the {split['all_measured_transitions']} "
                         f"transitions with every rotor speed measured: {own * 1e3:.2f} g "
                         f"({100 * (own / SCALE_MASS - 1):+.2f} %)")
-    for r in result.runs:
+    for r, v in zip(result.runs, verdicts, strict=True):
         if r.full is not None:
             full = r.full
             lines.append(f"\n{r.sensor}, full M-step: centre of mass [mm] "
                          + ", ".join(pm(full.com[i], full.stderr_com[i], 1e3, ".3f")
                                      for i in range(3)))
             lines.append(f"{r.sensor}, full M-step: products of inertia [1e-6 kg m^2] "
-                         + ", ".join(f"I_{a}{b} " + pm(full.inertia[i, j],
-                                                       full.stderr_inertia[i, j], 1e6, ".2f")
-                                     for (i, a), (j, b) in (((0, "x"), (1, "y")),
-                                                            ((0, "x"), (2, "z")),
-                                                            ((1, "y"), (2, "z")))))
+                         + ", ".join(f"{name} " + judged(
+                             full.inertia[i, j], full.stderr_inertia[i, j], 1e6, ".2f",
+                             None if v is None else v.get(name))
+                             for name, i, j in PRODUCTS))
     return "\n".join(lines)
 
 
@@ -206,10 +234,13 @@ def discovery_summary(section: dict) -> str:
 
 
 
-def _estimates(r: Identification) -> dict:
-    return {"mass": r.mass, "inertia": np.asarray(r.inertia).tolist(),
-            "com": None if r.com is None else r.com.tolist(),
-            "stderr": {"mass": r.stderr[0], "inertia_diag": r.stderr[1:].tolist()}}
+def _estimates(r: Identification, verdict: EstimateVerdict | None = None) -> dict:
+    out = {"mass": r.mass, "inertia": np.asarray(r.inertia).tolist(),
+           "com": None if r.com is None else r.com.tolist(),
+           "stderr": {"mass": r.stderr[0], "inertia_diag": r.stderr[1:].tolist()}}
+    if verdict is not None:
+        out["verdict"] = verdict.to_report()
+    return out
 
 
 def _em(r: Identification) -> dict:
@@ -218,17 +249,21 @@ def _em(r: Identification) -> dict:
 
 
 def report_json(result: LogResult, path: str, estep: str, seconds: float,
-                discovery: dict | None) -> dict:
-    """report.json of a recorded log (DESIGN 4.3): the first run's estimates, every run
-    with its details, exclusions, notes, the kf and fault notes of measured flights, and
-    the discovery section (``not run`` when None)."""
+                discovery: dict | None, headline: Headline) -> dict:
+    """report.json of a recorded log (DESIGN 4.3): ``estimates`` under the final model
+    (discovery's refit when effects were selected, else the base fit) with its verdict,
+    the base fit under ``base`` (same layout), the headline's ``verdict``, every run with
+    its details and verdict, exclusions, notes, the kf and fault notes of measured
+    flights, and the discovery section (``not run`` when None)."""
     main = result.runs[0]
     report = {
         "schema": REPORT_SCHEMA,
         "source": {"kind": "log", "path": path, "sensor": main.sensor,
-                   "estep": estep, "log_type": result.kind,
+                   "estep": estep, "log_type": result.contents, "log_kind": result.kind,
                    "vehicle": result.log.meta.vehicle, "mstep": main.mstep},
-        "estimates": _estimates(main),
+        "estimates": headline.final.to_report(),
+        "base": headline.base.to_report(),
+        "verdict": headline.final.verdict.to_report(),
         "em": _em(main),
         "discovery": discovery if discovery is not None else {
             "selected": [], "residual_rms_before": {}, "residual_rms_after": {},
@@ -238,8 +273,9 @@ def report_json(result: LogResult, path: str, estep: str, seconds: float,
         "run_logs": {"log": {"log": "logs/flight.parquet",
                              "smoothed": "logs/flight-smoothed.npy"}},
         "initial_guess": result.guess,
-        "runs": [{"sensor": r.sensor, "mstep": r.mstep, "estimates": _estimates(r), "em": _em(r),
-                  **run_details(r, result.kind)} for r in result.runs],
+        "runs": [{"sensor": r.sensor, "mstep": r.mstep, "estimates": _estimates(r, v),
+                  "em": _em(r), **run_details(r, result.kind)}
+                 for r, v in zip(result.runs, headline.run_verdicts, strict=True)],
         "notes": list(result.notes),
         "seconds": seconds,
     }
@@ -251,9 +287,26 @@ def report_json(result: LogResult, path: str, estep: str, seconds: float,
     return report
 
 
-def report_markdown(result: LogResult, path: str, discovery: dict | None) -> str:
-    """report.md: the table, exclusions, notes and the discovery section."""
-    md = (f"# pinquad: identification from {path}\n\n" + log_table(result) + "\n\n"
+def headline_summary(headline: Headline) -> str:
+    """The printed headline: the final model's estimate, its verdict and the reasons."""
+    f = headline.final
+    mass = judged(f.mass, f.stderr[0], 1e3, ".3f", f.verdict.get("mass"))
+    lines = [f"headline ({f.model}): mass {mass} g, "
+             "inertia diagonal " + ", ".join(
+                 judged(f.inertia[i, i], f.stderr[i + 1], 1e6, ".2f", f.verdict.get(n))
+                 for i, n in enumerate(("I_xx", "I_yy", "I_zz"))) + " e-6 kg m^2",
+             f"verdict: {f.verdict.overall}"]
+    lines += [f"  {r}" for r in f.verdict.reasons]
+    return "\n".join(lines)
+
+
+def report_markdown(result: LogResult, path: str, discovery: dict | None,
+                    headline: Headline) -> str:
+    """report.md: the log's contents, the table with verdicts, the headline, exclusions,
+    notes and the discovery section."""
+    md = (f"# pinquad: identification from {path}\n\nlog: {result.contents}\n\n"
+          + log_table(result, headline) + "\n\n" + headline_summary(headline).replace(
+              "\n  ", "\n- ") + "\n\n"
           + "\n".join(f"- excluded: {e}" for e in result.excluded) + "\n"
           + "".join(f"- note: {n}\n" for n in result.notes))
     if discovery is not None:

@@ -1,0 +1,141 @@
+"""The headline of a recorded log: the estimate under the final model (after discovery's
+refit when effects were selected, else the base fit), the base fit beside it, and a
+verdict (``pinquad.identification.verdict``) for each of them and for every run."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.discovery.refit import corrected_observations, model_factory
+from pinquad.discovery.result import DiscoveryResult
+from pinquad.estep.fast_smoother import loglik_quad
+from pinquad.experiments.recorded import (
+    DiscoveryOutcome,
+    LogResult,
+    discovery_config,
+    discovery_start,
+)
+from pinquad.identification.fisher import observed_information, standard_errors
+from pinquad.identification.identify import Identification
+from pinquad.identification.verdict import (
+    EstimateVerdict,
+    VehicleRange,
+    VerdictEvidence,
+    data_evidence,
+    judge,
+    vehicle_range,
+)
+from pinquad.models.full import FullQuadSSM
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One estimate of the vehicle: mass [kg], inertia (3, 3) [kg m^2], com (3,) [m] or
+    None, stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not computed), stderr_note: how it
+    was computed, model: the model it was fitted under, in words; verdict."""
+
+    mass: float
+    inertia: Array
+    com: Array | None
+    stderr: Array
+    stderr_note: str
+    model: str
+    verdict: EstimateVerdict
+
+    def to_report(self) -> dict:
+        """report.json's estimate layout (DESIGN 4.3 ``estimates``, plus the verdict)."""
+        return {"mass": self.mass, "inertia": np.asarray(self.inertia).tolist(),
+                "com": None if self.com is None else np.asarray(self.com).tolist(),
+                "stderr": {"mass": self.stderr[0], "inertia_diag": self.stderr[1:].tolist()},
+                "stderr_note": self.stderr_note, "model": self.model,
+                "verdict": self.verdict.to_report()}
+
+
+@dataclass(frozen=True)
+class Headline:
+    """What a log's report leads with: final (the estimate under the final model), base
+    (the base fit, the reported run) and one verdict per run (``LogResult.runs`` order).
+    ``final is base`` when no effect was selected or discovery did not run."""
+
+    final: Estimate
+    base: Estimate
+    run_verdicts: tuple[EstimateVerdict, ...]
+
+    @property
+    def refitted(self) -> bool:
+        return self.final is not self.base
+
+
+def _range(result: LogResult) -> VehicleRange | None:
+    meta = result.log.meta
+    return vehicle_range(meta.vehicle, meta.mass_guess, meta.inertia_guess)
+
+
+def _band(run: Identification) -> tuple[float, float] | None:
+    """The measured-flight M-step reads the inertia from its torque band only."""
+    return None if run.measured is None else tuple(run.measured.band)
+
+
+def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
+    """The verdict of one run of a log (its own posterior and observations; a run that kept
+    none is judged on its values and standard errors alone)."""
+    try:
+        start = discovery_start(run)
+    except ValueError:
+        ev = VerdictEvidence()
+    else:
+        theta = replace(start.theta, inertia=np.asarray(run.inertia))
+        model = None if run.full is None else FullQuadSSM(start.obs, theta)
+        ev = data_evidence(start.obs, theta, start.posterior.mean, _band(run), model)
+    products = None
+    if run.full is not None:
+        s = np.asarray(run.full.stderr_inertia)
+        products = np.array([s[0, 1], s[0, 2], s[1, 2]])
+    return judge(run.mass, run.inertia, run.stderr, ev, _range(result), products)
+
+
+def _base(result: LogResult, verdict: EstimateVerdict) -> Estimate:
+    run = result.runs[0]
+    note = ("statistical (observed information or block jackknife) combined with kf's "
+            "uncertainty" if run.measured is not None
+            else "observed information of the EKF likelihood")
+    return Estimate(run.mass, np.asarray(run.inertia), run.com, np.asarray(run.stderr, dtype=float),
+                    note, f"base rigid-body model ({run.mstep} M-step, sensor {run.sensor})",
+                    verdict)
+
+
+def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimate:
+    run = result.runs[0]
+    start = discovery_start(run)
+    theta = replace(found.theta, mass=float(found.mass), inertia=np.asarray(found.inertia))
+    obs = corrected_observations(start.obs, found.posterior.mean, found.coefficients)
+    model = model_factory(found.coefficients)(obs, theta)
+    ev = data_evidence(obs, theta, found.posterior.mean, _band(run), model)
+    if discovery_config(result.kind).refit_em:
+        stderr = standard_errors(observed_information(obs, theta, loglik_quad))
+        note = ("observed information of the EKF likelihood on the observations with the "
+                "selected effects' thrust and torque folded in (body x/y forces of drag or "
+                "wind are not in this likelihood)")
+    else:
+        stderr = base.stderr
+        note = ("the base fit's (discovery keeps the base inertia and refits the mass on the "
+                "base posterior's force rows)")
+    verdict = judge(found.mass, found.inertia, stderr, ev, _range(result))
+    return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,
+                    f"base model plus {', '.join(found.selected)} (discovery's refit)", verdict)
+
+
+def headline(result: LogResult, outcome: DiscoveryOutcome | None) -> Headline:
+    """The headline of a log's identification (module docstring): the final model is
+    discovery's refit when ``outcome`` selected effects, else the base fit."""
+    verdicts = tuple(run_verdict(result, r) for r in result.runs)
+    base = _base(result, verdicts[0])
+    found = None if outcome is None else outcome.result
+    if found is None or not found.selected:
+        return Headline(base, base, verdicts)
+    return Headline(_final(result, found, base), base, verdicts)

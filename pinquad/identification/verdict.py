@@ -1,0 +1,356 @@
+"""A verdict for every estimate: can this log carry this number?
+
+Each identified parameter (mass, I_xx, I_yy, I_zz, and the products of inertia of the
+ten-parameter model) gets one of ``VERDICTS``, judged from data by three checks:
+
+* identifiable: the log narrows the parameter to a small part of what the vehicle could
+  physically be: the +-2 standard-error interval covers at most ``max_range_share`` of
+  the vehicle's range (``VehicleRange``: its URDF values, or the sidecar's guesses, times
+  and over a factor), 4 se <= share (hi - lo); for the inertia also the logged torques
+  explain at least ``min_torque_share`` of the variance of the angular acceleration on
+  the smoothed states (``torque_share``), the share R^2 = max(corr(d omega / dt,
+  J^{-1} (tau - omega x J omega)), 0)^2 per body axis: if the torque channel cannot
+  predict how the body turns, no inertia can be read from it, whatever its standard error;
+* adequate: the model explains the data the parameter rests on: the mean normalised
+  innovation squared of the EKF at the estimate, per measured channel and per row
+  (``innovation_consistency``; 1 when the innovations are as large as the model says) is
+  at most ``max_nis_ratio`` on the channels the parameter rests on (mass: pos, vel; the
+  inertia: euler, gyro);
+* plausible: the values are physically possible: positive, principal moments obeying the
+  triangle inequality (I_1 + I_2 >= I_3), positive definite tensor, within the vehicle's
+  range.
+
+A parameter failing several checks takes the most severe label (``VERDICTS`` order), and
+keeps every reason (strings with the numbers). The overall verdict of an estimate is the
+most severe of its parameters'. The thresholds are ``VerdictThresholds``; they were set
+before they were measured on any log (docs/verdict.md has the measured values).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import butter, sosfiltfilt
+
+from estimators.ekf import predict, update
+from pinquad.core.params import VEHICLES
+from pinquad.models.ssm import Observations, QuadSSM, Theta
+
+Array = NDArray[np.float64]
+
+TRUSTED = "trusted"
+IMPLAUSIBLE = "implausible"
+NOT_ADEQUATE = "model not adequate"
+NOT_IDENTIFIABLE = "not identifiable"
+VERDICTS = (TRUSTED, IMPLAUSIBLE, NOT_ADEQUATE, NOT_IDENTIFIABLE)
+"""The verdicts, least severe first (the overall verdict is the most severe)."""
+
+DIAGONAL = ("I_xx", "I_yy", "I_zz")
+PRODUCTS = (("I_xy", 0, 1), ("I_xz", 0, 2), ("I_yz", 1, 2))
+MASS_CHANNELS = ("pos", "vel")
+INERTIA_CHANNELS = ("euler", "gyro")
+
+
+@dataclass(frozen=True)
+class VerdictThresholds:
+    """What the checks demand (module docstring).
+
+    mass_factor, inertia_factor [-]: the vehicle's range is nominal / factor .. nominal *
+    factor; max_range_share [-]: largest share of that range the +-2 se interval may
+    cover; min_torque_share [-]: smallest share of the angular-acceleration variance the
+    torques must explain; max_nis_ratio [-]: largest mean normalised innovation squared
+    per row of a channel the parameter rests on.
+    """
+
+    mass_factor: float = 2.0
+    inertia_factor: float = 4.0
+    max_range_share: float = 0.25
+    min_torque_share: float = 0.25
+    max_nis_ratio: float = 3.0
+
+
+DEFAULT_THRESHOLDS = VerdictThresholds()
+
+
+@dataclass(frozen=True)
+class VehicleRange:
+    """What the vehicle can physically be: mass [kg] (lo, hi) and the inertia diagonal
+    [kg m^2] lo (3,), hi (3,); source: where the nominal values came from, in words."""
+
+    mass: tuple[float, float]
+    inertia_lo: Array
+    inertia_hi: Array
+    source: str
+
+
+def vehicle_range(vehicle: str, mass_guess: float | None = None,
+                  inertia_guess: Array | None = None,
+                  thresholds: VerdictThresholds = DEFAULT_THRESHOLDS) -> VehicleRange | None:
+    """The range of a known vehicle (``core.params.VEHICLES``: its URDF values); for an
+    unknown name the sidecar's guesses; None when neither is known."""
+    known = VEHICLES.get(vehicle)
+    if known is not None:
+        mass, inertia, source = known.mass, known.inertia_diag, f"{vehicle} URDF"
+    elif mass_guess is not None and inertia_guess is not None:
+        mass = float(mass_guess)
+        inertia = np.diag(np.asarray(inertia_guess, dtype=float).reshape(3, 3)).copy()
+        source = "the sidecar's guesses"
+    else:
+        return None
+    fm, fi = thresholds.mass_factor, thresholds.inertia_factor
+    return VehicleRange((mass / fm, mass * fm), inertia / fi, inertia * fi,
+                        f"{source}; mass / {fm:g} to x {fm:g}, inertia / {fi:g} to x {fi:g}")
+
+
+@dataclass(frozen=True)
+class VerdictEvidence:
+    """What the data say about an estimate, beside its standard errors.
+
+    torque_share (3,) [-]: share of the angular-acceleration variance per body axis that
+    the torques explain (NaN: not computed); torque_band: the frequencies it was measured
+    on, in words; nis_ratio: channel -> mean normalised innovation squared per row [-].
+    """
+
+    torque_share: Array = field(default_factory=lambda: np.full(3, np.nan))
+    torque_band: str = "all frequencies"
+    nis_ratio: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ParameterVerdict:
+    """One parameter's verdict: name (``mass``, ``I_xx``, ..., ``I_xy``, ...), value and
+    stderr [SI; NaN: not computed], verdict (one of ``VERDICTS``), reasons in words."""
+
+    name: str
+    value: float
+    stderr: float
+    verdict: str
+    reasons: tuple[str, ...]
+
+    @property
+    def trusted(self) -> bool:
+        return self.verdict == TRUSTED
+
+    def to_report(self) -> dict:
+        return {"verdict": self.verdict, "reasons": list(self.reasons)}
+
+
+@dataclass(frozen=True)
+class EstimateVerdict:
+    """The verdicts of one estimate's parameters and the overall one (the most severe)."""
+
+    parameters: tuple[ParameterVerdict, ...]
+    overall: str
+    reasons: tuple[str, ...]
+
+    @property
+    def trusted(self) -> bool:
+        return self.overall == TRUSTED
+
+    def get(self, name: str) -> ParameterVerdict:
+        return next(p for p in self.parameters if p.name == name)
+
+    def to_report(self) -> dict:
+        """report.json's ``verdict``: overall, its reasons, one entry per parameter."""
+        return {"overall": self.overall, "reasons": list(self.reasons),
+                "parameters": {p.name: p.to_report() for p in self.parameters}}
+
+
+def _worst(verdicts: Sequence[str]) -> str:
+    return max(verdicts, key=VERDICTS.index) if verdicts else TRUSTED
+
+
+def _range_check(name: str, se: float, lo: float, hi: float, scale: float, unit: str,
+                 th: VerdictThresholds) -> list[str]:
+    if not np.isfinite(se):
+        return []
+    share = 4.0 * se / (hi - lo)
+    if share <= th.max_range_share:
+        return []
+    return [f"its +-2 standard errors ({se * scale:.3g} {unit} each) cover {100 * share:.1f} % "
+            f"of the vehicle's range {lo * scale:.3g}-{hi * scale:.3g} {unit} "
+            f"(at most {100 * th.max_range_share:.0f} %)"]
+
+
+def _nis_check(evidence: VerdictEvidence, channels: Sequence[str],
+               th: VerdictThresholds) -> list[str]:
+    bad = [(c, evidence.nis_ratio[c]) for c in channels
+           if c in evidence.nis_ratio and evidence.nis_ratio[c] > th.max_nis_ratio]
+    return [f"{c} innovations are {np.sqrt(r):.1f}x the size the model predicts (mean "
+            f"normalised innovation squared per row {r:.2f}, at most {th.max_nis_ratio:g})"
+            for c, r in bad]
+
+
+def _judge(name: str, value: float, se: float, checks: dict[str, list[str]]) -> ParameterVerdict:
+    failed = [v for v in VERDICTS[1:] if checks.get(v)]
+    reasons = tuple(r for v in reversed(VERDICTS[1:]) for r in checks.get(v, []))
+    return ParameterVerdict(name, float(value), float(se), _worst(failed), reasons)
+
+
+def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
+          vrange: VehicleRange | None, stderr_products: Array | None = None,
+          thresholds: VerdictThresholds = DEFAULT_THRESHOLDS) -> EstimateVerdict:
+    """The verdict of one estimate (module docstring).
+
+    mass [kg]; inertia (3, 3) [kg m^2]; stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not
+    computed, no identifiability check by standard error); evidence: torque shares and
+    innovation consistency; vrange: the vehicle's range (None: positivity and the
+    triangle inequality only); stderr_products (3,) of [I_xy, I_xz, I_yz] when the
+    products of inertia were estimated (their parameters are judged too).
+    """
+    th = thresholds
+    inertia = np.asarray(inertia, dtype=float).reshape(3, 3)
+    stderr = np.asarray(stderr, dtype=float)
+    diag = np.diag(inertia)
+    params: list[ParameterVerdict] = []
+
+    # mass
+    bad_value: list[str] = []
+    if not mass > 0:
+        bad_value.append(f"mass {mass * 1e3:.4g} g is not positive")
+    elif vrange is not None and not vrange.mass[0] <= mass <= vrange.mass[1]:
+        bad_value.append(f"mass {mass * 1e3:.4g} g outside the vehicle's "
+                         f"{vrange.mass[0] * 1e3:.4g}-{vrange.mass[1] * 1e3:.4g} g "
+                         f"({vrange.source})")
+    ident = [] if vrange is None else _range_check("mass", stderr[0], *vrange.mass, 1e3, "g", th)
+    params.append(_judge("mass", mass, stderr[0], {
+        NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th),
+        IMPLAUSIBLE: bad_value}))
+
+    # the tensor as a whole: positive definite, principal moments obey the triangle inequality
+    tensor: list[str] = []
+    sym = 0.5 * (inertia + inertia.T)
+    principal = np.linalg.eigvalsh(sym)
+    if principal[0] <= 0:
+        tensor.append(f"inertia tensor not positive definite (principal moments "
+                      f"{', '.join(f'{v * 1e6:.4g}' for v in principal)} e-6 kg m^2)")
+    elif principal[0] + principal[1] < principal[2]:
+        tensor.append(f"principal moments break the triangle inequality: "
+                      f"{principal[0] * 1e6:.4g} + {principal[1] * 1e6:.4g} < "
+                      f"{principal[2] * 1e6:.4g} e-6 kg m^2")
+    rotation = _nis_check(evidence, INERTIA_CHANNELS, th)
+    share = np.asarray(evidence.torque_share, dtype=float)
+    for i, name in enumerate(DIAGONAL):
+        value = float(diag[i])
+        implausible = list(tensor)
+        if vrange is not None and not vrange.inertia_lo[i] <= value <= vrange.inertia_hi[i]:
+            implausible.append(
+                f"{name} {value * 1e6:.4g} e-6 kg m^2 outside the vehicle's "
+                f"{vrange.inertia_lo[i] * 1e6:.4g}-{vrange.inertia_hi[i] * 1e6:.4g} e-6 kg m^2 "
+                f"({vrange.source})")
+        ident = [] if vrange is None else _range_check(
+            name, stderr[i + 1], vrange.inertia_lo[i], vrange.inertia_hi[i], 1e6, "e-6 kg m^2", th)
+        if np.isfinite(share[i]) and share[i] < th.min_torque_share:
+            ident.insert(0, f"torques explain {100 * share[i]:.0f} % of the angular "
+                            f"acceleration about body {name[-1]} ({evidence.torque_band}; at "
+                            f"least {100 * th.min_torque_share:.0f} % needed)")
+        params.append(_judge(name, value, stderr[i + 1], {
+            NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: rotation, IMPLAUSIBLE: implausible}))
+    if stderr_products is not None:
+        for (name, i, j), se in zip(PRODUCTS, np.asarray(stderr_products, dtype=float),
+                                    strict=True):
+            k = 3 - i - j
+            ident = []
+            if vrange is not None:  # |I_ij| <= I_kk / 2 for any rigid body
+                half = 0.5 * vrange.inertia_hi[k]
+                ident = _range_check(name, se, -half, half, 1e6, "e-6 kg m^2", th)
+            low = [a for a in (i, j) if np.isfinite(share[a]) and share[a] < th.min_torque_share]
+            if low:
+                ident.insert(0, f"torques explain {100 * min(share[a] for a in low):.0f} % of "
+                                f"the angular acceleration about a body axis it couples")
+            params.append(_judge(name, inertia[i, j], se, {
+                NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: rotation, IMPLAUSIBLE: list(tensor)}))
+    overall = _worst([p.verdict for p in params])
+    reasons = tuple(f"{p.name}: {r}" for p in params if not p.trusted for r in p.reasons)
+    return EstimateVerdict(tuple(params), overall, reasons)
+
+
+def torque_share(obs: Observations, mean: Array, inertia: Array,
+                 band: tuple[float, float] | None = None, com: Array | None = None) -> Array:
+    """Share of the angular-acceleration variance the torques explain, per body axis (3,).
+
+    On the transitions k -> k+1 the M-step uses (not excluded, not reset): the angular
+    acceleration a_k = (omega_{k+1} - omega_k) / dt [rad/s^2] of the smoothed rates
+    mean[:, 9:12] against the model's u_k = J^{-1} (tau_k - omega_k x J omega_k) with the
+    logged torques tau_k = inputs[k, 1:4] [N m] and the estimate J (3, 3) [kg m^2];
+    R^2_i = max(corr(a_i, u_i), 0)^2 (a free scale and offset: the share any inertia
+    could explain). band (lo, hi) [Hz]: both series band-passed first (zero-phase
+    Butterworth), for an M-step that reads the inertia from that band only. com (3,) [m]:
+    the centre of mass from the thrust centre (the ten-parameter model), whose thrust
+    moment -c x (0, 0, F_k) joins the torques about the CoM.
+    """
+    inertia = np.asarray(inertia, dtype=float).reshape(3, 3)
+    omega = np.asarray(mean, dtype=float)[:, 9:12]
+    accel = np.diff(omega, axis=0) / obs.dt
+    tau = obs.inputs[:-1, 1:4]
+    if com is not None:
+        thrust = np.zeros((obs.n - 1, 3))
+        thrust[:, 2] = obs.inputs[:-1, 0]
+        tau = tau - np.cross(np.asarray(com, dtype=float), thrust)
+    u = (tau - np.cross(omega[:-1], omega[:-1] @ inertia.T)) @ np.linalg.inv(inertia).T
+    if band is not None:
+        nyquist = 0.5 / obs.dt
+        sos = butter(2, [band[0] / nyquist, min(band[1] / nyquist, 0.99)], btype="band",
+                     output="sos")
+        accel, u = sosfiltfilt(sos, accel, axis=0), sosfiltfilt(sos, u, axis=0)
+    used = np.ones(obs.n - 1, dtype=bool)
+    if obs.exclude.size:
+        used &= ~np.asarray(obs.exclude[: obs.n - 1], dtype=bool)
+    if obs.resets.size:
+        used &= ~np.asarray(obs.resets[: obs.n - 1], dtype=bool)
+    used &= np.isfinite(accel).all(axis=1) & np.isfinite(u).all(axis=1)
+    out = np.full(3, np.nan)
+    if used.sum() < 10:
+        return out
+    for i in range(3):
+        a, b = accel[used, i], u[used, i]
+        if np.std(a) > 0 and np.std(b) > 0:
+            out[i] = max(float(np.corrcoef(a, b)[0, 1]), 0.0) ** 2
+    return out
+
+
+def innovation_consistency(obs: Observations, theta: Theta, model=None) -> dict[str, float]:
+    """Mean normalised innovation squared per row of each channel (channel -> [-]) of the
+    EKF at theta: for every sample of channel c, nu_c^T S_cc^{-1} nu_c / (rows of c) with
+    nu the one-step-ahead innovation and S its covariance (the channel's block). 1 when the
+    innovations are as large as the model predicts. model: the state-space model (default
+    ``QuadSSM(obs, theta)``)."""
+    model = model if model is not None else QuadSSM(obs, theta)
+    mean, cov = model.initial()
+    mean, cov = np.array(mean, dtype=float), np.array(cov, dtype=float)
+    blocks = {c: np.arange(3 * i, 3 * i + 3) for i, c in enumerate(obs.channels)}
+    sums = {c: 0.0 for c in blocks}
+    counts = {c: 0 for c in blocks}
+    for k in range(obs.n):
+        y = obs.ys[k]
+        seen = ~np.isnan(y)
+        if seen.any():
+            y_pred, h = model.measure(mean, k)
+            nu = model.residual(np.where(seen, y, y_pred), y_pred)
+            s = h @ cov @ h.T + model.meas_cov(k)
+            for c, rows in blocks.items():
+                rows = rows[seen[rows]]
+                if rows.size:
+                    v = nu[rows]
+                    sums[c] += float(v @ np.linalg.solve(s[np.ix_(rows, rows)], v))
+                    counts[c] += rows.size
+            upd = update(model, k, mean, cov, y)
+            mean, cov = upd.mean, upd.cov
+        if k + 1 < obs.n:
+            mean, cov, _ = predict(model, k, mean, cov)
+    return {c: sums[c] / counts[c] for c in blocks if counts[c]}
+
+
+def data_evidence(obs: Observations, theta: Theta, mean: Array,
+                  band: tuple[float, float] | None = None, model=None) -> VerdictEvidence:
+    """The evidence of a fit at theta: torque shares on the smoothed means (N, 12) (on the
+    M-step's band when it reads the inertia from one) and the EKF's innovation
+    consistency (``model``: default ``QuadSSM(obs, theta)``; the ten-parameter model's
+    ``FullQuadSSM`` for a fit with a centre of mass)."""
+    words = "all frequencies" if band is None else f"{band[0]:g}-{band[1]:g} Hz, the M-step's band"
+    com = np.asarray(theta.com, dtype=float)
+    return VerdictEvidence(torque_share(obs, mean, theta.inertia, band, com if com.any() else None),
+                           words, innovation_consistency(obs, theta, model))
