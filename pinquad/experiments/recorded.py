@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.discovery.discover import discover
+from pinquad.discovery.null import NullCalibration, NullSettings, calibrate, combine
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
@@ -292,24 +293,45 @@ def discovery_config(kind: str) -> DiscoveryConfig:
 class DiscoveryOutcome:
     """Effect discovery on a log's reported run: its result, or why there is none (a
     numerical failure of the refit is reported, not raised: the identification stands
-    without it)."""
+    without it), and the calibration of its selection against the null (None when
+    nothing was selected or the calibration was switched off)."""
 
     result: DiscoveryResult | None
     error: str | None = None
+    null: NullCalibration | None = None
 
 
-def run_discovery(result: LogResult) -> DiscoveryOutcome:
+def run_discovery(result: LogResult, null: NullSettings | None = None) -> DiscoveryOutcome:
     """Effect discovery (``pinquad.discovery.discover``) on the reported run, with the
-    settings for the log's kind (``DISCOVERY_SETTINGS``)."""
+    settings for the log's kind (``DISCOVERY_SETTINGS``), its selection calibrated against
+    the null (``pinquad.discovery.null``; default ``NullSettings()``): an effect whose
+    evidence does not beat the shadow flights of the base fit is dropped from the
+    candidates and discovery reruns without it, until every selected effect has beaten
+    the null."""
+    null = NullSettings() if null is None else null
     try:
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
+    cfg = discovery_config(result.kind)
+    calibrations: list[NullCalibration] = []
     try:
-        found = discover(start.obs, start.theta, start.posterior, cfg=discovery_config(result.kind))
+        found = discover(start.obs, start.theta, start.posterior, cfg=cfg)
+        while found.selected and null.replicates:
+            done = {e for c in calibrations for e in c.observed}
+            fresh = [e for e in found.selected if e not in done]
+            if not fresh:
+                break
+            cal = calibrate(start.obs, start.theta, start.posterior, found, cfg, null, fresh)
+            calibrations.append(cal)
+            if not cal.rejected:
+                break
+            rejected = {e for c in calibrations for e in c.rejected}
+            cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in rejected))
+            found = discover(start.obs, start.theta, start.posterior, cfg=cfg)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return DiscoveryOutcome(None, f"discovery failed numerically: {exc}")
-    return DiscoveryOutcome(found)
+    return DiscoveryOutcome(found, null=combine(calibrations) if calibrations else None)
 
 
 def discovery_section(outcome: DiscoveryOutcome) -> dict:
@@ -320,4 +342,12 @@ def discovery_section(outcome: DiscoveryOutcome) -> dict:
                 "validation": "not run", "error": outcome.error}
     section = outcome.result.to_report()
     section["figures"] = [f"figures/{Path(f).name}" for f in section["figures"]]
+    if outcome.null is not None:
+        section["null_calibration"] = outcome.null.to_report()
+        for entry in section["selected"]:
+            entry["evidence"]["null_p_value"] = outcome.null.p_value.get(entry["effect"])
+    else:
+        section["null_calibration"] = {"replicates": 0, "note": (
+            "nothing selected: no calibration needed" if not section["selected"]
+            else "not calibrated against the null (--null-replicates 0)")}
     return section

@@ -1,0 +1,171 @@
+"""Effect selection calibrated against the null: does a selected effect's evidence beat
+what the fitted base model itself produces on this log?
+
+Discovery's selection (``pinquad.discovery.discover``) tests each candidate by its
+held-out gain, BIC and held-out likelihood. Those tests assume the base model describes
+the data up to white noise; a log whose sampling, trajectory or noise the base model
+does not describe (a controller faster than its log, a smooth trajectory, coloured
+noise) produces evidence for effects that are not there. The calibration measures that
+directly, by a parametric bootstrap:
+
+1. fly ``replicates`` shadow flights of the base fit (``pinquad.sim.shadow``): the base
+   model with the fitted mass, inertia and noise, along the log's smoothed trajectory,
+   integrated at a fine rate with a fine-rate controller, logged like the log (its
+   length, rate, channels, gaps; the commands sampled at the log instants);
+2. on each, smooth with the base model (the E-step of the fit) and score every selected
+   effect exactly as the selection's first round does (``selection.score_candidate``
+   against the base model): its null gain g*_r;
+3. the effect's p-value is p = (1 + #{r: g*_r >= g}) / (1 + replicates) against its own
+   first-round gain g on the log; it is kept when p <= ``alpha`` (with 19 replicates and
+   alpha 0.05: its gain beats every shadow flight's).
+
+A shadow flight contains no effect, so each replicate in which a candidate passes the
+selection's own tests is a measured false positive of the uncalibrated selection on
+flights like this one (``null_passes``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.protocol import Posterior
+from pinquad.discovery.residuals import compute_residuals
+from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
+from pinquad.discovery.selection import score_candidate
+from pinquad.estep.fast_smoother import smooth_quad
+from pinquad.models.ssm import Observations, QuadSSM, Theta
+from pinquad.sim.shadow import ShadowSettings, shadow_flight
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class NullSettings:
+    """replicates: shadow flights per log (0: no calibration); seed: of the numpy
+    Generator that draws them; alpha: largest p-value an effect may have to be kept;
+    shadow: how shadow flights are flown."""
+
+    replicates: int = 19
+    seed: int = 0
+    alpha: float = 0.05
+    shadow: ShadowSettings = field(default_factory=ShadowSettings)
+
+    def __post_init__(self) -> None:
+        if self.replicates < 0:
+            raise ValueError(f"null replicates must be >= 0; got {self.replicates}")
+        if not 0.0 < self.alpha < 1.0:
+            raise ValueError(f"alpha must be in (0, 1); got {self.alpha}")
+        if 0 < self.replicates < round(1.0 / self.alpha) - 1:
+            raise ValueError(f"{self.replicates} null replicates cannot give p <= {self.alpha:g} "
+                             f"(the smallest p is 1 / (1 + replicates)); use at least "
+                             f"{round(1.0 / self.alpha) - 1}")
+
+
+@dataclass(frozen=True)
+class NullCalibration:
+    """The null calibration of one log's selected effects (module docstring).
+
+    observed: effect -> its first-round held-out gain on the log [-]; null_gains:
+    effect -> (replicates,) its gains on the shadow flights [-]; null_passes: effect ->
+    shadow flights on which it passed the uncalibrated selection; p_value: effect -> p;
+    kept / rejected: the effects that beat / did not beat the null; tracking_rms [m]:
+    RMS distance of the shadow flights from the log's smoothed path; seconds: wall time.
+    """
+
+    replicates: int
+    seed: int
+    alpha: float
+    observed: dict[str, float]
+    null_gains: dict[str, Array]
+    null_passes: dict[str, int]
+    p_value: dict[str, float]
+    kept: tuple[str, ...]
+    rejected: tuple[str, ...]
+    tracking_rms: float
+    seconds: float
+
+    def to_report(self) -> dict:
+        """The ``null_calibration`` entry of report.json's ``discovery`` section."""
+        return {
+            "method": ("parametric bootstrap: shadow flights of the base fit along the log's "
+                       "smoothed path, logged like the log (pinquad.discovery.null)"),
+            "replicates": self.replicates, "seed": self.seed, "alpha": self.alpha,
+            "effects": {e: {"heldout_gain": self.observed[e],
+                            "null_gain_max": float(np.max(self.null_gains[e])),
+                            "null_gain_median": float(np.median(self.null_gains[e])),
+                            "null_passes": self.null_passes[e],
+                            "p_value": self.p_value[e],
+                            "kept": e in self.kept} for e in self.observed},
+            "rejected": list(self.rejected),
+            "shadow_tracking_rms_m": self.tracking_rms,
+            "seconds": self.seconds,
+        }
+
+
+def first_round_gains(result: DiscoveryResult) -> dict[str, float]:
+    """effect -> its first-round held-out gain (against the base model alone) in
+    ``result``'s candidate scores, for the selected effects."""
+    return {s.effect: s.gain for s in result.scores
+            if s.round == 0 and s.effect in result.selected}
+
+
+def calibrate(obs: Observations, theta: Theta, posterior: Posterior, result: DiscoveryResult,
+              cfg: DiscoveryConfig, settings: NullSettings = NullSettings(),
+              effects: Sequence[str] | None = None) -> NullCalibration:
+    """Calibrate ``result``'s selected effects (or those of them in ``effects``) against
+    shadow flights of the base fit (``theta``, ``posterior``: the base EM result on
+    ``obs``; module docstring)."""
+    start = time.perf_counter()
+    observed = {e: g for e, g in first_round_gains(result).items()
+                if effects is None or e in effects}
+    effects = list(observed)
+    rng = np.random.default_rng(settings.seed)
+    gains: dict[str, list[float]] = {e: [] for e in effects}
+    passes = dict.fromkeys(effects, 0)
+    pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
+    sq_dist = []
+    for _ in range(settings.replicates):
+        shadow = shadow_flight(obs, theta, posterior.mean, rng, settings.shadow)
+        sq_dist.append(np.mean(np.sum((shadow.states[:, 0:3] - posterior.mean[:, 0:3]) ** 2,
+                                      axis=1)))
+        post = smooth_quad(QuadSSM(shadow.obs, theta), shadow.obs.ys)
+        res = compute_residuals(shadow.obs, post, theta.gravity, cfg.block_seconds)
+        train = np.arange(res.n_blocks) % 2 == 0
+        for e in effects:
+            score = score_candidate(res, [], e, pi0, 0, cfg, train)
+            gains[e].append(score.gain)
+            passes[e] += int(score.passed)
+    null_gains = {e: np.asarray(v, dtype=float) for e, v in gains.items()}
+    p_value = {e: float((1 + np.sum(null_gains[e] >= observed[e])) / (1 + settings.replicates))
+               for e in effects}
+    kept = tuple(e for e in effects if p_value[e] <= settings.alpha)
+    rejected = tuple(e for e in effects if e not in kept)
+    tracking = float(np.sqrt(np.mean(sq_dist))) if sq_dist else float("nan")
+    return NullCalibration(settings.replicates, settings.seed, settings.alpha, observed,
+                           null_gains, passes, p_value, kept, rejected, tracking,
+                           time.perf_counter() - start)
+
+
+def combine(calibrations: Sequence[NullCalibration]) -> NullCalibration:
+    """One calibration of every effect the calibrations in turn tested (the effects of
+    later ones were selected after the earlier ones' rejections; same settings)."""
+    first = calibrations[0]
+    observed: dict[str, float] = {}
+    null_gains: dict[str, Array] = {}
+    passes: dict[str, int] = {}
+    p_value: dict[str, float] = {}
+    for cal in calibrations:
+        observed.update(cal.observed)
+        null_gains.update(cal.null_gains)
+        passes.update(cal.null_passes)
+        p_value.update(cal.p_value)
+    return NullCalibration(first.replicates, first.seed, first.alpha, observed, null_gains,
+                           passes, p_value, tuple(e for c in calibrations for e in c.kept),
+                           tuple(e for c in calibrations for e in c.rejected),
+                           float(np.nanmax([c.tracking_rms for c in calibrations])),
+                           float(sum(c.seconds for c in calibrations)))
