@@ -63,10 +63,10 @@ MIN_DT, MAX_DT = 1e-4, 0.25
 """Median sample spacing [s]: 10 kHz to 4 Hz (the dynamics pinquad fits are 1-10 Hz)."""
 MIN_GRAVITY, MAX_GRAVITY = 9.7, 9.9
 """Earth's surface gravity is 9.78-9.83 m/s^2."""
-IMPOSSIBLE = {"pos": 1e4, "vel": 1e4, "gyro": 1e4, "acc": 1e4, "thrust": 1e5,
+IMPOSSIBLE = {"pos": 1e4, "vel": 1e4, "euler": 1e4, "gyro": 1e4, "acc": 1e4, "thrust": 1e5,
               "torque": 1e4, "rpm": 1e6}
-"""Values no flight record can hold whatever its units (|x| beyond these: m, m/s, rad/s,
-m/s^2, N, N m, rev/min): corrupt cells, not unit confusions."""
+"""Values no flight record can hold whatever its units (|x| beyond these: m, m/s, rad,
+rad/s, m/s^2, N, N m, rev/min): corrupt cells, not unit confusions."""
 WINDOW_S = 0.1
 """Window over which a velocity is integrated and compared with the position change it
 explains, and grid step of the kinematic accelerations [s]."""
@@ -354,26 +354,30 @@ def _check_thrust(log: FlightLog) -> Finding | None:
 
 
 def _check_impossible(log: FlightLog) -> Finding | None:
-    groups = [("pos", log.position, "xyz"), ("vel", log.velocity, "xyz"),
-              ("gyro", log.gyro, "xyz"), ("acc", log.accel, "xyz")]
+    xyz = "xyz"
+    groups = [("pos", log.position, [f"pos_{a}" for a in xyz]),
+              ("vel", log.velocity, [f"vel_{a}" for a in xyz]),
+              ("euler", log.euler, ["roll (or quat_*)", "pitch (or quat_*)", "yaw (or quat_*)"]),
+              ("gyro", log.gyro, [f"gyro_{a}" for a in xyz]),
+              ("acc", log.accel, [f"acc_{a}" for a in xyz])]
     if log.thrust is not None:
-        groups.append(("thrust", log.thrust[:, None], ("",)))
+        groups.append(("thrust", log.thrust[:, None], ["thrust"]))
     if log.torque is not None:
-        groups.append(("torque", log.torque, "xyz"))
+        groups.append(("torque", log.torque, [f"torque_{a}" for a in xyz]))
     if log.rpm is not None:
-        groups.append(("rpm", log.rpm, "1234"))
-    for prefix, values, axes in groups:
+        groups.append(("rpm", log.rpm, [f"rpm_{i}" for i in range(1, 5)]))
+    for kind, values, names in groups:
         with np.errstate(invalid="ignore"):
-            bad = np.isinf(values) | (np.abs(values) > IMPOSSIBLE[prefix])
+            bad = np.isinf(values) | (np.abs(values) > IMPOSSIBLE[kind])
         if not bad.any():
             continue
         rows, cols = np.nonzero(bad)
-        column = prefix if axes == ("",) else f"{prefix}_{axes[cols[0]]}"
+        column = names[cols[0]]
         listed = ", ".join(str(r + 1) for r in rows[:5]) + (" ..." if rows.size > 5 else "")
         return Finding("impossible-value", column,
                        f"column {column!r}, row(s) {listed} ({rows.size} cell(s)): "
                        f"{float(values[rows[0], cols[0]])!r} is beyond any flight "
-                       f"(magnitude at most {IMPOSSIBLE[prefix]:g} in SI units); expected a "
+                       f"(magnitude at most {IMPOSSIBLE[kind]:g} in SI units); expected a "
                        "finite measurement or an empty cell")
     return None
 
