@@ -16,6 +16,7 @@ logs or the paper's simulated flights) is ``test_no_check_fires_on_*``.
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import os
@@ -31,7 +32,6 @@ import numpy as np
 import pytest
 
 import pinquad
-from pinquad.cli import bench as bench_cli
 from pinquad.cli import offline as offline_cli
 from pinquad.cli import online as online_cli
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_SCENARIO
@@ -377,10 +377,21 @@ def test_online_replay_with_a_list_sidecar_exits_2(flight_b, tmp_path, capsys):
     assert code == 2 and "JSON list" in err and "f.csv.json" in err
 
 
-def test_bench_out_naming_a_directory_exits_2_at_once(tmp_path, capsys):
+@pytest.mark.parametrize("command, out_is_dir", [
+    ("flight", True), ("response", True), ("discovery", False), ("realdiscovery", False),
+    ("bench", True)])
+def test_every_command_checks_out_before_any_work(command, out_is_dir, tmp_path, capsys):
+    """A directory where a file is written, or a file where a directory is, exits 2 at
+    once (the benchmark used to fail after its 13-minute run)."""
+    module = importlib.import_module(f"pinquad.cli.{command}")
+    out = tmp_path
+    if not out_is_dir:
+        out = tmp_path / "file.txt"
+        out.write_text("x")
     t0 = time.perf_counter()
-    code = bench_cli.main(["--out", str(tmp_path), "--quick"])
-    assert code == 2 and "is a directory" in capsys.readouterr().err
+    assert module.main(["--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert str(out) in err and ("is a directory" in err or "is a file" in err), err
     assert time.perf_counter() - t0 < 5.0
 
 

@@ -100,6 +100,17 @@ def check_output_file(path: str | Path) -> Path:
     return path
 
 
+def check_output_directory(path: str | Path) -> Path:
+    """Check before any work that result files can be written into the directory
+    ``path`` (created later if missing): not a file, in a writable place. Raises
+    OutputError."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{path}: is a file; expected an output directory")
+    _writable_dir(path, path)
+    return path
+
+
 def _pid_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
