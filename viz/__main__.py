@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import argparse
 import signal
+import socket
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -41,6 +43,38 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+RESOLVE_TIMEOUT_S = 5.0
+"""How long a host name may take to resolve before the viewer gives up [s]."""
+
+
+def bind_problem(host: str, timeout_s: float = RESOLVE_TIMEOUT_S) -> str | None:
+    """Why this machine cannot listen on ``host`` (a name that does not resolve within
+    ``timeout_s``, or an address that is not one of its interfaces), or None. Checked
+    before the web server starts: given such a host, it waits forever."""
+    found: list[object] = []
+
+    def resolve() -> None:
+        try:
+            found.append(socket.getaddrinfo(host, None, type=socket.SOCK_STREAM))
+        except OSError as exc:
+            found.append(exc)
+
+    worker = threading.Thread(target=resolve, daemon=True)
+    worker.start()
+    worker.join(timeout_s)
+    if not found:
+        return f"the name {host!r} did not resolve within {timeout_s:g} s"
+    if isinstance(found[0], OSError):
+        return f"the name {host!r} does not resolve ({found[0]})"
+    family, _, _, _, address = found[0][0]  # type: ignore[index]
+    try:
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            probe.bind((address[0], 0))
+    except OSError as exc:
+        return f"{host} is not an address of this machine ({exc.strerror or exc})"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the viewer until interrupted. Returns the process exit code."""
     args = build_parser().parse_args(argv)
@@ -49,6 +83,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.scale is not None and not args.scale > 0:
         print(f"error: --scale {args.scale} must be positive", file=sys.stderr)
+        return 2
+
+    problem = bind_problem(args.host)
+    if problem is not None:
+        print(f"error: --host {args.host}: cannot serve there: {problem}; use 127.0.0.1 "
+              "(this machine) or 0.0.0.0 (every interface)", file=sys.stderr)
         return 2
 
     from viz.run import RunError

@@ -18,7 +18,7 @@ from pinquad.experiments.bench_run import (
     run_checks,
 )
 from pinquad.experiments.bench_workers import worker_main
-from pinquad.io.runs import atomic_write_json
+from pinquad.io.runs import OutputError, atomic_write_json, check_output_file
 from pinquad.report.bench import format_checks, format_report
 
 
@@ -65,6 +65,11 @@ def main(argv: list[str] | None = None) -> int:
         return 1 if checks_failed(results) else 0
     if args.repeats < 1 or args.repeats_large < 1 or any(n < 2 for n in args.n):
         print("error: --repeats must be >= 1 and every --n >= 2", file=sys.stderr)
+        return 2
+    try:
+        check_output_file(args.out)  # before a run of minutes, not after it
+    except OutputError as exc:
+        print(f"error: --out {exc}", file=sys.stderr)
         return 2
     sections = set(args.only or SECTIONS)
     if args.no_memory:

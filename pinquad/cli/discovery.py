@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from pinquad.cli.common import output_problem
 from pinquad.experiments.discovery_mc import (
     CONDITIONS,
     CaseJob,
@@ -56,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
         print("error: --seeds and --laps must be at least 1", file=sys.stderr)
         return 2
     out = args.out or new_run_dir("discovery-mc")
+    if (code := output_problem(out, directory=True)) is not None:
+        return code
     out.mkdir(parents=True, exist_ok=True)
     jobs = [(c, case_seed(args.base_seed, c, i)) for c in args.conditions
             for i in range(args.start_index, args.start_index + args.seeds)]

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from pinquad.cli.common import output_problem
 from pinquad.cli.help import HelpFormatter, positive_int
 from pinquad.experiments import flight
 from pinquad.experiments.flight import fly
@@ -28,6 +29,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="worker processes")
     p.add_argument("--out", type=Path, help="also write the figures as JSON to this file")
     args = p.parse_args(argv)
+    if (code := output_problem(args.out, directory=False)) is not None:
+        return code
     seeds = range(args.seed, args.seed + args.seeds)
     jobs = ([("paper", s, "tuned") for s in seeds] + [("crazyflie21", s, "tuned") for s in seeds]
             + [("paper", s, "paper") for s in seeds])

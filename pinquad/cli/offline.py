@@ -167,6 +167,7 @@ def run_log(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     print(f"pinquad offline --log {args.log}: E-step {args.estep}, "
           f"M-step(s) {', '.join(options.msteps)}")
+    writer = RunWriter(args.out or new_run_dir("log"))  # --out checked before any work
     log = read_log(args.log)
     try:
         result = identify_log(log, options)
@@ -181,9 +182,10 @@ def run_log(args: argparse.Namespace) -> int:
         print(f"excluded: {line}")
     for note in result.notes:
         print(f"note: {note}")
+    for run in (r for r in result.runs if r.failure):
+        print(f"note: {run.sensor}, {run.mstep} M-step: {run.failure}")
     print(f"\nEM: {seconds:.1f} s")
 
-    writer = RunWriter(args.out or new_run_dir("log"))
     with writer:
         discovery, outcome = None, None
         if result.runs[0].mstep == "full" and not args.no_discover:

@@ -23,7 +23,8 @@ from pinquad.experiments.online import newest_offline_report, offline_ranges, ru
 from pinquad.experiments.online_replay import stream_em
 from pinquad.io.logs import LogFormatError
 from pinquad.io.read import read_log
-from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json, new_run_dir
+from pinquad.io.runs import REPORT_SCHEMA, OutputError, RunWriter, atomic_write_json, new_run_dir
+from pinquad.io.sanity import check_log
 from pinquad.io.sdlog import is_sdlog
 from pinquad.models.sources import observations
 from pinquad.realdata.dataset import default_guess
@@ -68,7 +69,11 @@ def main(argv: list[str] | None = None) -> int:
     sensors = args.sensor or ["A", "B", "C"]
     jobs = [(s, i, args.seed, args.memory) for s in sensors for i in range(args.cycles)]
     out_dir = args.out or new_run_dir("online")
-    writer = RunWriter(out_dir)
+    try:
+        writer = RunWriter(out_dir)
+    except OutputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     t0 = time.perf_counter()
     with writer:
         with ProcessPoolExecutor(max_workers=args.jobs) as pool:
@@ -104,14 +109,18 @@ def replay(args: argparse.Namespace) -> int:
     docstring of ``pinquad.experiments.online_replay``); prints the estimates over time
     and, with ``--out``, writes a run directory."""
     try:
+        writer = RunWriter(args.out) if args.out else None  # --out checked before any work
         path = args.log
         if path.exists() and path.is_file() and is_sdlog(path):
-            real = build_observations(raw_flight(read_log(path)))
+            measured = read_log(path)
+            check_log(measured)
+            real = build_observations(raw_flight(measured))
             obs, gravity, rotor_acc = real.obs, real.log.meta.gravity, real.rotor_acc
             mass0, inertia0, _ = default_guess("crazyflie21")
         else:
             rotor_acc = None
             log = read_log(path)
+            check_log(log)
             sensor = (args.sensor or ["B" if not np.isnan(log.euler).all() else "C"])[0]
             obs = observations(log, sensor)
             gravity = log.meta.gravity
@@ -139,8 +148,7 @@ def replay(args: argparse.Namespace) -> int:
     for i in np.unique(np.linspace(0, hist.shape[0] - 1, 12).astype(int)):
         r = hist[i]
         print(f"| {r[1]:.2f} | {r[2]:.5g} | {r[3]:.4g} | {r[4]:.4g} | {r[5]:.4g} |")
-    if args.out:
-        writer = RunWriter(args.out)
+    if writer is not None:
         with writer:
             atomic_write_json(writer.path("report.json"), {
                 "schema": REPORT_SCHEMA,

@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+from pinquad.cli.common import output_problem
 from pinquad.experiments.realdiscovery import SPLITS, FlightFit, run_split
 from pinquad.io.datadir import default_data_dir
 from pinquad.io.runs import atomic_write_json
@@ -39,6 +40,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {data}: no such directory; expected the Crazyflie flight logs "
               "(imrc_brushed/)", file=sys.stderr)
         return 2
+    if (code := output_problem(args.out, directory=True)) is not None:
+        return code
     t0 = time.perf_counter()
     cache: dict[str, FlightFit] = {}
     results = {}

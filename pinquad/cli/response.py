@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from pinquad.cli.common import output_problem
 from pinquad.cli.measured import add_measured_log_arguments, measured_logs, positive_factors
 from pinquad.io.logs import LogFormatError
 from pinquad.realdata.dataset import PUBLISHED_INERTIA
@@ -87,6 +88,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="sensor set of the simulated flights (with --simulate; B, the default, "
                         "logs the pose the measured-flight pipeline needs)")
     args = p.parse_args(argv)
+    if (code := output_problem(args.out, directory=False)) is not None:
+        return code
     if args.simulate is not None:
         error = positive_factors(args.simulate)
         if error:

@@ -37,6 +37,7 @@ from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
 from pinquad.identification.identify import Identification, identify
 from pinquad.io.logs import FlightLog
+from pinquad.io.sanity import check_log
 from pinquad.models.sources import floor_contact, observations
 from pinquad.models.ssm import Observations, Theta
 from pinquad.realdata.dataset import default_guess
@@ -274,10 +275,12 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
 
 
 def identify_log(log: FlightLog, options: LogOptions | None = None) -> LogResult:
-    """Identify the vehicle of a recorded log (module docstring). Raises ValueError (with
-    the log named) when the log cannot be identified as asked; numpy's LinAlgError when
-    EM fails numerically."""
+    """Identify the vehicle of a recorded log (module docstring). Raises
+    ``pinquad.io.sanity.ImplausibleLogError`` when its columns contradict physics (wrong
+    units, impossible values), ValueError (with the log named) when the log cannot be
+    identified as asked; numpy's LinAlgError when EM fails numerically."""
     options = options or LogOptions()
+    check_log(log)  # units and impossible values, before any EM (pinquad.io.sanity)
     if log.thrust is not None:
         return _with_applied_wrench(log, options)
     kind = "sdlog" if log.measured is not None else "measured-table"

@@ -107,6 +107,28 @@ class Identification:
         return None if self.full is None else np.asarray(self.full.com)
 
 
+UNMOVED_RTOL = 1e-9
+"""An estimate within this relative distance of the initial guess has not moved."""
+
+
+def unmoved_note(mass0: float, inertia0: Array, mass: float, inertia: Array,
+                 iterations: int) -> str | None:
+    """Why a run's estimate says nothing, or None: EM stopped before its first M-step,
+    or the estimate is still the initial guess (|theta - theta0| <= UNMOVED_RTOL
+    |theta0| for mass and inertia diagonal) or not finite: the log carries no
+    information about mass and inertia that EM could use."""
+    start = np.concatenate([[mass0], np.diag(np.asarray(inertia0, dtype=float))])
+    end = np.concatenate([[mass], np.diag(np.asarray(inertia, dtype=float))])
+    if iterations == 0:
+        return "EM stopped at iteration 0: the estimate is the initial guess, not a fit"
+    if not np.isfinite(end).all():
+        return "EM ended at a non-finite estimate: the log carries no usable information"
+    if np.all(np.abs(end - start) <= UNMOVED_RTOL * np.abs(start)):
+        return ("EM did not move from the initial guess: the log carries no information "
+                "about mass and inertia (the estimate is the guess, not a fit)")
+    return None
+
+
 def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, estep: str,
              mstep: str, max_iterations: int, information: bool,
              truth: tuple[float, Array] | None = None) -> tuple[Identification, Posterior]:
@@ -123,12 +145,15 @@ def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, e
         if truth is not None:
             th_true = Theta(truth[0], np.asarray(truth[1]), res.theta.noise, gravity)
             info_truth = observed_information(obs, th_true, ll)
+    unmoved = unmoved_note(mass0, inertia0, res.theta.mass, res.theta.inertia,
+                           int(res.loglik.size) - 1)
     out = Identification(
         mstep=mstep, mass=res.theta.mass, inertia=np.asarray(res.theta.inertia),
         stderr=stderr, history_mass=res.mass, history_inertia=res.inertia_diag,
-        loglik=res.loglik, converged=res.converged, decreases=res.decreases,
-        seconds=time.perf_counter() - t0, info_truth=info_truth, theta=res.theta,
-        failure=res.failure,
+        loglik=res.loglik, converged=res.converged and unmoved is None,
+        decreases=res.decreases, seconds=time.perf_counter() - t0, info_truth=info_truth,
+        theta=res.theta, failure=res.failure or unmoved,
+        notes=() if unmoved is None else (unmoved,),
     )
     return out, res.posterior
 

@@ -27,6 +27,7 @@ from pinquad.core.conventions import (
     euler_from_quat_wxyz,
     quat_wxyz_from_euler,
 )
+from pinquad.core.params import VEHICLES
 from pinquad.io.runs import atomic_write_bytes
 
 Array = NDArray[np.float64]
@@ -250,7 +251,8 @@ def _read_table(path: Path) -> dict[str, Array]:
 
 
 def _read_csv(path: Path) -> dict[str, Array]:
-    text = path.read_text(errors="replace")
+    # utf-8-sig: a spreadsheet's byte-order mark is not part of the first column's name
+    text = path.read_text(encoding="utf-8-sig", errors="replace")
     lines = [ln for ln in text.splitlines() if ln.strip()]
     if not lines:
         raise LogFormatError(f"{path}: empty file; expected a header row with column names")
@@ -284,26 +286,79 @@ def _cols3(cols: dict[str, Array], prefix: str, n: int) -> Array:
     return _nan3(n)
 
 
+MEASUREMENT_GROUPS = (("pos_x", "pos_y", "pos_z"), ("vel_x", "vel_y", "vel_z"),
+                      ("quat_w", "quat_x", "quat_y", "quat_z"), ("roll", "pitch", "yaw"),
+                      ("gyro_x", "gyro_y", "gyro_z"), ("acc_x", "acc_y", "acc_z"))
+"""Measurement columns that only make sense together (DESIGN 4.2)."""
+
+
+def _check_groups(path: Path, cols: dict[str, Array]) -> None:
+    """A sensor group present in part is an error naming what is missing (dropping it
+    silently made EM identify from the rest); no measurement group at all is one too."""
+    complete = 0
+    for group in MEASUREMENT_GROUPS:
+        have = [c for c in group if c in cols]
+        if have and len(have) < len(group):
+            missing = [c for c in group if c not in cols]
+            raise LogFormatError(
+                f"{path}: has {', '.join(have)} but lacks {', '.join(missing)}; a sensor's "
+                f"columns come together ({', '.join(group)})")
+        complete += len(have) == len(group)
+    if complete == 0:
+        raise LogFormatError(
+            f"{path}: no measurement columns; expected at least one complete group of "
+            + "; ".join(", ".join(g) for g in MEASUREMENT_GROUPS))
+
+
+def _sidecar_number(side: Path, raw: dict, key: str) -> float | None:
+    value = raw.get(key)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(float(value)):
+        raise LogFormatError(f"{side}: key {key!r} is {value!r}; expected a finite number")
+    return float(value)
+
+
 def _read_sidecar(path: Path) -> LogMeta:
     side = Path(str(path) + ".json")
     if not side.exists():
         return LogMeta(source=str(path))
     try:
-        raw = json.loads(side.read_text())
+        raw = json.loads(side.read_text(encoding="utf-8-sig", errors="replace"))
     except json.JSONDecodeError as exc:
         raise LogFormatError(f"{side}: not valid JSON ({exc.msg} at byte {exc.pos})") from None
+    if not isinstance(raw, dict):
+        raise LogFormatError(f"{side}: is a JSON {type(raw).__name__}; expected an object "
+                             '{"vehicle": ..., "mass_guess": ..., "inertia_guess": ..., '
+                             '"gravity": ...}')
     inertia = raw.get("inertia_guess")
     try:
         inertia_arr = None if inertia is None else np.asarray(inertia, dtype=float).reshape(3, 3)
     except (ValueError, TypeError):
         raise LogFormatError(f"{side}: 'inertia_guess' must be a 3x3 list of numbers") from None
-    mass = raw.get("mass_guess")
+    if inertia_arr is not None and not np.isfinite(inertia_arr).all():
+        raise LogFormatError(f"{side}: 'inertia_guess' must hold finite numbers")
+    vehicle = raw.get("vehicle", "paper")
+    mass_guess = _sidecar_number(side, raw, "mass_guess")
+    if not isinstance(vehicle, str):
+        raise LogFormatError(f"{side}: key 'vehicle' is {vehicle!r}; expected a name")
+    if vehicle not in VEHICLES and (mass_guess is None or inertia_arr is None):
+        # an unknown name would silently start EM from the paper vehicle's guess
+        raise LogFormatError(
+            f"{side}: key 'vehicle' is {vehicle!r}; expected one of {', '.join(VEHICLES)}, "
+            "or give 'mass_guess' and 'inertia_guess' for another vehicle")
+    gravity = _sidecar_number(side, raw, "gravity")
+    notes = () if vehicle in VEHICLES else (
+        f"vehicle {vehicle!r} is not one pinquad knows ({', '.join(VEHICLES)}): EM starts "
+        "from the sidecar's guesses and the thrust is not compared with a nominal mass",)
     return LogMeta(
-        vehicle=str(raw.get("vehicle", "paper")),
-        mass_guess=None if mass is None else float(mass),
+        vehicle=vehicle,
+        mass_guess=mass_guess,
         inertia_guess=inertia_arr,
-        gravity=float(raw.get("gravity", GRAVITY)),
+        gravity=GRAVITY if gravity is None else gravity,
         source=str(path),
+        notes=notes,
     )
 
 
@@ -317,6 +372,7 @@ def read_log(path: str | Path) -> FlightLog:
     cols = _read_table(path)
     if "t" not in cols:
         raise LogFormatError(f"{path}: missing required column 't' (time in seconds)")
+    _check_groups(path, cols)
     t = cols["t"]
     n = t.shape[0]
     if n == 0:

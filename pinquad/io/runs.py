@@ -6,8 +6,11 @@ import json
 import math
 import os
 import shutil
+import signal
 import tempfile
+import threading
 import time
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -89,20 +92,126 @@ def new_run_dir(kind: str, root: str | Path = "runs") -> Path:
     return candidate
 
 
+class OutputError(ValueError):
+    """An output path that cannot take a run: the message names the path and why."""
+
+
+def _writable_dir(directory: Path, what: Path) -> None:
+    """Raise OutputError unless ``directory`` (created later if missing) can be written:
+    its nearest existing ancestor is a writable directory."""
+    probe = directory
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise OutputError(f"{what}: {probe} is a file, not a directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise OutputError(f"{what}: cannot write in {probe} (permission denied)")
+
+
+def check_output_file(path: str | Path) -> Path:
+    """Check before any work that a result file can be written at ``path``: not a
+    directory, in a writable directory. Raises OutputError."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{path}: is a directory; expected a file name for the result")
+    _writable_dir(path.parent, path)
+    return path
+
+
+def check_output_directory(path: str | Path) -> Path:
+    """Check before any work that result files can be written into the directory
+    ``path`` (created later if missing): not a file, in a writable place. Raises
+    OutputError."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{path}: is a file; expected an output directory")
+    _writable_dir(path, path)
+    return path
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def _release(lock: Path, token: str) -> None:
+    try:
+        if lock.read_text() == token:
+            lock.unlink()
+    except OSError:
+        pass
+
+
 class RunWriter:
     """Collect a run's files in a hidden staging directory, then publish them at once.
 
-    ``publish()`` renames the staging directory to the target, so a reader never sees a
-    partly written run; if the run fails, the staging directory is removed. Used as a
-    context manager (``with writer:``), an exception leaving the block aborts the run.
+    The constructor checks the target before any work (a directory that can be written,
+    empty or absent, not in use) and takes a lock file ``.NAME.lock`` beside it holding
+    this process's id, so a second run to the same directory is refused at its start
+    instead of losing its work at the end (a lock whose process has died is taken over;
+    the lock goes when the writer publishes, aborts or is dropped). ``publish()`` renames
+    the staging directory to the target, so a reader never sees a partly written run; if
+    the run fails, the staging directory is removed. Used as a context manager (``with
+    writer:``), an exception leaving the block aborts the run, and SIGTERM (``timeout``,
+    a service manager) inside the block is turned into KeyboardInterrupt so it cleans up
+    like Ctrl-C. Raises OutputError when the target cannot take the run.
     """
 
     def __init__(self, target: str | Path):
         self.target = Path(target)
+        if self.target.exists() and not self.target.is_dir():
+            raise OutputError(f"{self.target}: is a file; expected an output directory")
         if self.target.exists() and any(self.target.iterdir()):
-            raise FileExistsError(f"{self.target}: output directory exists and is not empty")
-        self.target.parent.mkdir(parents=True, exist_ok=True)
-        self.staging = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.", dir=self.target.parent))
+            raise OutputError(f"{self.target}: output directory exists and is not empty")
+        _writable_dir(self.target.parent, self.target)
+        try:
+            self.target.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"{self.target}: cannot create its directory ({exc})") from None
+        self.lock = self.target.parent / f".{self.target.name}.lock"
+        self._token = f"{os.getpid()} {time.time_ns()}"
+        self._take_lock()
+        self._finalizer = weakref.finalize(self, _release, self.lock, self._token)
+        self._staging: Path | None = None
+        self._previous_sigterm: object = None
+
+    def _take_lock(self) -> None:
+        for _ in range(2):
+            try:
+                fd = os.open(self.lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                try:
+                    pid = int(self.lock.read_text().split()[0])
+                except (OSError, ValueError, IndexError):
+                    pid = -1
+                if pid > 0 and _pid_alive(pid):
+                    raise OutputError(
+                        f"{self.target}: in use by another run (process {pid}; lock file "
+                        f"{self.lock}); choose another --out or wait for it") from None
+                self.lock.unlink(missing_ok=True)  # its process has died
+                continue
+            except OSError as exc:
+                raise OutputError(f"{self.target}: cannot create the lock file {self.lock} "
+                                  f"({exc})") from None
+            with os.fdopen(fd, "w") as fh:
+                fh.write(self._token)
+            return
+        raise OutputError(f"{self.target}: could not take the lock file {self.lock}")
+
+    @property
+    def staging(self) -> Path:
+        """The hidden staging directory (created on first use)."""
+        if self._staging is None:
+            self._staging = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.",
+                                                  dir=self.target.parent))
+        return self._staging
 
     def path(self, name: str) -> Path:
         """Where to write file ``name`` while staging."""
@@ -111,18 +220,38 @@ class RunWriter:
         return p
 
     def publish(self) -> Path:
-        if self.target.exists():
-            self.target.rmdir()
-        os.replace(self.staging, self.target)
-        return self.target
+        """Rename the staging directory to the target and return it. Should the target
+        have been filled meanwhile (by a process that ignored the lock), this run goes to
+        a fresh ``NAME-n`` beside it instead of overwriting or losing either."""
+        staging = self.staging
+        final = self.target
+        if final.exists():
+            try:
+                final.rmdir()
+            except OSError:
+                final = new_run_dir(final.name, final.parent)
+        os.replace(staging, final)
+        self._finalizer()
+        return final
 
     def abort(self) -> None:
-        shutil.rmtree(self.staging, ignore_errors=True)
+        if self._staging is not None:
+            shutil.rmtree(self._staging, ignore_errors=True)
+        self._finalizer()
 
     def __enter__(self) -> RunWriter:
+        if threading.current_thread() is threading.main_thread():
+            self._previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: object) -> None:
+        if self._previous_sigterm is not None:
+            signal.signal(signal.SIGTERM, self._previous_sigterm)
+            self._previous_sigterm = None
         if exc_type is not None:
             self.abort()
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt("terminated (SIGTERM)")

@@ -245,7 +245,7 @@ def _estimates(r: Identification, verdict: EstimateVerdict | None = None) -> dic
 
 def _em(r: Identification) -> dict:
     return {"iterations": r.iterations, "loglik": r.loglik.tolist(),
-            "converged": bool(r.converged)}
+            "converged": bool(r.converged), "failure": r.failure}
 
 
 def report_json(result: LogResult, path: str, estep: str, seconds: float,
