@@ -18,6 +18,17 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
+def non_negative_int(text: str) -> int:
+    """An argument that must be a whole number >= 0 (0 switches something off)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
+
+
 def positive_int(text: str) -> int:
     """An argument that must be a whole number >= 1 (cycles, iterations, workers)."""
     try:

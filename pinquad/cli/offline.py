@@ -30,8 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pinquad.cli.help import HelpFormatter, positive_int
+from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
 from pinquad.core.params import PAPER_SCENARIO
+from pinquad.discovery.null import NullSettings
 from pinquad.experiments.headline import headline
 from pinquad.experiments.offline_mc import CycleJob, run_cycles
 from pinquad.experiments.recorded import (
@@ -98,6 +99,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip standard errors and the Cramer-Rao bound (faster)")
     p.add_argument("--out", type=Path, help="output run directory (default: a fresh "
                    "runs/offline-<time>)")
+    p.add_argument("--null-replicates", type=non_negative_int, default=NullSettings().replicates,
+                   metavar="N",
+                   help="--log: shadow flights of the base fit that each selected effect's "
+                        "evidence must beat (issue 22's null calibration, "
+                        "pinquad.discovery.null; at least 19 for p <= 0.05; 0: off)")
+    p.add_argument("--null-seed", type=int, default=0,
+                   help="--log: seed of the shadow flights")
     p.add_argument("--no-discover", action="store_true",
                    help="with --log: skip the search for unmodelled effects")
     p.add_argument("--view", action="store_true", help="open the browser view of the run")
@@ -164,6 +172,7 @@ def run_log(args: argparse.Namespace) -> int:
     options = LogOptions(sensors=tuple(args.sensor or ()), msteps=_msteps(args.mstep),
                          estep=args.estep, max_iterations=args.max_iterations,
                          information=not args.no_information)
+    null = NullSettings(args.null_replicates, args.null_seed)  # its range checked before work
     t0 = time.perf_counter()
     print(f"pinquad offline --log {args.log}: E-step {args.estep}, "
           f"M-step(s) {', '.join(options.msteps)}")
@@ -192,7 +201,7 @@ def run_log(args: argparse.Namespace) -> int:
             print("\neffect discovery: not run (it works on the diagonal model: run "
                   "--mstep regressor for it)")
         elif not args.no_discover:
-            outcome = run_discovery(result)
+            outcome = run_discovery(result, null)
             if outcome.result is not None:
                 outcome = replace(outcome, result=draw_discovery_figures(
                     outcome.result, writer.path("figures")))

@@ -114,15 +114,13 @@ def first_round_gains(result: DiscoveryResult) -> dict[str, float]:
             if s.round == 0 and s.effect in result.selected}
 
 
-def calibrate(obs: Observations, theta: Theta, posterior: Posterior, result: DiscoveryResult,
-              cfg: DiscoveryConfig, settings: NullSettings = NullSettings(),
-              effects: Sequence[str] | None = None) -> NullCalibration:
-    """Calibrate ``result``'s selected effects (or those of them in ``effects``) against
-    shadow flights of the base fit (``theta``, ``posterior``: the base EM result on
-    ``obs``; module docstring)."""
+def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: dict[str, float],
+              cfg: DiscoveryConfig, settings: NullSettings = NullSettings()) -> NullCalibration:
+    """Calibrate effects against shadow flights of the base fit (``theta``, ``posterior``:
+    the base EM result on ``obs``; module docstring). observed: effect -> its first-round
+    held-out gain on the log (``first_round_gains``)."""
     start = time.perf_counter()
-    observed = {e: g for e, g in first_round_gains(result).items()
-                if effects is None or e in effects}
+    observed = dict(observed)
     effects = list(observed)
     rng = np.random.default_rng(settings.seed)
     gains: dict[str, list[float]] = {e: [] for e in effects}

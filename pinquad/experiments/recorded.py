@@ -30,7 +30,13 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.discovery.discover import discover
-from pinquad.discovery.null import NullCalibration, NullSettings, calibrate, combine
+from pinquad.discovery.null import (
+    NullCalibration,
+    NullSettings,
+    calibrate,
+    combine,
+    first_round_gains,
+)
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
@@ -325,7 +331,9 @@ def run_discovery(result: LogResult, null: NullSettings | None = None) -> Discov
             fresh = [e for e in found.selected if e not in done]
             if not fresh:
                 break
-            cal = calibrate(start.obs, start.theta, start.posterior, found, cfg, null, fresh)
+            gains = first_round_gains(found)
+            cal = calibrate(start.obs, start.theta, start.posterior,
+                            {e: gains[e] for e in fresh}, cfg, null)
             calibrations.append(cal)
             if not cal.rejected:
                 break

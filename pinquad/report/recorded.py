@@ -208,13 +208,33 @@ def plot_residuals(obs: Observations, smoothed: Array, path: Path) -> None:
     fig.savefig(path, dpi=90)
 
 
+def null_lines(null: dict) -> list[str]:
+    """Printed lines of the ``null_calibration`` entry: each tested effect's gain against
+    its shadow flights' (``pinquad.discovery.null``)."""
+    if not null.get("replicates"):
+        return [f"  null calibration: {null.get('note', 'not run')}"] if null else []
+    lines = [f"  null calibration: {null['replicates']} shadow flights of the base fit "
+             f"(seed {null['seed']}, {null['seconds']:.0f} s); an effect is kept when its "
+             f"held-out gain beats them (p <= {null['alpha']:g})"]
+    for name, e in null["effects"].items():
+        lines.append(f"    {name}: gain {100 * e['heldout_gain']:.1f} % vs null max "
+                     f"{100 * e['null_gain_max']:.1f} % (passed the uncalibrated selection on "
+                     f"{e['null_passes']}/{null['replicates']}), p = {e['p_value']:.2f}: "
+                     + ("kept" if e["kept"] else "rejected, not reported"))
+    return lines
+
+
 def discovery_summary(section: dict) -> str:
     """A few printed lines: what was selected, its coefficients and the held-out RMS."""
     if "error" in section:
         return f"effect discovery: {section['error']}"
     sel = section["selected"]
+    null = section.get("null_calibration", {})
     if not sel:
-        return "effect discovery: no significant unmodelled effect (held-out test)"
+        return "\n".join(["effect discovery: no significant unmodelled effect (held-out test"
+                          + (", null calibration)" if null.get("replicates") else ")"),
+                          *null_lines(null)[: 1 + len(null.get("effects", {}))
+                                            if null.get("replicates") else 0]])
     lines = [f"effect discovery: selected {', '.join(s['effect'] for s in sel)}"]
     for s in sel:
         co = ", ".join(f"{n} = {v:.4g} ± {s['stderr'][n]:.2g} {s['units'][n]}"
@@ -229,6 +249,7 @@ def discovery_summary(section: dict) -> str:
     b, a = section["residual_rms_before"], section["residual_rms_after"]
     lines.append("  held-out residual RMS before -> after: " + ", ".join(
         f"{k} {b[k]:.3g} -> {a[k]:.3g}" for k in b))
+    lines.extend(null_lines(null))
     return "\n".join(lines)
 
 
