@@ -45,7 +45,12 @@ class LogMeta:
     vehicle: vehicle name (``paper``, ``crazyflie21``); mass_guess [kg] and
     inertia_guess (3, 3) [kg m^2]: initial values for identification (None if unknown);
     gravity [m/s^2]; source: where the log came from (a path or "simulation");
-    notes: human-readable remarks (e.g. detected sensor faults).
+    notes: human-readable remarks (e.g. detected sensor faults); actuation: how the
+    logged thrust and torques relate to what acted between rows (``ACTUATION``):
+    ``held``, each row's value acted over the interval that follows it (a zero-order
+    hold: pinquad's simulator), or ``sampled``, each row holds the command of a faster
+    controller at that instant, so it moves within the interval (a recorded log; what a
+    sidecar that does not say is taken to mean).
     """
 
     vehicle: str = "paper"
@@ -54,6 +59,14 @@ class LogMeta:
     gravity: float = GRAVITY
     source: str = "simulation"
     notes: tuple[str, ...] = ()
+    actuation: str = "held"
+
+
+ACTUATION = ("held", "sampled")
+"""The sidecar's ``actuation`` values (``LogMeta.actuation``)."""
+
+SAMPLED_NOTE = ("actuation sampled at each row (the sidecar does not say \"actuation\": "
+                "\"held\"): each transition uses the mean of its two rows' thrust and torques")
 
 
 @dataclass(frozen=True)
@@ -202,6 +215,7 @@ def sidecar(meta: LogMeta) -> dict:
         "mass_guess": meta.mass_guess,
         "inertia_guess": None if meta.inertia_guess is None else np.asarray(meta.inertia_guess).tolist(),
         "gravity": meta.gravity,
+        "actuation": meta.actuation,
     }
 
 
@@ -323,7 +337,7 @@ def _sidecar_number(side: Path, raw: dict, key: str) -> float | None:
 def _read_sidecar(path: Path) -> LogMeta:
     side = Path(str(path) + ".json")
     if not side.exists():
-        return LogMeta(source=str(path))
+        return LogMeta(source=str(path), actuation="sampled", notes=(SAMPLED_NOTE,))
     try:
         raw = json.loads(side.read_text(encoding="utf-8-sig", errors="replace"))
     except json.JSONDecodeError as exc:
@@ -352,6 +366,14 @@ def _read_sidecar(path: Path) -> LogMeta:
     notes = () if vehicle in VEHICLES else (
         f"vehicle {vehicle!r} is not one pinquad knows ({', '.join(VEHICLES)}): EM starts "
         "from the sidecar's guesses and the thrust is not compared with a nominal mass",)
+    actuation = raw.get("actuation", "sampled")
+    if actuation not in ACTUATION:
+        raise LogFormatError(f"{side}: key 'actuation' is {actuation!r}; expected one of "
+                             f"{', '.join(ACTUATION)} (held: each row's thrust and torques "
+                             "acted until the next row; sampled: a faster controller's command "
+                             "at the row's instant)")
+    if actuation == "sampled":
+        notes = (*notes, SAMPLED_NOTE)
     return LogMeta(
         vehicle=vehicle,
         mass_guess=mass_guess,
@@ -359,6 +381,7 @@ def _read_sidecar(path: Path) -> LogMeta:
         gravity=GRAVITY if gravity is None else gravity,
         source=str(path),
         notes=notes,
+        actuation=actuation,
     )
 
 

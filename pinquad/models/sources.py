@@ -101,6 +101,23 @@ def floor_contact(log: FlightLog, mass_guess: float,
     return FloorContact(rows, "data", detection)
 
 
+def interval_inputs(logged: Array, actuation: str) -> Array:
+    """(N, 4) the thrust [N] and torques [N m] each transition k -> k+1 applies.
+
+    Every model of pinquad integrates x_{k+1} = x_k + dt f(x_k, u_k), u_k held over the
+    interval. ``held`` logs (pinquad's simulator) are that: u_k = the logged row. A
+    ``sampled`` log holds a faster controller's command at each row's instant, so what
+    acted over [t_k, t_k+1] is its mean, (u_k + u_k+1) / 2 to O(dt^2) (trapezoid; the
+    last row keeps its value). Taken as held, a sampled input leads the state by half a
+    step: on flightgen's 100 Hz logs that alone put I_xx 32 % high (docs/discovery.md).
+    """
+    if actuation == "held":
+        return logged
+    out = logged.copy()
+    out[:-1] = 0.5 * (logged[:-1] + logged[1:])
+    return out
+
+
 def observations(log: FlightLog, source: str, contact: FloorContact | None = None
                  ) -> Observations:
     """Build the E-step's observations of a log for source A, B or C.
@@ -108,7 +125,8 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     Transitions into or out of a contact row are excluded from the M-step; those into one
     are also resets for the E-step (``Observations.resets``). The contact rows are
     ``contact.rows``; without it, the log's contact flags, else none (the data-based
-    detection needs a mass guess: pass ``floor_contact(log, mass_guess)``).
+    detection needs a mass guess: pass ``floor_contact(log, mass_guess)``). The inputs are
+    what each transition applies (``interval_inputs`` by ``log.meta.actuation``).
     """
     if log.thrust is None or log.torque is None:
         raise ValueError("the log has no thrust/torque actuation; convert rotor speeds first")
@@ -141,6 +159,6 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
         # touching down, the floor stops and levels the vehicle within the step: the
         # smoother must not carry the flight dynamics across that (ssm.RESET_VAR)
         resets[:-1] = rows[1:]
-    inputs = np.column_stack([log.thrust, log.torque])
+    inputs = interval_inputs(np.column_stack([log.thrust, log.torque]), log.meta.actuation)
     return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
                         p0=p0, exclude=exclude, resets=resets)
