@@ -44,7 +44,9 @@ class LogMeta:
     vehicle: vehicle name (``paper``, ``crazyflie21``); mass_guess [kg] and
     inertia_guess (3, 3) [kg m^2]: initial values for identification (None if unknown);
     gravity [m/s^2]; source: where the log came from (a path or "simulation");
-    notes: human-readable remarks (e.g. detected sensor faults).
+    notes: human-readable remarks (e.g. detected sensor faults); vehicle_named: whether
+    the log itself names the vehicle (False: no sidecar or no ``vehicle`` in it, and
+    ``vehicle`` is the default ``paper``, not the log's).
     """
 
     vehicle: str = "paper"
@@ -53,6 +55,7 @@ class LogMeta:
     gravity: float = GRAVITY
     source: str = "simulation"
     notes: tuple[str, ...] = ()
+    vehicle_named: bool = True
 
 
 @dataclass(frozen=True)
@@ -287,7 +290,7 @@ def _cols3(cols: dict[str, Array], prefix: str, n: int) -> Array:
 def _read_sidecar(path: Path) -> LogMeta:
     side = Path(str(path) + ".json")
     if not side.exists():
-        return LogMeta(source=str(path))
+        return LogMeta(source=str(path), vehicle_named=False)
     try:
         raw = json.loads(side.read_text())
     except json.JSONDecodeError as exc:
@@ -304,6 +307,7 @@ def _read_sidecar(path: Path) -> LogMeta:
         inertia_guess=inertia_arr,
         gravity=float(raw.get("gravity", GRAVITY)),
         source=str(path),
+        vehicle_named="vehicle" in raw,
     )
 
 
