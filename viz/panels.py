@@ -128,7 +128,7 @@ def headline_markdown(h: Headline) -> str:
     """The headline table of a recorded log: the final model's estimate ± standard error
     with each parameter's verdict, the base fit beside it when discovery changed it, the
     reference values when the vehicle has them; then the overall verdict and reasons."""
-    cols = [f"final: {h.final.model}" if h.final.model else "final model"]
+    cols = ["final model"]
     if h.base is not None:
         cols.append("base fit")
     if h.reference is not None:
@@ -141,7 +141,8 @@ def headline_markdown(h: Headline) -> str:
         if h.reference is not None:
             cells.append(f"{h.reference[i] * k:{fmt}}")
         rows.append(f"| {name} [{unit}] | " + " | ".join(cells) + " |")
-    text = [f"**Headline estimate** (verdict: **{h.final.overall}**)", "", *rows]
+    text = [f"**Headline estimate** (verdict: **{h.final.overall}**)"
+            + (f"  \nfinal model: {h.final.model}" if h.final.model else ""), "", *rows]
     text += [f"- {r}" for r in h.final.reasons]
     if h.reference is not None:
         text.append(f"\n_reference: {h.reference_source}_")

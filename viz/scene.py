@@ -31,7 +31,7 @@ START_RGB = (110, 110, 110)
 
 MAX_LINE_POINTS = 2000
 """Vertices per drawn trajectory; more adds nothing visible and slows the browser."""
-MOCAP_RGB = (20, 20, 20)
+MOCAP_RGB = (90, 90, 90)
 NAN_RGB = (170, 170, 170)
 COLORMAP = np.array([(13, 8, 135), (126, 3, 168), (204, 71, 120), (248, 149, 64),
                      (240, 249, 33)], dtype=float)
@@ -254,7 +254,7 @@ def add_residual_paths(scene: viser.SceneApi, run: Run, radius: float
             mocap[f.name] = scene.add_point_cloud(
                 f"/flights/{f.name}/mocap", pts, np.broadcast_to(
                     np.asarray(MOCAP_RGB, np.uint8), pts.shape).copy(),
-                point_size=float(np.clip(0.006 * radius, 0.004, 0.03)), point_shape="circle",
+                point_size=float(np.clip(0.004 * radius, 0.003, 0.02)), point_shape="circle",
                 point_shading="flat", visible=False)
     return lines, tops, mocap
 
