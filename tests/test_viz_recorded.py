@@ -149,3 +149,15 @@ def test_view_of_a_log_that_names_no_vehicle(tmp_path: Path):
         assert v.colour_dropdown is None  # no residual table: no selector
     finally:
         v.stop()
+
+
+def test_report_says_when_the_log_names_no_vehicle():
+    from pinquad.io.logs import LogMeta
+    from pinquad.report.run_tables import reference, vehicle_note
+
+    unnamed = SimpleNamespace(log=SimpleNamespace(meta=LogMeta(vehicle_named=False)))
+    named = SimpleNamespace(log=SimpleNamespace(meta=LogMeta(vehicle="crazyflie21")))
+    assert vehicle_note(unnamed, 0.0331).startswith(
+        "vehicle not named by the log: drawn at the size of a 33.1 g quad")
+    assert vehicle_note(named, 0.0331) is None
+    assert reference("crazyflie21")["mass"] == CRAZYFLIE21.mass and reference("paper") is None
