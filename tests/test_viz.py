@@ -12,17 +12,12 @@ it (Debian: ``apt-get install -y chromium``).
 
 from __future__ import annotations
 
-import base64
-import io
 import json
 import math
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
-import urllib.request
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -30,105 +25,18 @@ import numpy as np
 import pytest
 
 from pinquad.core.conventions import rotation_from_quat_wxyz
+from viz.browser import CHROMIUM_NAMES, HEIGHT, WIDTH, Chromium, find_chromium, wait_for
 
-WIDTH, HEIGHT = 1280, 800
 PANEL_LEFT = 860
 """Pixels right of this may be covered by viser's floating control panel."""
-CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
-# Headless Chromium has no GPU here; SwiftShader renders WebGL in software.
-CHROMIUM_FLAGS = (
-    "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-    "--disable-dev-shm-usage", "--hide-scrollbars", "--mute-audio",
-    f"--window-size={WIDTH},{HEIGHT}",
-)
 
 
 # ----------------------------------------------------------------------------- helpers
 
-def _wait(predicate: Callable[[], Any], timeout: float, what: str, interval: float = 0.25) -> Any:
-    deadline = time.monotonic() + timeout
-    while True:
-        value = predicate()
-        if value is not None and value is not False and not (isinstance(value, list)
-                                                             and not value):
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
-        time.sleep(interval)
-
-
-class Chromium:
-    """A headless Chromium page driven over the DevTools protocol (websockets, which
-    viser already depends on)."""
-
-    def __init__(self, executable: str) -> None:
-        from websockets.sync.client import connect
-
-        self._profile = tempfile.mkdtemp(prefix="viz-chromium-")
-        self.proc = subprocess.Popen(
-            [executable, *CHROMIUM_FLAGS, f"--user-data-dir={self._profile}",
-             "--remote-debugging-port=0", "about:blank"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        port_file = Path(self._profile) / "DevToolsActivePort"
-
-        def devtools_port() -> int | None:
-            if self.proc.poll() is not None:
-                err = self.proc.stderr.read().decode(errors="replace") if self.proc.stderr else ""
-                raise AssertionError(f"chromium exited with {self.proc.returncode}: {err[-2000:]}")
-            text = port_file.read_text() if port_file.exists() else ""
-            return int(text.split()[0]) if text.strip() else None
-
-        port = _wait(devtools_port, 20.0, "chromium's DevTools port")
-        with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as r:
-            targets = json.load(r)
-        page = next(t for t in targets if t["type"] == "page")
-        self._ws = connect(page["webSocketDebuggerUrl"], max_size=None, open_timeout=10)
-        self._id = 0
-        self.call("Page.enable")
-        self.call("Emulation.setDeviceMetricsOverride", width=WIDTH, height=HEIGHT,
-                  deviceScaleFactor=1, mobile=False)
-
-    def call(self, method: str, **params: Any) -> dict[str, Any]:
-        """Send one DevTools command and return its result (events are skipped)."""
-        self._id += 1
-        self._ws.send(json.dumps({"id": self._id, "method": method, "params": params}))
-        while True:
-            msg = json.loads(self._ws.recv(timeout=30))
-            if msg.get("id") == self._id:
-                if "error" in msg:
-                    raise AssertionError(f"DevTools {method}: {msg['error']}")
-                return msg["result"]
-
-    def screenshot(self) -> np.ndarray:
-        """The page as an (H, W, 3) uint8 RGB array."""
-        from PIL import Image
-
-        data = base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
-        return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
-
-    def evaluate(self, expression: str) -> Any:
-        return self.call("Runtime.evaluate", expression=expression,
-                         returnByValue=True)["result"].get("value")
-
-    def close(self) -> None:
-        try:
-            self._ws.close()
-        finally:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-            shutil.rmtree(self._profile, ignore_errors=True)
-
-
 def _chromium_executable() -> str:
-    for name in CHROMIUM_NAMES:
-        path = shutil.which(name)
-        if path:
-            return path
+    path = find_chromium()
+    if path:
+        return path
     pytest.fail("headless Chromium is required for the viewer test but none was found "
                 f"(looked for {', '.join(CHROMIUM_NAMES)}); on Debian/Ubuntu: "
                 "apt-get update && apt-get install -y chromium")
@@ -202,11 +110,11 @@ def browser() -> Iterator[Chromium]:
 def test_viewer_renders_and_time_slider_moves_vehicle(viewer: Any, browser: Chromium) -> None:
     browser.call("Page.navigate", url=viewer.url)
     server = viewer.server
-    clients = _wait(lambda: list(server.get_clients().values()), 30.0, "the page to connect")
+    clients = wait_for(lambda: list(server.get_clients().values()), 30.0, "the page to connect")
     camera = clients[0].camera
     initial = np.asarray(server.initial_camera.position)
     # The client first reports its default camera, then the run's initial one.
-    _wait(lambda: camera.image_width > 0 and np.allclose(camera.position, initial, atol=1e-3),
+    wait_for(lambda: camera.image_width > 0 and np.allclose(camera.position, initial, atol=1e-3),
           30.0, "the browser's camera to take the viewer's initial pose")
     assert (camera.image_width, camera.image_height) == (WIDTH, HEIGHT)
 
@@ -234,7 +142,7 @@ def test_viewer_renders_and_time_slider_moves_vehicle(viewer: Any, browser: Chro
               and _rotor_blue(near).sum() > 150 and red_rotor(near).sum() > 20)
         return img if ok else None
 
-    first = _wait(rendered, 40.0, "the 3D scene (blue and red rotors where the vehicle "
+    first = wait_for(rendered, 40.0, "the 3D scene (blue and red rotors where the vehicle "
                   "projects) to render", interval=1.0)
     scene = first[scene_area].reshape(-1, 3)
     colours = np.unique(scene // 8, axis=0).shape[0]
@@ -272,7 +180,7 @@ def test_viewer_renders_and_time_slider_moves_vehicle(viewer: Any, browser: Chro
               < 0.2 * _rotor_blue(_box(first, u0, v0, 60)).sum())
         return img if ok else None
 
-    second = _wait(moved, 20.0, "the vehicle to move on screen", interval=0.5)
+    second = wait_for(moved, 20.0, "the vehicle to move on screen", interval=0.5)
     changed = np.abs(second[scene_area].astype(int) - first[scene_area]).max(axis=2) > 40
     assert changed.sum() > 500, "the screenshots barely differ after moving the slider"
 
@@ -307,7 +215,7 @@ def test_viewer_controls(viewer: Any) -> None:
 
     viewer.set_playing(True)
     start = float(viewer.time_slider.value)
-    _wait(lambda: float(viewer.time_slider.value) != start, 5.0, "playback to advance")
+    wait_for(lambda: float(viewer.time_slider.value) != start, 5.0, "playback to advance")
     viewer.set_playing(False)
 
 
@@ -399,3 +307,81 @@ def test_recorded_log_run_without_truth(tmp_path: Path) -> None:
     finally:
         v.stop()
     print(f"served a 60 s, 500 Hz log in {elapsed:.2f} s")
+
+
+# ------------------------------------------------------------- a recorded real flight
+
+JANA00 = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie" / "imrc_brushed" / "jana00"
+
+
+@pytest.fixture(scope="module")
+def jana_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The shared real Crazyflie log jana00 through ``offline --log`` in-process (~6 s):
+    regressor M-step, discovery on (it selects drag on this log)."""
+    from pinquad.cli.offline import main as offline_main
+
+    assert JANA00.is_file(), f"the shared Crazyflie log is missing: expected {JANA00}"
+    out = tmp_path_factory.mktemp("viz_log") / "run"
+    code = offline_main(["--log", str(JANA00), "--mstep", "regressor", "--no-information",
+                         "--out", str(out)])
+    assert code in (0, 3) and (out / "report.json").is_file()  # 3: an untrusted headline
+    return out
+
+
+def _warm_share(img: np.ndarray) -> float:
+    """Share of the path's coloured pixels in the scene that are on the warm (large
+    residual: pink to yellow) end of the colour scale rather than the cool (dark blue,
+    purple) end."""
+    im = img[:, :PANEL_LEFT].astype(int)
+    r, g, b = im[..., 0], im[..., 1], im[..., 2]
+    warm = ((r > 180) & (b < 140) & (r - b > 80)).sum()
+    cool = ((b > 90) & (g < 70) & (b - g > 60)).sum()
+    assert warm + cool > 2000, f"only {warm + cool} coloured path pixels: path not drawn?"
+    return float(warm / (warm + cool))
+
+
+def test_recorded_log_view_in_browser(jana_run: Path, browser: Chromium) -> None:
+    """A real flight's view: the log's vehicle at its size, the whole EM history, the
+    headline with verdict, base fit and reference in the page; the path coloured by the
+    force residual, warm on the base fit and cooler under the final model (drag)."""
+    from viz.app import serve
+    from viz.browser import NOTICE_JS, open_view, page_text, settled
+
+    report = json.loads((jana_run / "report.json").read_text())
+    assert report["source"]["vehicle_named"] is True and report["reference"]["mass"] == 0.0347
+    v = serve(jana_run, port=0)
+    try:
+        assert v.scale == 1.0 and v.run.vehicle == "crazyflie21"
+        rec = v.run.cycles[0]
+        e_steps = report["runs"][0]["e_steps"]
+        assert e_steps > 10 and rec.e_steps == e_steps
+        assert rec.x.shape[0] == e_steps + 1  # the initial guess and one iterate per E-step
+        assert len(v.mass_plot.data[0]) == e_steps + 1
+        assert np.isfinite(v.loglik_plot.data[1]).sum() == e_steps
+        assert set(v.residual_lines["log"]) == {"force_before", "force_after",
+                                                "torque_before", "torque_after"}
+        v.colour_dropdown.value = "force residual, base fit"
+        assert v.residual_lines["log"]["force_before"].visible
+        assert not v._lines["log"][1].visible  # the plain path gives way to the coloured one
+        open_view(browser, v)
+        wait_for(lambda: browser.evaluate(NOTICE_JS) is not None, 10.0, "the notices")
+        text = page_text(browser)
+        for label in ("crazyflie21", "drawn at its real size", "Path colour",
+                      "Raw motion capture", f"{e_steps} E-steps", "Headline estimate",
+                      "not identifiable" if report["verdict"]["overall"] != "trusted"
+                      else "trusted", "base fit", "reference", "34.700",
+                      "force residual, base fit", "log-likelihood [nats]"):
+            assert label in text, f"{label!r} not in the page"
+        before = settled(browser, timeout=20.0)
+        v.colour_dropdown.value = "force residual, final model"
+        assert v.residual_lines["log"]["force_after"].visible
+        assert not v.residual_lines["log"]["force_before"].visible
+        after = wait_for(lambda: (img := settled(browser, timeout=20.0)) is not None
+                         and not np.array_equal(img, before) and img, 20.0,
+                         "the path's colours to change")
+        assert _warm_share(after) < 0.67 * _warm_share(before)
+        v.mocap_checkbox.value = True
+        assert v.mocap_points["log"].visible
+        assert v.mocap_points["log"].points.shape[0] > 400
+    finally:
+        v.stop()

@@ -20,17 +20,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import quat_wxyz_from_euler
-from viz.geometry import body_radius, default_scale, vehicle_parts
+from viz.geometry import body_radius, default_scale, resized, stand_in, vehicle_parts
 from viz.panels import (
     add_discovery_panel,
     add_figures_panel,
     add_warnings_panel,
     cycle_label,
     header_markdown,
+    headline_markdown,
     parameter_markdown,
+    residual_legend,
     status_markdown,
 )
-from viz.plots import add_parameter_plots, plot_data
+from viz.plots import add_loglik_plot, add_parameter_plots, loglik_columns, plot_data
+from viz.recorded import RESIDUAL_CHOICES
 from viz.run import CycleRecord, Flight, Run, load_run
 from viz.scene import build_scene, scene_bounds, urdf_for
 
@@ -45,6 +48,18 @@ PATH_CHOICES = ("truth and estimate", "truth", "estimate", "none")
 """The Paths dropdown's choices."""
 SPEEDS = ("0.1x", "0.25x", "0.5x", "1x", "2x", "4x", "8x")
 """Playback speeds, relative to the flight's own time."""
+PLAIN_PATH = "plain (no residual colour)"
+"""The Path colour selector's first entry; the others are ``RESIDUAL_CHOICES``'."""
+
+
+def drawn_vehicle(run: Run) -> tuple[str, float]:
+    """The vehicle drawn for ``run`` and its size factor: the log's own at its size; for
+    a log that names none, a quad of the identified mass (``geometry.stand_in``)."""
+    if run.vehicle_named:
+        return run.vehicle, 1.0
+    mass = (run.headline.final.mass if run.headline is not None
+            else run.cycles[0].est_mass if run.cycles else None)
+    return stand_in(mass)
 
 
 def _nice_step(flight: Flight) -> float:
@@ -64,11 +79,13 @@ class Viewer:
                  ) -> None:
         self.run = run
         self.server = server
-        urdf = urdf_for(run.vehicle)
-        self.parts = vehicle_parts(urdf)
+        drawn, size = drawn_vehicle(run)
+        self.parts = resized(vehicle_parts(urdf_for(drawn)), size)
         path_bounds = scene_bounds(run, 0.0)
-        self.scale = float(scale) if scale else default_scale(
-            run.vehicle, self.parts, path_bounds.radius)
+        # A recorded flight is drawn at its real size: beside the floor and its own path,
+        # a magnified vehicle would misstate how close to the ground it flew.
+        self.scale = float(scale) if scale else 1.0 if run.kind == "log" else default_scale(
+            drawn, self.parts, path_bounds.radius)
         self.bounds = scene_bounds(run, self.scale * body_radius(self.parts))
         # Simulated flights start on the floor at z = 0; a log may sit lower.
         self.floor_z = min(0.0, float(path_bounds.low[2]))
@@ -110,6 +127,9 @@ class Viewer:
         self._lines = scene.lines
         self.vehicle = scene.vehicle
         self.ghost = scene.ghost
+        self.residual_lines = scene.residual_lines
+        self.residual_tops = scene.residual_tops
+        self.mocap_points = scene.mocap
 
     def _build_gui(self) -> None:
         gui = self.server.gui
@@ -135,6 +155,20 @@ class Viewer:
                 "Paths", PATH_CHOICES, initial_value=PATH_CHOICES[0],
                 hint="Which trajectories to draw (the estimate is dashed)")
             self.paths_dropdown.on_update(lambda _: self._update_path_visibility())
+            self.colour_dropdown = self.mocap_checkbox = self.colour_legend = None
+            if self.residual_lines:
+                self.colour_dropdown = gui.add_dropdown(
+                    "Path colour", (PLAIN_PATH, *(label for label, _ in RESIDUAL_CHOICES)),
+                    initial_value=PLAIN_PATH,
+                    hint="Colour the smoothed path by the size of the identified model's "
+                         "residual: where the model fails")
+                self.colour_legend = gui.add_markdown("")
+                self.colour_dropdown.on_update(lambda _: self._update_path_visibility())
+            if self.mocap_points:
+                self.mocap_checkbox = gui.add_checkbox(
+                    "Raw motion capture", False,
+                    hint="Draw the motion-capture samples as recorded beside the path")
+                self.mocap_checkbox.on_update(lambda _: self._update_path_visibility())
             self.flight_note = gui.add_markdown("")
 
         with gui.add_folder("Playback"):
@@ -156,11 +190,16 @@ class Viewer:
             self.ghost_checkbox.on_update(lambda _: self.set_time(self.time_slider.value))
 
         with gui.add_folder("Parameters"):
+            self.headline_text = (None if run.headline is None
+                                  else gui.add_markdown(headline_markdown(run.headline)))
             self.param_table = gui.add_markdown("")
             self.mass_plot = None
             self.inertia_plot = None
+            self.loglik_plot = None
             if run.cycles:
                 self.mass_plot, self.inertia_plot = add_parameter_plots(gui, run.cycles[0])
+                if any(c.loglik is not None for c in run.cycles):
+                    self.loglik_plot = add_loglik_plot(gui, run.cycles[0])
 
         self.discovery_text, self.discovery_images = add_discovery_panel(gui, run.discovery)
         add_figures_panel(gui, run)
@@ -213,6 +252,8 @@ class Viewer:
             if self.inertia_plot is not None:
                 self.inertia_plot.data = d.inertia_columns()
                 self.inertia_plot.scales = d.inertia_scales()
+            if self.loglik_plot is not None:
+                self.loglik_plot.data = loglik_columns(rec)
             self.param_table.content = parameter_markdown(rec)
             self._update_flight_note()
 
@@ -250,15 +291,34 @@ class Viewer:
                 self.ghost.visible = False
                 self.status.content = ""
 
+    @property
+    def residual_column(self) -> str | None:
+        """The residual column the path is coloured by (None: plain)."""
+        if self.colour_dropdown is None:
+            return None
+        return dict(RESIDUAL_CHOICES).get(self.colour_dropdown.value)
+
     def _update_path_visibility(self) -> None:
         f = self._flight
         choice = self.paths_dropdown.value
+        column = self.residual_column
         for name, (truth, est) in self._lines.items():
             shown = f is not None and name == f.name
+            coloured = shown and column is not None and name in self.residual_lines
             if truth is not None:
                 truth.visible = shown and "truth" in choice
             if est is not None:
-                est.visible = shown and "estimate" in choice
+                est.visible = shown and "estimate" in choice and not coloured
+            for col, handle in self.residual_lines.get(name, {}).items():
+                handle.visible = coloured and "estimate" in choice and col == column
+            if name in self.mocap_points:
+                self.mocap_points[name].visible = bool(
+                    shown and self.mocap_checkbox is not None and self.mocap_checkbox.value)
+        if self.colour_legend is not None:
+            track = None if f is None else f.residuals
+            self.colour_legend.content = ("" if column is None or track is None else
+                                          residual_legend(column, self.residual_tops[f.name][column],
+                                                          track.note))
 
     def _update_flight_note(self) -> None:
         f = self._flight

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import quat_wxyz_from_rotation, rotation_from_euler
+from pinquad.core.params import VEHICLES
 
 Array = NDArray[np.float64]
 
@@ -178,3 +179,20 @@ def default_scale(vehicle: str, parts: tuple[VisualPart, ...], scene_radius: flo
     if scene_radius is not None and scene_radius > 0 and radius > 0:
         scale = min(scale, max(0.2 * scene_radius / radius, 1.0))
     return scale
+
+
+def stand_in(mass: float | None) -> tuple[str, float]:
+    """The vehicle drawn for a log that names none: the known vehicle (``VEHICLES``)
+    nearest in mass ratio to ``mass`` [kg] and its size factor (mass / its mass)^(1/3)
+    [-] (equal density: a quad of that mass); the paper's at its size without a mass."""
+    if mass is None or not np.isfinite(mass) or mass <= 0:
+        return "paper", 1.0
+    name = min(VEHICLES, key=lambda v: abs(np.log(mass / VEHICLES[v].mass)))
+    return name, float((mass / VEHICLES[name].mass) ** (1.0 / 3.0))
+
+
+def resized(parts: tuple[VisualPart, ...], factor: float) -> tuple[VisualPart, ...]:
+    """``parts`` with every size and offset multiplied by ``factor`` [-] (the vehicle's
+    own size, unlike the display magnification)."""
+    return tuple(VisualPart(p.name, p.kind, tuple(factor * d for d in p.dims),
+                            factor * p.position, p.wxyz, p.rgb, p.opacity) for p in parts)

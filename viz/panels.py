@@ -14,7 +14,9 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
 from viz.plots import ESTIMATE_CSS, TRUTH_CSS
+from viz.recorded import PARAMS, EstimateRow, Headline
 from viz.run import CycleRecord, Discovery, Flight, Run
+from viz.scene import COLORMAP
 
 if TYPE_CHECKING:
     import viser
@@ -59,34 +61,106 @@ def cycle_label(rec: CycleRecord) -> str:
     return f"{rec.cycle}" + ("" if rec.seed is None else f" (seed {rec.seed})")
 
 
+def vehicle_words(run: Run, scale: float) -> str:
+    """What the header says of the vehicle: its name and the drawn size, or, when the
+    log named none, that it did not (``Run.vehicle_note``'s first clause)."""
+    size = "drawn at its real size" if scale == 1.0 else f"drawn x{scale:.3g} its size"
+    if not run.vehicle_named:
+        note = run.vehicle_note.split(" (", 1)[0] or "vehicle not named by the log"
+        return f"**{note}**" + ("" if scale == 1.0 else f", magnified x{scale:.3g}")
+    return f"vehicle `{run.vehicle}` ({size})"
+
+
 def header_markdown(run: Run, scale: float) -> str:
-    """The view's first line: run, kind, vehicle (drawn ``scale`` times its size) and
-    the legend of the paths it has."""
+    """The view's first line: run, kind, vehicle (drawn ``scale`` times its size, or
+    that the log named none) and the legend of the paths it has."""
     legend = []
     if any(f.true_pos is not None for f in run.flights):
         legend.append(f"<span style='color:{TRUTH_CSS}'>&#9644;</span> true path")
     if any(f.est_pos is not None for f in run.flights):
         legend.append(f"<span style='color:{ESTIMATE_CSS}'>&#9644;</span> estimated path "
                       "(dashed)")
-    return (f"**{run.path.name}** &middot; {run.kind} run &middot; vehicle `{run.vehicle}` "
-            f"(drawn x{scale:.3g})  \n" + " &nbsp; ".join(legend))
+    if any(f.mocap is not None for f in run.flights):
+        legend.append("&#8226; raw motion capture (toggle)")
+    return (f"**{run.path.name}** &middot; {run.kind} run &middot; {vehicle_words(run, scale)}"
+            "  \n" + " &nbsp; ".join(legend))
 
 
 def parameter_markdown(rec: CycleRecord) -> str:
     """Table of the final estimates of ``rec`` (g, 1e-6 kg m^2) beside the truth."""
-    rows = ["| | estimate | truth | error |", "|---|---|---|---|"]
     truth = [rec.true_mass] + ([None] * 3 if rec.true_inertia_diag is None
                                else list(rec.true_inertia_diag))
+    known = any(v is not None for v in truth)
+    # A recorded flight has no truth: its table is the estimate alone.
+    rows = (["| | estimate | truth | error |", "|---|---|---|---|"] if known
+            else ["| | estimate of this run |", "|---|---|"])
     ests = [rec.est_mass, *rec.est_inertia_diag]
     for name, unit, k, est, tru in zip(("mass", "Ixx", "Iyy", "Izz"),
                                        ("g", "1e-6 kg m²", "1e-6 kg m²", "1e-6 kg m²"),
                                        (1e3, 1e6, 1e6, 1e6), ests, truth, strict=True):
         tru_txt = "-" if tru is None else f"{tru * k:.4g}"
-        rows.append(f"| {name} [{unit}] | {est * k:.4g} | {tru_txt} | {fmt_pct(est, tru)} |")
+        rows.append(f"| {name} [{unit}] | {est * k:.4g} | {tru_txt} | {fmt_pct(est, tru)} |"
+                    if known else f"| {name} [{unit}] | {est * k:.4g} |")
     n = rec.x.shape[0]
-    return (f"Sensor {rec.sensor}, cycle {rec.cycle}, {rec.mstep} M-step, "
-            f"{n} {'updates' if rec.x_label != 'EM iteration' else 'iterations'}\n\n"
+    if rec.e_steps is not None:
+        count = f"{rec.e_steps} E-steps ({n} iterates plotted, the first the initial guess)"
+    else:
+        count = f"{n} {'updates' if rec.x_label not in ('EM iteration', 'EM iterate') else 'iterations'}"
+    return (f"Sensor {rec.sensor}, cycle {rec.cycle}, {rec.mstep} M-step, {count}\n\n"
             + "\n".join(rows))
+
+
+UNITS = (("mass", "g", 1e3, ".3f"), ("Ixx", "1e-6 kg m²", 1e6, ".2f"),
+         ("Iyy", "1e-6 kg m²", 1e6, ".2f"), ("Izz", "1e-6 kg m²", 1e6, ".2f"))
+
+
+def _cell(row: EstimateRow, i: int) -> str:
+    _, _, k, fmt = UNITS[i]
+    se = row.stderr[i]
+    text = f"{row.values[i] * k:{fmt}}" + ("" if not np.isfinite(se) else f" ± {se * k:{fmt}}")
+    verdict, reason = row.verdicts.get(PARAMS[i], ("", ""))
+    if verdict and verdict != "trusted":
+        text += f" **{verdict}**"
+    return text
+
+
+def headline_markdown(h: Headline) -> str:
+    """The headline table of a recorded log: the final model's estimate ± standard error
+    with each parameter's verdict, the base fit beside it when discovery changed it, the
+    reference values when the vehicle has them; then the overall verdict and reasons."""
+    cols = ["final model"]
+    if h.base is not None:
+        cols.append("base fit")
+    if h.reference is not None:
+        cols.append("reference")
+    rows = ["| | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]
+    for i, (name, unit, k, fmt) in enumerate(UNITS):
+        cells = [_cell(h.final, i)]
+        if h.base is not None:
+            cells.append(_cell(h.base, i))
+        if h.reference is not None:
+            cells.append(f"{h.reference[i] * k:{fmt}}")
+        rows.append(f"| {name} [{unit}] | " + " | ".join(cells) + " |")
+    text = [f"**Headline estimate** (verdict: **{h.final.overall}**)"
+            + (f"  \nfinal model: {h.final.model}" if h.final.model else ""), "", *rows]
+    text += [f"- {r}" for r in h.final.reasons]
+    if h.reference is not None:
+        text.append(f"\n_reference: {h.reference_source}_")
+    if h.base is not None:
+        text.append("\n_base fit: the rigid-body model before discovery's refit_")
+    return "\n".join(text)
+
+
+def residual_legend(column: str, top: float, note: str) -> str:
+    """The colour key of the residual-coloured path: its scale from 0 to ``top`` (in mN
+    or 1e-6 N m), and how the residual was computed."""
+    force = column.startswith("force")
+    k, unit = (1e3, "mN") if force else (1e6, "1e-6 N m")
+    stops = "".join(f"<span style='color:rgb{tuple(int(v) for v in c)}'>&#9632;</span>"
+                    for c in COLORMAP)
+    which = "base fit" if column.endswith("before") else "final model"
+    return (f"{'force' if force else 'torque'} residual, {which}: 0 {stops} "
+            f"&ge; {top * k:.3g} {unit} (grey: no transition used)  \n_{note}_")
 
 
 def status_markdown(f: Flight, t: float, truth: tuple[Array, Array] | None,

@@ -118,3 +118,26 @@ def add_parameter_plots(gui: viser.GuiApi, rec: CycleRecord
                                  title="inertia diagonal [1e-6 kg m²]",
                                  scales=d.inertia_scales(), aspect=1.8)
     return mass_plot, inertia_plot
+
+
+def loglik_columns(rec: CycleRecord) -> tuple[Array, Array]:
+    """uPlot columns of the log-likelihood plot: x and log p(y | iterate) [nats] (NaN
+    where the run recorded none: uPlot leaves a gap)."""
+    idx = decimate_indices(rec.x.shape[0], MAX_PLOT_POINTS)
+    ll = np.full(rec.x.shape[0], np.nan) if rec.loglik is None else rec.loglik
+    x, y = rec.x[idx], ll[idx]
+    if x.shape[0] < 2:
+        x, y = np.array([x[0], x[0] + 1.0]), np.array([y[0], y[0]])
+    return x, y
+
+
+def add_loglik_plot(gui: viser.GuiApi, rec: CycleRecord) -> viser.GuiUplotHandle:
+    """Add the log-likelihood-per-iterate plot of ``rec`` to ``gui``; its handle."""
+    # deferred on purpose: viser is the viewer's optional, heavy dependency
+    from viser import uplot
+
+    series: tuple[uplot.Series, ...] = ({"label": rec.x_label},
+                                        {"label": "log-likelihood", "stroke": ESTIMATE_CSS,
+                                         "width": 2})
+    return gui.add_uplot(loglik_columns(rec), series, title="log-likelihood [nats]",
+                         scales={"x": {"time": False}}, aspect=2.2)

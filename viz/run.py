@@ -22,6 +22,15 @@ from numpy.typing import NDArray
 
 from pinquad.io.logs import LogFormatError, read_log
 from pinquad.io.runs import REPORT_SCHEMA
+from viz.recorded import (
+    Headline,
+    Iterates,
+    ResidualTrack,
+    load_headline,
+    load_iterates,
+    load_mocap,
+    load_residuals,
+)
 
 Array = NDArray[np.float64]
 
@@ -39,7 +48,9 @@ class Flight:
     the log belongs to, if known; t (N,) [s]; true_pos / est_pos (N, 3) [m, world] and
     true_euler / est_euler (N, 3) roll, pitch, yaw [rad], each None when the run has no
     such data; est_source: what the estimate is ("smoothed" E-step posterior mean, or
-    "measured" when only the raw log exists).
+    "measured" when only the raw log exists); residuals: the residual size per step of a
+    recorded log's run (None otherwise); mocap (P, 4) [t [s], x, y, z [m]]: its raw
+    motion-capture samples, or None.
     """
 
     name: str
@@ -50,6 +61,8 @@ class Flight:
     est_pos: Array | None
     est_euler: Array | None
     est_source: str
+    residuals: ResidualTrack | None = None
+    mocap: Array | None = None
 
     @property
     def duration(self) -> float:
@@ -68,7 +81,9 @@ class CycleRecord:
 
     x (K,): EM iteration index, or time [s] of each online update when the run logged
     it (x_label says which); mass (K,) [kg]; inertia_diag (K, 3) [kg m^2]. est_* are the
-    final estimates; true_* the simulator's values, or None for a recorded flight.
+    final estimates; true_* the simulator's values, or None for a recorded flight;
+    loglik (K,) [nats] per iterate (NaN where not recorded) or None; e_steps: the
+    E-steps EM used, when the run recorded it.
     """
 
     sensor: str
@@ -83,6 +98,8 @@ class CycleRecord:
     est_inertia_diag: Array
     true_mass: float | None
     true_inertia_diag: Array | None
+    loglik: Array | None = None
+    e_steps: int | None = None
 
 
 @dataclass(frozen=True)
@@ -104,6 +121,9 @@ class Run:
 
     waypoints (W, 3) [m] and start (3,) [m] come from the scenario (None for recorded
     flights). warnings: problems that did not stop loading (e.g. a missing log file).
+    vehicle_named: whether the run's log named its vehicle (False: ``vehicle`` is a
+    default and vehicle_note says so); headline: a recorded log's final and base
+    estimates with verdicts and reference values, or None.
     """
 
     path: Path
@@ -116,6 +136,9 @@ class Run:
     discovery: Discovery | None
     figures: tuple[Path, ...]
     warnings: tuple[str, ...]
+    vehicle_named: bool = True
+    vehicle_note: str = ""
+    headline: Headline | None = None
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -246,11 +269,17 @@ def _load_flight(run_dir: Path, name: str, entry: Any, warnings: list[str]) -> F
     if true_pos is None or true_euler is None:
         true_pos = true_euler = None
     cycle = entry.get("cycle")
+    residuals = mocap = None
+    if isinstance(entry.get("step_residuals"), str):
+        residuals = load_residuals(run_dir / entry["step_residuals"],
+                                   str(entry.get("step_residuals_note") or ""), warnings)
+    if isinstance(entry.get("mocap"), str):
+        mocap = load_mocap(run_dir / entry["mocap"], warnings)
     return Flight(
         name=name,
         cycle=int(cycle) if isinstance(cycle, int) else _cycle_from_name(entry["log"]),
         t=log.t, true_pos=true_pos, true_euler=true_euler, est_pos=est_pos,
-        est_euler=est_euler, est_source=est_source,
+        est_euler=est_euler, est_source=est_source, residuals=residuals, mocap=mocap,
     )
 
 
@@ -305,6 +334,29 @@ def _top_level_cycle(report: dict[str, Any]) -> CycleRecord | None:
              "mstep": str(source.get("mstep") or "regressor"), "cycle": 0,
              "estimates": est, "truth": truth, "history": report.get("history") or {}}
     return _load_cycle(entry, 0)
+
+
+def _iterate_cycles(its: tuple[Iterates, ...], report: dict[str, Any], flight: str
+                    ) -> list[CycleRecord]:
+    """One record per run of a recorded log's EM history, tied to its one flight; the
+    M-step dropdown tells the runs apart (with the sensor when there are several)."""
+    runs = report.get("runs") if isinstance(report.get("runs"), list) else []
+    several = len({it.sensor for it in its}) > 1
+    out = []
+    for it in its:
+        entry = runs[it.run] if it.run < len(runs) and isinstance(runs[it.run], dict) else {}
+        est = entry.get("estimates") or {}
+        est_mass = _float_or_none(est.get("mass"))
+        est_inertia = _diag_or_none(est.get("inertia"))
+        if est_mass is None or est_inertia is None:
+            est_mass, est_inertia = float(it.params[-1, 0]), it.params[-1, 1:].copy()
+        out.append(CycleRecord(
+            sensor=flight, mstep=f"{it.mstep} ({it.sensor})" if several else it.mstep,
+            cycle=0, seed=None, x=np.arange(it.params.shape[0], dtype=float),
+            x_label="EM iterate", mass=it.params[:, 0], inertia_diag=it.params[:, 1:],
+            est_mass=est_mass, est_inertia_diag=est_inertia, true_mass=None,
+            true_inertia_diag=None, loglik=it.loglik, e_steps=it.e_steps))
+    return out
 
 
 def _pairs(obj: Any) -> tuple[tuple[str, float], ...]:
@@ -370,6 +422,11 @@ def load_run(run_dir: str | Path) -> Run:
         raise RunError(f"{run_dir / 'report.json'}: 'cycles' must be a list")
     cycles = [rec for i, entry in enumerate(raw_cycles)
               if (rec := _load_cycle(entry, i)) is not None]
+    history = next((e.get("em_history") for e in run_logs.values()
+                    if isinstance(e, dict) and isinstance(e.get("em_history"), str)), None)
+    if not cycles and history is not None:
+        its = load_iterates(run_dir / history, warnings)
+        cycles = _iterate_cycles(its, report, flights[0].name if flights else "log")
     if not cycles:
         top = _top_level_cycle(report)
         if top is not None:
@@ -396,5 +453,6 @@ def load_run(run_dir: str | Path) -> Run:
         path=run_dir, kind=str(source.get("kind") or "unknown"), vehicle=vehicle,
         flights=tuple(flights), cycles=tuple(cycles), waypoints=waypoints, start=start,
         discovery=_load_discovery(run_dir, report, warnings), figures=figures,
-        warnings=tuple(warnings),
+        warnings=tuple(warnings), vehicle_named=source.get("vehicle_named") is not False,
+        vehicle_note=str(source.get("vehicle_note") or ""), headline=load_headline(report),
     )

@@ -16,7 +16,8 @@ from numpy.typing import NDArray
 
 from pinquad.vehicle.model import urdf_path
 from viz.geometry import VisualPart, body_radius
-from viz.run import Run, decimate_indices
+from viz.recorded import RESIDUAL_CHOICES
+from viz.run import Flight, Run, decimate_indices
 
 if TYPE_CHECKING:
     import viser
@@ -30,6 +31,33 @@ START_RGB = (110, 110, 110)
 
 MAX_LINE_POINTS = 2000
 """Vertices per drawn trajectory; more adds nothing visible and slows the browser."""
+MOCAP_RGB = (90, 90, 90)
+NAN_RGB = (170, 170, 170)
+COLORMAP = np.array([(13, 8, 135), (126, 3, 168), (204, 71, 120), (248, 149, 64),
+                     (240, 249, 33)], dtype=float)
+"""Residual colour scale, small to large (plasma's stops): dark blue, purple, pink,
+orange, yellow."""
+SCALE_PERCENTILE = 95.0
+"""The top of the colour scale: this percentile of the residual sizes (base fit and final
+model together, so both are coloured alike), so a few spikes do not flatten the rest."""
+
+
+def residual_scale(values: Array) -> float:
+    """Top of the colour scale of ``values`` (``SCALE_PERCENTILE``; 1 if none finite)."""
+    ok = values[np.isfinite(values)]
+    top = float(np.percentile(ok, SCALE_PERCENTILE)) if ok.size else 1.0
+    return top if top > 0 else 1.0
+
+
+def residual_rgb(values: Array, top: float) -> NDArray[np.uint8]:
+    """(K, 3) sRGB colours of ``values`` on ``COLORMAP`` from 0 to ``top`` (clipped;
+    NaN grey)."""
+    x = np.clip(np.nan_to_num(values, nan=0.0) / top, 0.0, 1.0) * (COLORMAP.shape[0] - 1)
+    lo = np.minimum(np.floor(x).astype(int), COLORMAP.shape[0] - 2)
+    frac = (x - lo)[:, None]
+    rgb = COLORMAP[lo] * (1 - frac) + COLORMAP[lo + 1] * frac
+    rgb[~np.isfinite(values)] = NAN_RGB
+    return np.round(rgb).astype(np.uint8)
 
 
 @dataclass(frozen=True)
@@ -85,9 +113,10 @@ def line_segments(points: Array, rgb: tuple[int, int, int], dash: int = 0
     return segs, colors
 
 
-def linear_rgb(rgb: tuple[int, int, int]) -> NDArray[np.uint8]:
-    """sRGB colour as the linear value viser's line shader expects: its vertex colours
-    skip the sRGB decoding meshes get, so without this lines look washed out."""
+def linear_rgb(rgb: tuple[int, int, int] | NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """sRGB colour (or (K, 3) colours) as the linear value viser's line shader expects:
+    its vertex colours skip the sRGB decoding meshes get, so without this lines look
+    washed out."""
     c = np.asarray(rgb, dtype=float) / 255.0
     lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
     return np.round(255.0 * lin).astype(np.uint8)
@@ -111,6 +140,9 @@ class Scene:
     lines: dict[str, tuple[viser.LineSegmentsHandle | None, viser.LineSegmentsHandle | None]]
     vehicle: viser.FrameHandle
     ghost: viser.FrameHandle
+    residual_lines: dict[str, dict[str, viser.LineSegmentsHandle]]
+    residual_tops: dict[str, dict[str, float]]
+    mocap: dict[str, viser.PointCloudHandle]
 
 
 def build_scene(server: viser.ViserServer, run: Run, bounds: SceneBounds, floor_z: float,
@@ -156,6 +188,7 @@ def build_scene(server: viser.ViserServer, run: Run, bounds: SceneBounds, floor_
                                           thickness=6.0, thickness_units="screen",
                                           visible=False)
         lines[f.name] = (truth, est)
+    residual_lines, residual_tops, mocap = add_residual_paths(scene, run, b.radius)
 
     vehicle = add_vehicle(scene, "/vehicle", parts, scale, opacity=None)
     ghost = add_vehicle(scene, "/ghost", parts, scale, opacity=0.3)
@@ -175,7 +208,55 @@ def build_scene(server: viser.ViserServer, run: Run, bounds: SceneBounds, floor_
     cam.look_at = tuple(look_at)
     cam.position = tuple(look_at + direction * 2.0 * b.radius)
     cam.up = (0.0, 0.0, 1.0)
-    return Scene(lines, vehicle, ghost)
+    return Scene(lines, vehicle, ghost, residual_lines, residual_tops, mocap)
+
+
+def residual_segments(f: Flight, column: str, top: float) -> tuple[Array, NDArray[np.uint8]]:
+    """The smoothed path of ``f`` as segments (K, 2, 3) coloured (K, 2, 3) by the residual
+    size in ``column`` at each segment's start (``residual_rgb`` up to ``top``)."""
+    assert f.residuals is not None and f.est_pos is not None
+    idx = decimate_indices(f.t.shape[0], MAX_LINE_POINTS)
+    pts, t = f.est_pos[idx], f.t[idx]
+    ok = np.isfinite(pts).all(axis=1)
+    pts, t = pts[ok], t[ok]
+    segs = np.stack([pts[:-1], pts[1:]], axis=1).astype(np.float32)
+    rgb = residual_rgb(f.residuals.at(column, t[:-1]), top)
+    colors = np.repeat(linear_rgb(rgb)[:, None, :], 2, axis=1)
+    return segs, colors
+
+
+def add_residual_paths(scene: viser.SceneApi, run: Run, radius: float
+                       ) -> tuple[dict[str, dict[str, viser.LineSegmentsHandle]],
+                                  dict[str, dict[str, float]],
+                                  dict[str, viser.PointCloudHandle]]:
+    """Each flight's smoothed path coloured by every residual column
+    (``/flights/<name>/residual/<column>``, hidden) with the top of each colour scale
+    (force columns share one, torque columns another), and its raw motion-capture samples
+    (``/flights/<name>/mocap``, hidden)."""
+    lines: dict[str, dict[str, viser.LineSegmentsHandle]] = {}
+    tops: dict[str, dict[str, float]] = {}
+    mocap: dict[str, viser.PointCloudHandle] = {}
+    for f in run.flights:
+        if f.residuals is not None and f.est_pos is not None:
+            cols = f.residuals.columns
+            kinds = {c: c.split("_")[0] for _, c in RESIDUAL_CHOICES}
+            top = {k: residual_scale(np.concatenate([cols[c] for c in cols if kinds[c] == k]))
+                   for k in set(kinds.values())}
+            tops[f.name] = {c: top[kinds[c]] for _, c in RESIDUAL_CHOICES}
+            lines[f.name] = {}
+            for _, column in RESIDUAL_CHOICES:
+                segs, colors = residual_segments(f, column, tops[f.name][column])
+                lines[f.name][column] = scene.add_line_segments(
+                    f"/flights/{f.name}/residual/{column}", segs, colors, thickness=6.0,
+                    thickness_units="screen", visible=False)
+        if f.mocap is not None:
+            pts = f.mocap[:, 1:4].astype(np.float32)
+            mocap[f.name] = scene.add_point_cloud(
+                f"/flights/{f.name}/mocap", pts, np.broadcast_to(
+                    np.asarray(MOCAP_RGB, np.uint8), pts.shape).copy(),
+                point_size=float(np.clip(0.004 * radius, 0.003, 0.02)), point_shape="circle",
+                point_shading="flat", visible=False)
+    return lines, tops, mocap
 
 
 def add_vehicle(scene: viser.SceneApi, name: str, parts: tuple[VisualPart, ...], scale: float,

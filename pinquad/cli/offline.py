@@ -215,7 +215,7 @@ def run_log(args: argparse.Namespace) -> int:
         print(headline_summary(top))
         report = report_json(result, str(args.log), args.estep, seconds, discovery, top)
         write_log_run(writer, result, report,
-                      report_markdown(result, str(args.log), discovery, top))
+                      report_markdown(result, str(args.log), discovery, top), outcome)
         final = writer.publish()
     print(f"run written to {final}")
     code = 0 if top.final.verdict.trusted else UNTRUSTED

@@ -72,8 +72,12 @@ class Headline:
 
 
 def _range(result: LogResult) -> VehicleRange | None:
+    """The plausible range: the named vehicle's; a log that names none is judged on its
+    sidecar's guesses, never on the default ``paper`` vehicle's (a 33 g quad would be
+    "implausible" against a 0.18 kg one)."""
     meta = result.log.meta
-    return vehicle_range(meta.vehicle, meta.mass_guess, meta.inertia_guess)
+    name = meta.vehicle if meta.vehicle_named else ""
+    return vehicle_range(name, meta.mass_guess, meta.inertia_guess)
 
 
 def _band(run: Identification) -> tuple[float, float] | None:

@@ -50,7 +50,9 @@ class LogMeta:
     ``held``, each row's value acted over the interval that follows it (a zero-order
     hold: pinquad's simulator), or ``sampled``, each row holds the command of a faster
     controller at that instant, so it moves within the interval (a recorded log; what a
-    sidecar that does not say is taken to mean).
+    sidecar that does not say is taken to mean); vehicle_named: whether the log
+    itself names the vehicle (False: no sidecar or no ``vehicle`` in it, and ``vehicle``
+    is the default ``paper``, not the log's).
     """
 
     vehicle: str = "paper"
@@ -60,6 +62,7 @@ class LogMeta:
     source: str = "simulation"
     notes: tuple[str, ...] = ()
     actuation: str = "held"
+    vehicle_named: bool = True
 
 
 ACTUATION = ("held", "sampled")
@@ -337,7 +340,8 @@ def _sidecar_number(side: Path, raw: dict, key: str) -> float | None:
 def _read_sidecar(path: Path) -> LogMeta:
     side = Path(str(path) + ".json")
     if not side.exists():
-        return LogMeta(source=str(path), actuation="sampled", notes=(SAMPLED_NOTE,))
+        return LogMeta(source=str(path), actuation="sampled", notes=(SAMPLED_NOTE,),
+                       vehicle_named=False)
     try:
         raw = json.loads(side.read_text(encoding="utf-8-sig", errors="replace"))
     except json.JSONDecodeError as exc:
@@ -382,6 +386,7 @@ def _read_sidecar(path: Path) -> LogMeta:
         source=str(path),
         notes=notes,
         actuation=actuation,
+        vehicle_named="vehicle" in raw,
     )
 
 

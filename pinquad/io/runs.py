@@ -35,6 +35,22 @@ LOG_REPORT_KEYS: dict[str, str] = {
                        "speeds, simulator truth)",
     "source.log_kind": "the internal kind (simulated: thrust/torque columns; sdlog; "
                        "measured-table)",
+    "source.vehicle_named": "whether the log names its vehicle (sidecar 'vehicle', or a "
+                            "micro-SD log); False: source.vehicle is the default, not the log's",
+    "source.vehicle_note": "when the log names no vehicle, a sentence saying so and that the "
+                           "viewer draws a quad of the identified mass; else null",
+    "run_logs.log.em_history": "CSV of every run's EM iterates: run, sensor, mstep, iterate, "
+                               "mass [kg], I_xx, I_yy, I_zz [kg m^2], loglik [nats], e_steps "
+                               "(pinquad.report.run_tables)",
+    "run_logs.log.step_residuals": "CSV per step: t [s], force_before, torque_before, "
+                                   "force_after, torque_after: norms [N, N m] of the window-"
+                                   "mean body-wrench residual before and after discovery's refit "
+                                   "(null for the ten-parameter fit)",
+    "run_logs.log.step_residuals_note": "how the residual sizes were computed, in words",
+    "reference": "values of the vehicle known without the flight, when there are any: "
+                 "{'mass' [kg], 'inertia_diag' [kg m^2], 'source'} (the Crazyflie 2.1's "
+                 "scale mass and published inertia); null when none are known",
+    "run_logs.log.mocap": "CSV of the raw motion-capture samples: t [s], x, y, z [m]",
 }
 """Keys a recorded log's report.json (``offline --log``) adds to DESIGN 4.3, by dotted
 path, with their meaning."""

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import wrap_angle
 from pinquad.experiments.headline import Headline
-from pinquad.experiments.recorded import LogResult
+from pinquad.experiments.recorded import DiscoveryOutcome, LogResult
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import PRODUCTS, EstimateVerdict, ParameterVerdict
 from pinquad.io.logs import write_log
@@ -20,6 +20,7 @@ from pinquad.models.ssm import Observations
 from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS
 from pinquad.report.discovery import discovery_markdown
 from pinquad.report.offline import plot_trajectory
+from pinquad.report.run_tables import write_run_tables
 
 Array = NDArray[np.float64]
 
@@ -335,10 +336,13 @@ def report_markdown(result: LogResult, path: str, discovery: dict | None,
     return md
 
 
-def write_log_run(writer: RunWriter, result: LogResult, report: dict, markdown: str) -> None:
+def write_log_run(writer: RunWriter, result: LogResult, report: dict, markdown: str,
+                  outcome: DiscoveryOutcome | None = None) -> None:
     """The run directory's files (report.json, report.md, the log as the E-step saw it,
-    the smoothed means, trajectory and residual figures) into ``writer``'s staging
-    directory; the caller publishes or aborts."""
+    the smoothed means, trajectory and residual figures, the viewer's tables of
+    ``pinquad.report.run_tables``: EM history, residual per step before and after
+    ``outcome``'s refit, raw motion capture) into ``writer``'s staging directory; the
+    caller publishes or aborts."""
     figs = writer.path("figures")
     figs.mkdir(exist_ok=True)
     logs_dir = writer.path("logs")
@@ -347,5 +351,6 @@ def write_log_run(writer: RunWriter, result: LogResult, report: dict, markdown: 
     np.save(logs_dir / "flight-smoothed.npy", result.smoothed)
     plot_trajectory(result.log, None, figs / "trajectory.png", result.smoothed)
     plot_residuals(result.obs, result.smoothed, figs / "residuals.png")
+    added = write_run_tables(writer, result, outcome, report)
     atomic_write_json(writer.path("report.json"), report)
-    writer.path("report.md").write_text(markdown)
+    writer.path("report.md").write_text(markdown + "".join(f"{line}\n" for line in added))
