@@ -11,8 +11,12 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
+from pinquad.cli.help import non_negative_int
+from pinquad.discovery.null import NullSettings
+from pinquad.experiments.recorded import measured_effects
 from pinquad.io.logs import LogFormatError
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
 from pinquad.realdata.observations import RealDataOptions
@@ -54,6 +58,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--band", type=float, nargs=2, default=(3.0, 8.0),
                         metavar=("LO", "HI"), help="torque-row band of the inertia M-step [Hz]")
     parser.add_argument("--only", nargs="*", help="log names to run (default: all)")
+    parser.add_argument("--no-discover", action="store_true",
+                        help="skip effect discovery (the table's effects column)")
+    parser.add_argument("--null-replicates", type=non_negative_int,
+                        default=NullSettings().replicates, metavar="N",
+                        help="shadow flights of each log's base fit that a found effect's "
+                             "evidence must beat (pinquad.discovery.null; >= 19 for p <= "
+                             "0.05; 0: no calibration)")
     parser.add_argument("--rotor-inertia", type=_rotor_choice, default="pooled",
                         help="rotor inertia J_r of the yaw torque J_r sum spin_i omega_i': "
                              "pooled (default: one J_r fitted jointly on the --pool logs, each "
@@ -88,6 +99,12 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"rotor inertia {mode}, {args.jobs} worker(s); {kf.note}", file=sys.stderr)
     rotor, pass1 = None, ""
     try:
+        null = NullSettings(args.null_replicates)
+    except ValueError as exc:
+        print(f"error: --null-replicates: {exc}", file=sys.stderr)
+        return 2
+    effects = None if args.no_discover else partial(measured_effects, null=null)
+    try:
         if mode == "pooled":
             pool = [p for p in all_logs if p.name in set(args.pool)]
             if len(pool) < 2:
@@ -113,14 +130,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                 src = how if how == "leave-one-out" else "pooled on " + ", ".join(rotor.logs)
                 jobs.append(TableJob(p, replace(options, rotor_inertia=jr), args.max_iterations,
                                      not args.no_information, tuple(args.band), stand,
-                                     fit_rotor_inertia=False, rotor_source=src))
+                                     fit_rotor_inertia=False, rotor_source=src,
+                                     effects=effects))
         else:
             fixed = 0.0 if isinstance(mode, str) else mode
             src = {"per-flight": "fitted on this log", "none": ""}.get(mode, "given") \
                 if isinstance(mode, str) else "given"
             jobs = [TableJob(p, replace(options, rotor_inertia=fixed), args.max_iterations,
                              not args.no_information, tuple(args.band), stand,
-                             fit_rotor_inertia=mode == "per-flight", rotor_source=src)
+                             fit_rotor_inertia=mode == "per-flight", rotor_source=src,
+                             effects=effects)
                     for p in logs]
         results = run_jobs(jobs, args.jobs)
     except (LogFormatError, ValueError) as exc:

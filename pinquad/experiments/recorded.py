@@ -311,18 +311,23 @@ class DiscoveryOutcome:
 
 
 def run_discovery(result: LogResult, null: NullSettings | None = None) -> DiscoveryOutcome:
-    """Effect discovery (``pinquad.discovery.discover``) on the reported run, with the
-    settings for the log's kind (``DISCOVERY_SETTINGS``), its selection calibrated against
-    the null (``pinquad.discovery.null``; default ``NullSettings()``): an effect whose
-    evidence does not beat the shadow flights of the base fit is dropped from the
-    candidates and discovery reruns without it, until every selected effect has beaten
-    the null."""
-    null = NullSettings() if null is None else null
+    """Effect discovery on the reported run (``discover_calibrated``) with the settings
+    for the log's kind (``DISCOVERY_SETTINGS``); default ``NullSettings()``."""
     try:
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
-    cfg = discovery_config(result.kind)
+    return discover_calibrated(start, discovery_config(result.kind), null)
+
+
+def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
+                        null: NullSettings | None = None) -> DiscoveryOutcome:
+    """Effect discovery (``pinquad.discovery.discover``) from ``start`` with its selection
+    calibrated against the null (``pinquad.discovery.null``; default ``NullSettings()``):
+    an effect whose evidence does not beat the shadow flights of the base fit is dropped
+    from the candidates and discovery reruns without it, until every selected effect has
+    beaten the null. A numerical failure is reported in the outcome, not raised."""
+    null = NullSettings() if null is None else null
     calibrations: list[NullCalibration] = []
     try:
         found = discover(start.obs, start.theta, start.posterior, cfg=cfg)
@@ -343,6 +348,31 @@ def run_discovery(result: LogResult, null: NullSettings | None = None) -> Discov
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return DiscoveryOutcome(None, f"discovery failed numerically: {exc}")
     return DiscoveryOutcome(found, null=combine(calibrations) if calibrations else None)
+
+
+def measured_effects(obs: Observations, theta: RealTheta, posterior: Posterior,
+                     null: NullSettings | None = None) -> dict:
+    """Effect discovery with its null calibration on a measured flight's base fit (its
+    nuisance moment moved into the torques, as ``discovery_start``), summarised for the
+    real-vehicle table: ``selected`` [{effect, heldout_gain, null_gain_max, p_value}],
+    ``rejected`` (effects the null explained), ``replicates``, ``seed``, ``error``."""
+    start = DiscoveryStart(corrected(obs, theta), plain_theta(theta), posterior)
+    outcome = discover_calibrated(start, discovery_config("sdlog"), null)
+    cal = outcome.null
+    out: dict = {"selected": [], "rejected": [] if cal is None else list(cal.rejected),
+                 "replicates": 0 if cal is None else cal.replicates,
+                 "seed": None if cal is None else cal.seed, "error": outcome.error}
+    if outcome.result is None:
+        return out
+    gains = first_round_gains(outcome.result)
+    for e in outcome.result.selected:
+        entry = {"effect": e, "heldout_gain": gains.get(e), "null_gain_max": None,
+                 "p_value": None}
+        if cal is not None and e in cal.null_gains:
+            entry["null_gain_max"] = float(np.max(cal.null_gains[e]))
+            entry["p_value"] = cal.p_value[e]
+        out["selected"].append(entry)
+    return out
 
 
 def discovery_section(outcome: DiscoveryOutcome) -> dict:

@@ -80,7 +80,9 @@ class RealIdentification:
     how J_r was obtained, in words (set by the table); quasi_static_mass [kg]: the
     model-free check :func:`quasi_static_mass` on the same transitions; motor_split: that
     check split by motor (:func:`motor_split`); verdict: the estimate's verdict
-    (``pinquad.identification.verdict``; set by the table, None until judged).
+    (``pinquad.identification.verdict``; set by the table, None until judged); effects:
+    the effects found on the flight with their evidence against the null (the table's
+    ``TableJob.effects`` summary; None: discovery not run).
     """
 
     name: str
@@ -109,6 +111,7 @@ class RealIdentification:
     quasi_static_mass: float = float("nan")
     motor_split: MotorSplit | None = None
     verdict: EstimateVerdict | None = None
+    effects: dict | None = None
 
     @property
     def params(self) -> Array:

@@ -3,7 +3,7 @@ loaded and identified per job, in worker processes."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from estimators.protocol import Posterior
 from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge, vehicle_range
 from pinquad.io.logs import LogFormatError
 from pinquad.models.ssm import Observations
@@ -25,7 +26,11 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class TableJob:
-    """One row of the table: the log's path, EM settings and the data directory."""
+    """One row of the table: the log's path, EM settings and the data directory;
+    effects: a module-level function run in the worker on the fit (observations, theta,
+    smoothed posterior) whose summary of the effects found becomes
+    ``RealIdentification.effects`` (``experiments.recorded.measured_effects``: effect
+    discovery with its null calibration; None: not run)."""
 
     path: Path
     options: RealDataOptions
@@ -36,6 +41,7 @@ class TableJob:
     fit_rotor_inertia: bool = True
     keep_band_stats: bool = False
     rotor_source: str = ""
+    effects: Callable[[Observations, RealTheta, Posterior], dict] | None = None
 
 
 def run_table_job(job: TableJob) -> RealIdentification | str:
@@ -53,8 +59,9 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
                                            keep_band_stats=job.keep_band_stats)
     except (LogFormatError, ValueError) as exc:
         return str(exc)
+    effects = None if job.effects is None else job.effects(real.obs, theta, post)
     return replace(ident, rotor_source=job.rotor_source,
-                   verdict=real_verdict(ident, real.obs, post.mean, theta))
+                   verdict=real_verdict(ident, real.obs, post.mean, theta), effects=effects)
 
 
 def real_verdict(ident: RealIdentification, obs: Observations, mean: Array,

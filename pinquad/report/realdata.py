@@ -53,6 +53,25 @@ def _rotor_words(r: RealIdentification) -> str:
     return f"{r.name} {1e9 * r.rotor_inertia:.1f} ({r.rotor_source or 'fitted on this log'})"
 
 
+def effect_words(r: RealIdentification) -> str:
+    """The effects found on a flight with their held-out gain against the null's largest
+    (``RealIdentification.effects``), and those the null explained."""
+    if r.effects is None:
+        return "not run"
+    if r.effects.get("error"):
+        return f"failed: {r.effects['error']}"
+    parts = []
+    for e in r.effects["selected"]:
+        gain = 100 * e["heldout_gain"]
+        if e["p_value"] is None:
+            parts.append(f"{e['effect']} (gain {gain:.0f} %, not calibrated)")
+        else:
+            parts.append(f"{e['effect']} (gain {gain:.0f} % vs null max "
+                         f"{100 * e['null_gain_max']:.0f} %, p {e['p_value']:.2f})")
+    parts += [f"not {e} (the null explains it)" for e in r.effects["rejected"]]
+    return "; ".join(parts) or "none"
+
+
 def format_table(results: Sequence[RealIdentification],
                  rotor: PooledRotorInertia | None = None) -> str:
     """The markdown table of the identified flights and the summaries below it
@@ -62,8 +81,9 @@ def format_table(results: Sequence[RealIdentification],
     kf = results[0].kf
     lines = [
         "| log | what was flown | used / excluded transitions (why) | mass [g] | vs 34.7 g | "
-        "I_xx [1e-6 kg m^2] | I_yy | I_zz | verdict | EM iterations |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "I_xx [1e-6 kg m^2] | I_yy | I_zz | verdict | EM iterations | effects found "
+        "(held-out gain vs the null's) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         within = abs(r.mass - SCALE_MASS) <= 2.0 * r.se_total[0]
@@ -72,7 +92,15 @@ def format_table(results: Sequence[RealIdentification],
             f"({_short_reasons(r)}) | {_judged(r, 0, 1e3)} | "
             f"{100 * r.mass_rel_error:+.2f} %{'' if within else ' (!)'} | "
             + " | ".join(_judged(r, i, 1e6, ".1f") for i in (1, 2, 3))
-            + f" | {_verdict_words(r)} | {r.iterations}{'' if r.converged else ' (not converged)'} |")
+            + f" | {_verdict_words(r)} | {r.iterations}{'' if r.converged else ' (not converged)'}"
+            + f" | {effect_words(r)} |")
+    calibrated = [r.effects for r in results if r.effects and r.effects.get("replicates")]
+    if any(r.effects is not None for r in results):
+        lines += ["", "effects found: effect discovery on each flight's base fit (effects fitted "
+                  "on the base posterior); an effect is listed when its held-out gain beats "
+                  + (f"all {calibrated[0]['replicates']} shadow flights of that fit (seed "
+                     f"{calibrated[0]['seed']}; pinquad.discovery.null)" if calibrated
+                     else "the selection's tests (no null calibration was needed or asked)")]
     lines += [
         "",
         "value ± total standard error (statistical standard error): statistical = larger of "
