@@ -96,6 +96,8 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
         theta = replace(start.theta, inertia=np.asarray(run.inertia))
         model = None if run.full is None else FullQuadSSM(start.obs, theta)
         ev = data_evidence(start.obs, theta, start.posterior.mean, _band(run), model)
+    if run is result.runs[0]:
+        ev = replace(ev, input_alternative=result.input_alternative)
     products = None
     if run.full is not None:
         s = np.asarray(run.full.stderr_inertia)
@@ -119,7 +121,8 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
     theta = replace(found.theta, mass=float(found.mass), inertia=np.asarray(found.inertia))
     obs = corrected_observations(start.obs, found.posterior.mean, found.coefficients)
     model = model_factory(found.coefficients)(obs, theta)
-    ev = data_evidence(obs, theta, found.posterior.mean, _band(run), model)
+    ev = replace(data_evidence(obs, theta, found.posterior.mean, _band(run), model),
+                 input_alternative=result.input_alternative)
     if discovery_config(result.kind).refit_em:
         stderr = standard_errors(observed_information(obs, theta, loglik_quad))
         note = ("observed information of the EKF likelihood on the observations with the "

@@ -44,7 +44,7 @@ from pinquad.identification.full_inertia import identify_full
 from pinquad.identification.identify import Identification, identify
 from pinquad.io.logs import FlightLog
 from pinquad.io.sanity import check_log
-from pinquad.models.sources import floor_contact, observations
+from pinquad.models.sources import floor_contact, interval_inputs, observations
 from pinquad.models.ssm import Observations, Theta
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
@@ -117,6 +117,7 @@ class LogResult:
     kind: str
     kf: ThrustCoefficient | None = None
     faults: tuple[str, ...] = ()
+    input_alternative: Array | None = None
     contents: str = ""
 
 
@@ -276,8 +277,26 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
     n_ex = int(obs.exclude[: obs.n - 1].sum())
     excluded = (f"{contact.transitions()} transitions: {contact.describe()}",
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
+    alternative = input_alternative(log, obs, run, mass0, inertia0, options)
     return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
-                     tuple(log.meta.notes), "simulated", contents=log_contents(log))
+                     tuple(log.meta.notes), "simulated", contents=log_contents(log),
+                     input_alternative=alternative)
+
+
+def input_alternative(log: FlightLog, obs: Observations, run: Identification, mass0: float,
+                      inertia0: Array, options: LogOptions) -> Array | None:
+    """For a log whose actuation is sampled (``LogMeta.actuation``): [m (kg), I_xx, I_yy,
+    I_zz (kg m^2)] from the run's EM (its M-step, no standard errors) with each logged row
+    held over its interval instead of the interval's mean (``interval_inputs``), the
+    reading the log cannot rule out; the verdict compares it with the run's
+    (``VerdictEvidence.input_alternative``). None for held logs and the ten-parameter
+    M-step."""
+    if log.meta.actuation != "sampled" or run.mstep == "full":
+        return None
+    held = replace(obs, inputs=interval_inputs(np.column_stack([log.thrust, log.torque]), "held"))
+    alt, _ = identify(held, mass0, inertia0, log.meta.gravity, options.estep, run.mstep,
+                      options.max_iterations, False)
+    return np.r_[alt.mass, np.diag(alt.inertia)]
 
 
 def identify_log(log: FlightLog, options: LogOptions | None = None) -> LogResult:

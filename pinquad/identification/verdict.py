@@ -62,7 +62,9 @@ class VerdictThresholds:
     factor; max_range_share [-]: largest share of that range the +-2 se interval may
     cover; min_torque_share [-]: smallest share of the angular-acceleration variance the
     torques must explain; max_nis_ratio [-]: largest mean normalised innovation squared
-    per row of a channel the parameter rests on.
+    per row of a channel the parameter rests on; max_input_shift [-]: largest relative
+    change of an estimate between the two readings of a sampled input
+    (``VerdictEvidence.input_alternative``) that is not also within 2 standard errors.
     """
 
     mass_factor: float = 2.0
@@ -70,6 +72,7 @@ class VerdictThresholds:
     max_range_share: float = 0.25
     min_torque_share: float = 0.25
     max_nis_ratio: float = 3.0
+    max_input_shift: float = 0.05
 
 
 DEFAULT_THRESHOLDS = VerdictThresholds()
@@ -111,12 +114,18 @@ class VerdictEvidence:
 
     torque_share (3,) [-]: share of the angular-acceleration variance per body axis that
     the torques explain (NaN: not computed); torque_band: the frequencies it was measured
-    on, in words; nis_ratio: channel -> mean normalised innovation squared per row [-].
+    on, in words; nis_ratio: channel -> mean normalised innovation squared per row [-];
+    input_alternative (4,) [kg, kg m^2 x 3] or None: [m, I_xx, I_yy, I_zz] estimated
+    from the same log with its sampled input read the other way (held over each
+    interval instead of the mean of the interval's two rows, ``models.sources.
+    interval_inputs``): a parameter that moves by more than ``max_input_shift`` and 2
+    standard errors between the two rests on what the log does not record.
     """
 
     torque_share: Array = field(default_factory=lambda: np.full(3, np.nan))
     torque_band: str = "all frequencies"
     nis_ratio: dict[str, float] = field(default_factory=dict)
+    input_alternative: Array | None = None
 
 
 @dataclass(frozen=True)
@@ -184,6 +193,19 @@ def _nis_check(evidence: VerdictEvidence, channels: Sequence[str],
             for c, r in bad]
 
 
+def _input_check(name: str, index: int, value: float, se: float, evidence: VerdictEvidence,
+                 scale: float, unit: str, th: VerdictThresholds) -> list[str]:
+    if evidence.input_alternative is None:
+        return []
+    alt = float(evidence.input_alternative[index])
+    shift = abs(value - alt)
+    if shift <= th.max_input_shift * abs(value) or (np.isfinite(se) and shift <= 2.0 * se):
+        return []
+    return [f"rests on how the sampled input acted between rows, which the log does not "
+            f"record: {alt * scale:.4g} {unit} if each row was held instead of the rows' "
+            f"mean ({100 * (alt - value) / value:+.0f} %)"]
+
+
 def _judge(name: str, value: float, se: float, checks: dict[str, list[str]]) -> ParameterVerdict:
     failed = [v for v in VERDICTS[1:] if checks.get(v)]
     reasons = tuple(r for v in reversed(VERDICTS[1:]) for r in checks.get(v, []))
@@ -216,6 +238,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
                          f"{vrange.mass[0] * 1e3:.4g}-{vrange.mass[1] * 1e3:.4g} g "
                          f"({vrange.source})")
     ident = [] if vrange is None else _range_check("mass", stderr[0], *vrange.mass, 1e3, "g", th)
+    ident += _input_check("mass", 0, mass, stderr[0], evidence, 1e3, "g", th)
     params.append(_judge("mass", mass, stderr[0], {
         NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th),
         IMPLAUSIBLE: bad_value}))
@@ -243,6 +266,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
                 f"({vrange.source})")
         ident = [] if vrange is None else _range_check(
             name, stderr[i + 1], vrange.inertia_lo[i], vrange.inertia_hi[i], 1e6, "e-6 kg m^2", th)
+        ident += _input_check(name, i + 1, value, stderr[i + 1], evidence, 1e6, "e-6 kg m^2", th)
         if np.isfinite(share[i]) and share[i] < th.min_torque_share:
             ident.insert(0, f"torques explain {100 * share[i]:.0f} % of the angular "
                             f"acceleration about body {name[-1]} ({evidence.torque_band}; at "

@@ -1,0 +1,68 @@
+"""How much an estimate rests on how a sampled input acted between log rows (issue 22
+item 2; docs/trust.md). Flies flightgen flights (the independent generator: controller
+and RK4 at 2 kHz, the command SAMPLED at each log row), identifies each with the logged
+input read two ways, held over each interval (pinquad's simulator's convention) and the
+mean of the interval's two rows (``pinquad.models.sources.interval_inputs``, what a
+sampled log gets), and prints mass and inertia against the truth.
+
+    PYTHONPATH=$PWD python scripts/actuation_readings.py     (about 5 minutes on 2 cores)
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from flightgen import FlightSpec, Noise, generate, write_csv
+from pinquad.experiments.recorded import default_sensor, initial_guess
+from pinquad.identification.identify import identify
+from pinquad.io.read import read_log
+from pinquad.models.sources import interval_inputs, observations
+
+TRUTH = np.array([35.0, 16.6, 16.7, 29.3])
+
+
+def readings(path: Path) -> dict[str, np.ndarray]:
+    log = read_log(path)
+    mass0, inertia0, _ = initial_guess(log)
+    obs = observations(log, default_sensor(log))
+    logged = np.column_stack([log.thrust, log.torque])
+    out = {}
+    for how in ("held", "sampled"):
+        o = replace(obs, inputs=interval_inputs(logged, how))
+        ident, _ = identify(o, mass0, inertia0, log.meta.gravity, "rts", "regressor", 100, False)
+        out[how] = np.r_[ident.mass * 1e3, np.diag(ident.inertia) * 1e6]
+    return out
+
+
+SEEDS = (1, 2, 3)
+RATES = (100, 500)
+DURATION = 20.0
+NOISES = (("default", Noise()), ("no process noise", Noise(thrust=0.0, torque=(0.0, 0.0, 0.0))))
+
+
+def main() -> None:
+    print(f"flightgen Crazyflie-class flights, {DURATION:g} s, sines, no floor, seeds {SEEDS}; "
+          f"truth mass {TRUTH[0]} g, inertia {TRUTH[1:]} e-6 kg m^2")
+    print("| log rate | noise | seed | input read as | mass [g] | I_xx | I_yy | I_zz (errors vs truth) |")
+    print("|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for rate in RATES:
+            for noise_name, noise in NOISES:
+                for seed in SEEDS:
+                    flight = generate(FlightSpec(duration=DURATION, log_rate=rate,
+                                                 seed=seed, floor=None, noise=noise))
+                    path = Path(tmp) / f"f_{rate}_{noise_name[:4]}_{seed}.csv"
+                    write_csv(flight, path)
+                    for how, est in readings(path).items():
+                        err = 100 * (est - TRUTH) / TRUTH
+                        label = "held" if how == "held" else "mean of two rows"
+                        cells = " | ".join(f"{v:.2f} ({e:+.0f} %)" for v, e in zip(est, err, strict=True))
+                        print(f"| {rate} Hz | {noise_name} | {seed} | {label} | {cells} |")
+
+
+if __name__ == "__main__":
+    main()
