@@ -99,7 +99,10 @@ def test_cli_prints_fits_and_fails_on_empty_dir(tmp_path):
     ok = subprocess.run([sys.executable, "-m", "pinquad.actuators", "--data", str(STAND)],
                         capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert ok.returncode == 0, ok.stderr
-    assert ok.stdout.count("kf = ") == 3 and "pooled" in ok.stdout
+    # two runs and the pooled fit, then the vehicle file's [actuators] section
+    assert ok.stdout.count("  kf = ") == 3 and "pooled" in ok.stdout
+    section = ok.stdout.split("[actuators]")[1]
+    assert section.count("kf = ") == 1 and "kf_se = " in section
     bad = subprocess.run([sys.executable, "-m", "pinquad.actuators", "--data", str(tmp_path)],
                          capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert bad.returncode != 0

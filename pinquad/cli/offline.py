@@ -42,7 +42,7 @@ from pinquad.experiments.recorded import (
     run_discovery,
 )
 from pinquad.io.logs import LogFormatError
-from pinquad.io.read import read_log
+from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.report.discovery import draw_discovery_figures
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
@@ -89,8 +89,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "minutes per log")
     p.add_argument("--cycles", type=positive_int, default=20, help="Monte Carlo cycles per sensor")
     p.add_argument("--seed", type=int, default=0, help="base seed of the Monte Carlo cycles")
-    p.add_argument("--vehicle", choices=["paper", "crazyflie21"], default="paper",
-                   help="simulated vehicle (crazyflie21 flies the paper's scenario scaled by 0.3)")
+    p.add_argument("--vehicle", default=None, metavar="NAME|FILE",
+                   help="simulated vehicle: paper (default) or crazyflie21 (flies the paper's "
+                        "scenario scaled by 0.3); with --log: the log's vehicle, a shipped "
+                        "name or a vehicle file (.toml, docs/vehicles.md), overriding the "
+                        "log's sidecar")
     p.add_argument("--max-iterations", type=positive_int, default=100,
                    help="E-steps at most per EM run")
     p.add_argument("--jobs", type=positive_int, default=os.cpu_count() or 1,
@@ -178,6 +181,9 @@ def run_log(args: argparse.Namespace) -> int:
           f"M-step(s) {', '.join(options.msteps)}")
     writer = RunWriter(args.out or new_run_dir("log"))  # --out checked before any work
     log = read_log(args.log)
+    if args.vehicle is not None:
+        log = with_vehicle(log, args.vehicle, Path.cwd(), "--vehicle")
+        print(f"vehicle: {log.meta.vehicle}")
     try:
         result = identify_log(log, options)
     except np.linalg.LinAlgError as exc:
@@ -234,6 +240,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.mstep == "full":
             return _fail("--mstep full identifies one recorded log (--log PATH); the "
                          "Monte Carlo experiment runs the regressor and paper M-steps")
+        if args.vehicle is None:
+            args.vehicle = "paper"
+        if args.vehicle not in ("paper", "crazyflie21"):
+            return _fail(f"--vehicle {args.vehicle}: the Monte Carlo experiment flies paper or "
+                         "crazyflie21; a vehicle file is read with --log")
         return run_simulation(args)
     except LogFormatError as exc:
         return _fail(str(exc))

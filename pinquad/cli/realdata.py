@@ -15,11 +15,12 @@ from functools import partial
 from pathlib import Path
 
 from pinquad.cli.help import non_negative_int
+from pinquad.core.vehicle_file import load_vehicle
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.recorded import measured_effects
 from pinquad.io.logs import LogFormatError
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
-from pinquad.realdata.observations import RealDataOptions
+from pinquad.realdata.observations import RealDataOptions, options_for_vehicle
 from pinquad.realdata.rotor_inertia import pooled_rotor_inertia
 from pinquad.realdata.table import TableJob, run_jobs
 from pinquad.realdata.thrust import thrust_coefficient
@@ -85,8 +86,9 @@ def main(argv: Sequence[str] | None = None) -> int:
               "logs (give the data directory with --data DIR)", file=sys.stderr)
         return 2
     try:
-        options = RealDataOptions(channels=tuple(c.strip() for c in args.channels.split(",")),
-                                  faults=args.faults)
+        # the mixer of the shipped brushed Crazyflie file (pinquad/data/crazyflie21.toml)
+        options = options_for_vehicle(load_vehicle("crazyflie21"), RealDataOptions(
+            channels=tuple(c.strip() for c in args.channels.split(",")), faults=args.faults))
         stand = stand_dir(args.data)
         kf = thrust_coefficient(stand)
     except (LogFormatError, ValueError) as exc:

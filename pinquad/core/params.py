@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import GRAVITY
+from pinquad.core.vehicle_file import VehicleSpec, load_vehicle
 
 Array = NDArray[np.float64]
 
@@ -20,7 +21,7 @@ Array = NDArray[np.float64]
 class Vehicle:
     """Rigid-body parameters of a quadcopter.
 
-    name: URDF stem in ``pinquad/data`` (``paper`` or ``crazyflie21``).
+    name: the vehicle's name (URDF stem in ``pinquad/data`` for ``paper`` and ``crazyflie21``).
     mass: total mass m [kg].
     inertia: (3, 3) rotational inertia about the centre of mass, body axes [kg m^2].
     arm: centre to motor axis [m].
@@ -45,22 +46,26 @@ class Vehicle:
         return replace(self, mass=float(mass), inertia=np.array(inertia, dtype=float))
 
 
-PAPER_VEHICLE = Vehicle(
-    name="paper", mass=0.18, inertia=np.diag([2.5e-4, 3.1e-4, 2.0e-4]), arm=0.086
-)
-"""The paper's quadcopter (Section "Parameters for the quadcopter system")."""
+def vehicle_from_spec(spec: VehicleSpec) -> Vehicle:
+    """The rigid body of a vehicle file (``core.vehicle_file``): name, mass, inertia, arm."""
+    return Vehicle(name=spec.name, mass=spec.mass, inertia=np.array(spec.inertia, dtype=float),
+                   arm=spec.arm)
 
-CRAZYFLIE21 = Vehicle(
-    name="crazyflie21", mass=0.0347, inertia=np.diag([16.57e-6, 16.66e-6, 29.26e-6]), arm=0.046
-)
-"""Crazyflie 2.x: inertia from Foerster's bifilar-pendulum measurement, 34.7 g on a scale."""
+
+PAPER_VEHICLE = vehicle_from_spec(load_vehicle("paper"))
+"""The paper's quadcopter (Section "Parameters for the quadcopter system"), read from the
+shipped ``pinquad/data/paper.toml``."""
+
+CRAZYFLIE21 = vehicle_from_spec(load_vehicle("crazyflie21"))
+"""Crazyflie 2.x (``pinquad/data/crazyflie21.toml``): inertia from Foerster's
+bifilar-pendulum measurement, the mass on a scale."""
 
 VEHICLES = {"paper": PAPER_VEHICLE, "crazyflie21": CRAZYFLIE21}
 
-PAPER_INITIAL_MASS = 0.001
-"""The paper's initial mass guess m0 [kg]."""
-PAPER_INITIAL_INERTIA = np.diag([1e-4, 2e-4, 1e-4])
-"""The paper's initial inertia guess I0 [kg m^2]."""
+PAPER_INITIAL_MASS = load_vehicle("paper").guess_mass
+"""The paper's initial mass guess m0 [kg] (``paper.toml`` [guess])."""
+PAPER_INITIAL_INERTIA = np.array(load_vehicle("paper").guess_inertia, dtype=float)
+"""The paper's initial inertia guess I0 [kg m^2] (``paper.toml`` [guess])."""
 
 
 @dataclass(frozen=True)

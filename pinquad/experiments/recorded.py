@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.discovery.discover import discover
 from pinquad.discovery.null import (
     NullCalibration,
@@ -49,9 +50,14 @@ from pinquad.models.ssm import Observations, Theta
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
 from pinquad.realdata.model import RealTheta, corrected, plain_theta
-from pinquad.realdata.observations import build_observations, options_for_sensor
+from pinquad.realdata.observations import (
+    RealDataOptions,
+    build_observations,
+    options_for_sensor,
+    options_for_vehicle,
+)
 from pinquad.realdata.raw import raw_flight
-from pinquad.realdata.thrust import ThrustCoefficient
+from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
 
 Array = NDArray[np.float64]
 
@@ -196,8 +202,34 @@ def discovery_start(run: Identification) -> DiscoveryStart:
     return DiscoveryStart(run.observations, run.theta, run.posterior)
 
 
+def measured_vehicle(log: FlightLog) -> tuple[RealDataOptions, ThrustCoefficient | None]:
+    """The mixer options and kf of a measured log's vehicle (``log.meta.vehicle``: a
+    shipped name or a vehicle file). The shipped crazyflie21 keeps the defaults (kf from
+    the data directory's thrust stand). Raises ValueError when the file contradicts the
+    log: another number of rotors, or a hover thrust above the file's maximum."""
+    vehicle = log.meta.vehicle
+    if not is_vehicle_file(vehicle):
+        return RealDataOptions(), None
+    spec = load_vehicle(vehicle)
+    options = options_for_vehicle(spec)
+    assert log.rpm is not None
+    n = log.rpm.shape[1]
+    if n != spec.n_rotors:
+        raise ValueError(f"{log.meta.source}: the log has {n} rotor speeds (rpm_1..rpm_{n}) but "
+                         f"the vehicle file {spec.source} has {spec.n_rotors} rotors")
+    kf = vehicle_thrust_coefficient(spec)
+    top = spec.max_total_thrust()
+    mass = spec.reference.mass if spec.reference.mass is not None else spec.mass
+    if top is not None and mass * log.meta.gravity > top:
+        raise ValueError(f"{spec.source}: hover needs {mass * log.meta.gravity:.3f} N for "
+                         f"{mass * 1e3:.1f} g but the file's rotors give at most {top:.3f} N "
+                         f"({spec.n_rotors} x max_thrust {spec.actuators.max_thrust} N)")  # type: ignore[union-attr]
+    return options, kf
+
+
 def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
     raw = raw_flight(log)
+    base, kf = measured_vehicle(log)
     mass0, inertia0, guess = initial_guess(log)
     sensors = list(options.sensors) or [None]
     if "full" in options.msteps:
@@ -207,7 +239,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
     runs: list[Identification] = []
     first = None
     for sensor in sensors:
-        real = build_observations(raw, options_for_sensor(sensor))
+        real = build_observations(raw, options_for_sensor(sensor, base), kf)
         label = sensor or ",".join(real.obs.channels)
         theta = None
         if "regressor" in options.msteps:

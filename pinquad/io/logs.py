@@ -28,6 +28,7 @@ from pinquad.core.conventions import (
     quat_wxyz_from_euler,
 )
 from pinquad.core.params import VEHICLES
+from pinquad.core.vehicle_file import VehicleFileError, is_vehicle_file, load_vehicle
 from pinquad.io.runs import atomic_write_bytes
 
 Array = NDArray[np.float64]
@@ -196,7 +197,7 @@ def log_columns(log: FlightLog) -> dict[str, Array]:
         for i, ax in enumerate("xyz"):
             cols[f"torque_{ax}"] = log.torque[:, i]
     if log.rpm is not None:
-        for i in range(4):
+        for i in range(log.rpm.shape[1]):
             cols[f"rpm_{i + 1}"] = log.rpm[:, i]
     if log.vbat is not None:
         cols["vbat"] = log.vbat
@@ -337,6 +338,18 @@ def _sidecar_number(side: Path, raw: dict, key: str) -> float | None:
     return float(value)
 
 
+def vehicle_file_named(vehicle: str, base: Path, where: Path | str) -> str:
+    """The absolute path of a vehicle file named by a sidecar or an option (relative to
+    ``base``), checked by reading it. Raises LogFormatError naming ``where``."""
+    p = Path(vehicle).expanduser()
+    p = (p if p.is_absolute() else base / p).resolve()
+    try:
+        load_vehicle(str(p))
+    except VehicleFileError as exc:
+        raise LogFormatError(f"{where}: vehicle file: {exc}") from None
+    return str(p)
+
+
 def _read_sidecar(path: Path) -> LogMeta:
     side = Path(str(path) + ".json")
     if not side.exists():
@@ -361,13 +374,15 @@ def _read_sidecar(path: Path) -> LogMeta:
     mass_guess = _sidecar_number(side, raw, "mass_guess")
     if not isinstance(vehicle, str):
         raise LogFormatError(f"{side}: key 'vehicle' is {vehicle!r}; expected a name")
-    if vehicle not in VEHICLES and (mass_guess is None or inertia_arr is None):
+    if is_vehicle_file(vehicle):
+        vehicle = vehicle_file_named(vehicle, side.parent, side)
+    elif vehicle not in VEHICLES and (mass_guess is None or inertia_arr is None):
         # an unknown name would silently start EM from the paper vehicle's guess
         raise LogFormatError(
             f"{side}: key 'vehicle' is {vehicle!r}; expected one of {', '.join(VEHICLES)}, "
             "or give 'mass_guess' and 'inertia_guess' for another vehicle")
     gravity = _sidecar_number(side, raw, "gravity")
-    notes = () if vehicle in VEHICLES else (
+    notes = () if vehicle in VEHICLES or is_vehicle_file(vehicle) else (
         f"vehicle {vehicle!r} is not one pinquad knows ({', '.join(VEHICLES)}): EM starts "
         "from the sidecar's guesses and the thrust is not compared with a nominal mass",)
     actuation = raw.get("actuation", "sampled")
@@ -435,9 +450,13 @@ def read_log(path: str | Path) -> FlightLog:
         act = np.column_stack([thrust, torque])
         names = ["thrust", "torque_x", "torque_y", "torque_z"]
     elif all(f"rpm_{i}" in cols for i in range(1, 5)):
-        rpm = np.column_stack([cols[f"rpm_{i}"] for i in range(1, 5)])
+        # rpm_1..rpm_k, however many rotors: the vehicle file says whether k is right
+        k = 4
+        while f"rpm_{k + 1}" in cols:
+            k += 1
+        rpm = np.column_stack([cols[f"rpm_{i}"] for i in range(1, k + 1)])
         act = rpm
-        names = [f"rpm_{i}" for i in range(1, 5)]
+        names = [f"rpm_{i}" for i in range(1, k + 1)]
     else:
         raise LogFormatError(
             f"{path}: no actuation columns; expected 'thrust' with 'torque_x/y/z', or "

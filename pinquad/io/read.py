@@ -3,10 +3,13 @@ Parquet table (DESIGN 4.2) with its JSON sidecar."""
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from pathlib import Path
 
+from pinquad.core.vehicle_file import SHIPPED, is_vehicle_file
 from pinquad.io import logs, sdlog
-from pinquad.io.logs import FlightLog, LogFormatError
+from pinquad.io.logs import FlightLog, LogFormatError, vehicle_file_named
 
 
 def read_log(path: str | Path) -> FlightLog:
@@ -20,5 +23,34 @@ def read_log(path: str | Path) -> FlightLog:
     if path.is_dir():
         raise LogFormatError(f"{path}: is a directory; expected a log file")
     if sdlog.is_sdlog(path):
-        return sdlog.read_sdlog(path)
+        return with_sidecar_vehicle(sdlog.read_sdlog(path))
     return logs.read_log(path)
+
+
+def with_sidecar_vehicle(log: FlightLog) -> FlightLog:
+    """A micro-SD log with the vehicle its sidecar ``<log>.json`` names (``"vehicle"``: a
+    shipped name or a vehicle file, relative to the sidecar), if it has one. Raises
+    LogFormatError for an unreadable sidecar or vehicle file."""
+    side = Path(str(log.meta.source) + ".json")
+    if not side.exists():
+        return log
+    try:
+        raw = json.loads(side.read_text(encoding="utf-8-sig", errors="replace"))
+    except json.JSONDecodeError as exc:
+        raise LogFormatError(f"{side}: not valid JSON ({exc.msg} at byte {exc.pos})") from None
+    vehicle = raw.get("vehicle") if isinstance(raw, dict) else None
+    if vehicle is None:
+        return log
+    return with_vehicle(log, vehicle, side.parent, side)
+
+
+def with_vehicle(log: FlightLog, vehicle: str, base: Path, where: Path | str) -> FlightLog:
+    """The log with its vehicle set: a shipped name (``paper``, ``crazyflie21``) or a
+    ``.toml`` vehicle file (relative to ``base``; read to check it). Raises
+    LogFormatError naming ``where`` otherwise."""
+    if not isinstance(vehicle, str) or not (vehicle in SHIPPED or is_vehicle_file(vehicle)):
+        raise LogFormatError(f"{where}: vehicle {vehicle!r}: expected one of "
+                             f"{', '.join(SHIPPED)} or a path to a .toml vehicle file")
+    if is_vehicle_file(vehicle):
+        vehicle = vehicle_file_named(vehicle, base, where)
+    return replace(log, meta=replace(log.meta, vehicle=vehicle, vehicle_named=True))

@@ -365,7 +365,7 @@ def _check_impossible(log: FlightLog) -> Finding | None:
     if log.torque is not None:
         groups.append(("torque", log.torque, [f"torque_{a}" for a in xyz]))
     if log.rpm is not None:
-        groups.append(("rpm", log.rpm, [f"rpm_{i}" for i in range(1, 5)]))
+        groups.append(("rpm", log.rpm, [f"rpm_{i}" for i in range(1, log.rpm.shape[1] + 1)]))
     for kind, values, names in groups:
         with np.errstate(invalid="ignore"):
             bad = np.isinf(values) | (np.abs(values) > IMPOSSIBLE[kind])

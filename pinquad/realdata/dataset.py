@@ -8,14 +8,17 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
+from pinquad.core.vehicle_file import SHIPPED, is_vehicle_file, load_vehicle
 from pinquad.io.datadir import default_data_dir
 
 Array = NDArray[np.float64]
 
-SCALE_MASS = CRAZYFLIE21.mass
-"""The vehicle on a scale, battery and decks included [kg] (dataset README)."""
-PUBLISHED_INERTIA = np.diag(CRAZYFLIE21.inertia).copy()
+_REFERENCE = load_vehicle("crazyflie21").reference
+assert _REFERENCE.mass is not None and _REFERENCE.inertia is not None
+SCALE_MASS: float = _REFERENCE.mass
+"""The vehicle on a scale, battery and decks included [kg] (dataset README; read from
+``pinquad/data/crazyflie21.toml`` [reference])."""
+PUBLISHED_INERTIA = np.asarray(_REFERENCE.inertia, dtype=float).copy()
 """Crazyflie 2.0 without decks, bifilar pendulum (Foerster) [kg m^2]."""
 
 
@@ -60,11 +63,10 @@ def stand_dir(data: Path | None = None) -> Path:
 
 
 def default_guess(vehicle: str) -> tuple[float, Array, str]:
-    """Initial (mass [kg], inertia (3, 3) [kg m^2], words): for ``crazyflie21`` 25 g and
-    half the published inertia; otherwise the paper's m0 = 0.001 kg, I0 = diag(1e-4,
-    2e-4, 1e-4)."""
-    if vehicle == "crazyflie21":
-        return 0.025, 0.5 * np.diag(PUBLISHED_INERTIA), \
-            "default for crazyflie21: 25 g and half the published inertia"
-    return PAPER_INITIAL_MASS, np.asarray(PAPER_INITIAL_INERTIA, dtype=float), \
-        "the paper's m0 = 0.001 kg and I0 = diag(1e-4, 2e-4, 1e-4) kg m^2"
+    """Initial (mass [kg], inertia (3, 3) [kg m^2], words) from the vehicle file's
+    [guess] (``vehicle``: a shipped name or a ``.toml`` path; crazyflie21: 25 g and half
+    the published inertia); a name pinquad does not know starts from the paper's m0 =
+    0.001 kg, I0 = diag(1e-4, 2e-4, 1e-4). Raises VehicleFileError for a bad file."""
+    spec = load_vehicle(vehicle if is_vehicle_file(vehicle) or vehicle in SHIPPED else "paper")
+    words = spec.guess_note or f"{spec.name}'s [guess]"
+    return spec.guess_mass, np.asarray(spec.guess_inertia, dtype=float), words

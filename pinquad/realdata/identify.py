@@ -34,11 +34,11 @@ from pinquad.realdata.model import corrected, real_model
 from pinquad.realdata.observations import RealObservations
 from pinquad.realdata.rotor_inertia import yaw_band_stats
 from pinquad.realdata.thrust import ThrustCoefficient
-from pinquad.vehicle.actuators import YAW_RATIO_CRAZYFLIE
+from pinquad.vehicle.actuators import CRAZYFLIE_SPEC, YAW_RATIO_CRAZYFLIE
 
 Array = NDArray[np.float64]
 
-YAW_RATIO_REL_SE = 0.0005 / YAW_RATIO_CRAZYFLIE
+YAW_RATIO_REL_SE = CRAZYFLIE_SPEC.actuators.yaw_ratio_se / YAW_RATIO_CRAZYFLIE  # type: ignore[union-attr]
 """Relative standard uncertainty of the yaw torque/thrust ratio: published values span
 0.0060-0.0070 m around the 0.006 m used, taken as +-0.0005 m (one standard deviation)."""
 REPAIR_REL_SE = np.array([0.011, 0.07, 0.05, 0.24])
@@ -176,6 +176,7 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     se_jack = mstep.jackknife(res.posterior, obs, theta)
     se_stat = np.fmax(se_info, se_jack)
     se_total = total_standard_errors(params, se_stat, real.kf.rel_se,
+                                     yaw_rel=real.options.yaw_ratio_se / real.options.yaw_ratio,
                                      repaired=bool(real.repaired))
     history = np.column_stack([np.concatenate([[mass0], res.mass]),
                                np.vstack([np.diag(inertia0), res.inertia_diag])])

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
+from pinquad.core.vehicle_file import VehicleSpec
 from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
 from pinquad.io.sdlog import is_sdlog, read_sdflight
 from pinquad.models.contact import ContactSettings, detect_floor_contact
@@ -57,6 +58,8 @@ from pinquad.realdata.resample import (
 from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
 from pinquad.sim.simulator import Flight
 from pinquad.vehicle.actuators import (
+    CRAZYFLIE_ARM,
+    CRAZYFLIE_SPEC,
     KF_CRAZYFLIE,
     SPIN_CRAZYFLIE,
     YAW_RATIO_CRAZYFLIE,
@@ -68,6 +71,9 @@ BoolArray = NDArray[np.bool_]
 
 GRID_DT = 0.01
 """Resampled step [s]: 100 Hz."""
+
+CRAZYFLIE_YAW_RATIO_SE = CRAZYFLIE_SPEC.actuators.yaw_ratio_se  # type: ignore[union-attr]
+"""Standard error of the shipped crazyflie21 file's yaw torque ratio [m]."""
 
 
 # ----------------------------------------------------------------------------- options
@@ -82,7 +88,10 @@ class RealDataOptions:
     faults: ``repair`` (rebuild untrusted rotor speeds from PWM through a map learned on
     the diagonal partner, which spins the same way), ``repair-all`` (map learned on all
     trusted motors: ``faults.repair_log``), or ``exclude`` (skip flagged rows);
-    kf [N/(rad/s)^2] or None for :func:`thrust_coefficient`; yaw_ratio [m]; spin;
+    kf [N/(rad/s)^2] or None for :func:`thrust_coefficient`; yaw_ratio [m] and its
+    standard error yaw_ratio_se [m]; spin (n,) +-1; arm [m] and xy (n rotor (x, y) [m],
+    None: the X layout of ``arm``): the mixer (``ActuatorModel``; defaults: the shipped
+    crazyflie21 file, :func:`options_for_vehicle` for another);
     contact_height [m], contact_speed [m/s], flight_rpm [rev/min], contact_margin [s]:
     ground-contact detection (module docstring); outlier_m [m], outlier_rad [rad]:
     motion-capture glitch thresholds.
@@ -95,7 +104,10 @@ class RealDataOptions:
     kf: float | None = None
     yaw_ratio: float = YAW_RATIO_CRAZYFLIE
     rotor_inertia: float = 0.0
-    spin: tuple[float, float, float, float] = SPIN_CRAZYFLIE
+    spin: tuple[float, ...] = SPIN_CRAZYFLIE
+    arm: float = CRAZYFLIE_ARM
+    xy: tuple[tuple[float, float], ...] | None = None
+    yaw_ratio_se: float = CRAZYFLIE_YAW_RATIO_SE
     contact_height: float = 0.03
     contact_speed: float = 0.2
     flight_rpm: float = 10000.0
@@ -111,6 +123,23 @@ class RealDataOptions:
             raise ValueError(f"faults {self.faults!r}: expected repair, repair-all or exclude")
         if not self.dt > 0:
             raise ValueError(f"dt must be positive; got {self.dt}")
+
+
+def options_for_vehicle(spec: VehicleSpec, base: RealDataOptions | None = None
+                        ) -> RealDataOptions:
+    """Options whose mixer is a vehicle file's (rotor positions, spins, yaw ratio and its
+    standard error, rotor inertia when the file fixes it). Raises ValueError if the file
+    has no [actuators] table."""
+    base = base or RealDataOptions()
+    act = spec.actuators
+    if act is None:
+        raise ValueError(f"{spec.source}: no [actuators] table (kf, kf_se, yaw_ratio): rotor "
+                         "speeds cannot be turned into thrust and torques")
+    return replace(base, yaw_ratio=act.yaw_ratio, yaw_ratio_se=act.yaw_ratio_se,
+                   spin=tuple(float(v) for v in spec.spin), arm=spec.arm,
+                   xy=tuple((float(x), float(y)) for x, y in spec.positions),
+                   rotor_inertia=act.rotor_inertia if act.rotor_inertia is not None
+                   else base.rotor_inertia)
 
 
 SENSOR_CHANNELS = {
@@ -289,7 +318,12 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     notes.extend(repair_notes)
     if report.vbat_stuck:
         notes.append(f"battery voltage stuck at {report.vbat_value:.2f} V: not used")
-    actuator = ActuatorModel(kf=kf.kf, yaw_ratio=options.yaw_ratio, spin=options.spin)
+    actuator = ActuatorModel(kf=kf.kf, arm=options.arm, yaw_ratio=options.yaw_ratio,
+                             spin=options.spin, xy=options.xy)
+    if rpm.shape[1] != actuator.n_rotors:
+        raise ValueError(f"{source}: the log has {rpm.shape[1]} rotor speeds per row but the "
+                         f"vehicle has {actuator.n_rotors} rotors; give the vehicle file "
+                         "that matches the log (--vehicle FILE)")
     finite_rpm = np.isfinite(rpm).all(axis=1)
     thrust = np.full(log.n, np.nan)
     torque = np.full((log.n, 3), np.nan)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pinquad.core.vehicle_file import VehicleSpec, shipped_path
 from pinquad.realdata.dataset import stand_dir
 from pinquad.vehicle.actuators import KF_CRAZYFLIE, ThrustStandFit, fit_thrust_stand
 
@@ -76,3 +77,25 @@ def thrust_coefficient(directory: Path | None = None) -> ThrustCoefficient:
             f"({100 * (pooled / kf - 1):+.1f} %); identified mass and inertia scale with kf.")
     return ThrustCoefficient(kf=kf, kf_se=se, runs=runs, pooled=float(pooled), note=note)
 
+
+
+def vehicle_thrust_coefficient(spec: VehicleSpec) -> ThrustCoefficient:
+    """kf of a vehicle file: fitted to its ``thrust_stand`` folder of Bitcraze CSVs when
+    it has one (a shipped file's relative folder is looked up in the data directory,
+    :func:`stand_dir`, as :func:`thrust_coefficient` does), else the file's kf and
+    kf_se. Raises ValueError if the file has no [actuators] table."""
+    act = spec.actuators
+    if act is None:
+        raise ValueError(f"{spec.source}: no [actuators] table (kf, kf_se, yaw_ratio): rotor "
+                         "speeds cannot be turned into thrust and torques")
+    stand = act.thrust_stand
+    if stand is not None and not stand.is_dir() and spec.source == shipped_path(spec.name):
+        stand = stand_dir()
+    if stand is not None and stand.is_dir() and any(stand.glob("*.csv")):
+        return thrust_coefficient(stand)
+    where = "" if stand is None else f" (no thrust-stand CSV in {stand})"
+    return ThrustCoefficient(
+        kf=act.kf, kf_se=act.kf_se, runs=(), pooled=act.kf,
+        note=f"kf = {act.kf:.4e} +- {act.kf_se:.2e} N/(rad/s)^2 ({100 * act.kf_rel_se:.1f} %) "
+             f"from the vehicle file {spec.source}{where}; identified mass and inertia "
+             "scale with kf.")

@@ -10,6 +10,7 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import wrap_angle
+from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.experiments.headline import Headline
 from pinquad.experiments.recorded import DiscoveryOutcome, LogResult
 from pinquad.identification.identify import Identification
@@ -17,7 +18,6 @@ from pinquad.identification.verdict import PRODUCTS, EstimateVerdict, ParameterV
 from pinquad.io.logs import write_log
 from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 from pinquad.models.ssm import Observations
-from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS
 from pinquad.report.discovery import discovery_markdown
 from pinquad.report.offline import plot_trajectory
 from pinquad.report.run_tables import write_run_tables
@@ -127,7 +127,12 @@ def log_table(result: LogResult, headline: Headline | None = None) -> str:
     verdict; EM iterations), the final model's row when discovery refitted it, the scale /
     published row and mass checks for the Crazyflie, the ten-parameter model's CoM and
     products of inertia."""
-    crazyflie = result.log.meta.vehicle == "crazyflie21"
+    crazyflie = result.log.meta.vehicle == "crazyflie21" or is_vehicle_file(result.log.meta.vehicle)
+    ref = load_vehicle(result.log.meta.vehicle).reference if crazyflie else None
+    scale = ref.mass if ref is not None and ref.mass is not None else float("nan")
+    published = (ref.inertia if ref is not None and ref.inertia is not None
+                 else np.full(3, np.nan))
+    crazyflie = crazyflie and np.isfinite(scale)
     head = ("| sensor | M-step | mass [g] | I_xx [1e-6 kg m^2] | I_yy | I_zz | verdict "
             "| EM iterations |")
     lines = [head, "|---|---|---|---|---|---|---|---|"]
@@ -143,18 +148,18 @@ def log_table(result: LogResult, headline: Headline | None = None) -> str:
                      f"{_estimate_cells(f.mass, f.inertia, f.stderr, f.verdict)} | "
                      f"{f.verdict.overall} | |")
     if crazyflie:
-        lines.append(f"| scale / published | | {SCALE_MASS * 1e3:.1f} | "
-                     + " | ".join(f"{v * 1e6:.2f}" for v in PUBLISHED_INERTIA) + " | | |")
+        lines.append(f"| scale / published | | {scale * 1e3:.1f} | "
+                     + " | ".join(f"{v * 1e6:.2f}" if np.isfinite(v) else "-" for v in published) + " | | |")
         for r in result.runs:
             lines.append(f"\n{r.sensor}, {r.mstep} M-step: mass {r.mass * 1e3:.2f} g vs "
-                         f"{SCALE_MASS * 1e3:.1f} g on the scale: "
-                         f"{100 * (r.mass / SCALE_MASS - 1):+.2f} %"
+                         f"{scale * 1e3:.1f} g on the scale: "
+                         f"{100 * (r.mass / scale - 1):+.2f} %"
                          + ("" if not np.isfinite(r.stderr[0]) else
-                            f" ({abs(r.mass - SCALE_MASS) / r.stderr[0]:.1f} standard errors)"))
+                            f" ({abs(r.mass - scale) / r.stderr[0]:.1f} standard errors)"))
             free = None if r.measured is None else r.measured.quasi_static_mass
             if free is not None and np.isfinite(free):
                 lines.append(f"{r.sensor}, model-free check (mean vertical thrust, no EM): "
-                             f"{free * 1e3:.2f} g ({100 * (free / SCALE_MASS - 1):+.2f} %)")
+                             f"{free * 1e3:.2f} g ({100 * (free / scale - 1):+.2f} %)")
             split = _motor_split_entry(r)
             if split and split["rebuilt_motors"]:
                 lines.append(
@@ -169,7 +174,7 @@ def log_table(result: LogResult, headline: Headline | None = None) -> str:
                     lines.append(
                         f"{r.sensor}, model-free mass on the {split['all_measured_transitions']} "
                         f"transitions with every rotor speed measured: {own * 1e3:.2f} g "
-                        f"({100 * (own / SCALE_MASS - 1):+.2f} %)")
+                        f"({100 * (own / scale - 1):+.2f} %)")
     for r, v in zip(result.runs, verdicts, strict=True):
         if r.full is not None:
             full = r.full

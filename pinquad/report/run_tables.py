@@ -24,12 +24,12 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.experiments.recorded import DiscoveryOutcome, LogResult
 from pinquad.experiments.step_residuals import StepResiduals, step_residuals
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog
 from pinquad.io.runs import RunWriter, atomic_write_bytes
-from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS
 
 Array = NDArray[np.float64]
 
@@ -119,12 +119,22 @@ def vehicle_note(result: LogResult, mass: float) -> str | None:
 
 def reference(vehicle: str) -> dict | None:
     """report.json's ``reference``: values of the vehicle known without the flight (the
-    Crazyflie 2.1's scale mass and published inertia), or None."""
-    if vehicle != "crazyflie21":
+    vehicle file's [reference]: for the Crazyflie 2.1 its scale mass and published
+    inertia), or None."""
+    if vehicle != "crazyflie21" and not is_vehicle_file(vehicle):
         return None
-    return {"mass": SCALE_MASS, "inertia_diag": PUBLISHED_INERTIA.tolist(),
-            "source": "scale / published (mass weighed on a scale; inertia of a Crazyflie "
-                      "2.0 without decks, bifilar pendulum)"}
+    ref = load_vehicle(vehicle).reference
+    if ref.mass is None:
+        return None
+    if vehicle == "crazyflie21":
+        source = ("scale / published (mass weighed on a scale; inertia of a Crazyflie "
+                  "2.0 without decks, bifilar pendulum)")
+    else:
+        source = f"vehicle file {vehicle}: mass {ref.mass_note or 'given'}; inertia " + (
+            ref.inertia_note or "given" if ref.inertia is not None else "not given")
+    return {"mass": ref.mass,
+            "inertia_diag": None if ref.inertia is None else np.asarray(ref.inertia).tolist(),
+            "source": source}
 
 
 def write_run_tables(writer: RunWriter, result: LogResult, outcome: DiscoveryOutcome | None,

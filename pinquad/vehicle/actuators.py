@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from scipy.signal import butter, filtfilt
 
 from pinquad.core.params import CRAZYFLIE21
+from pinquad.core.vehicle_file import VehicleSpec, load_vehicle
 from pinquad.io.logs import FlightLog, LogFormatError
 
 Array = NDArray[np.float64]
@@ -41,15 +42,20 @@ RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 """[rad/s] per [rev/min]."""
 GRAM_FORCE = 9.81e-3
 """[N] per gram-force (the stand's ``weight[g]`` column, same g as the rest of pinquad)."""
-CRAZYFLIE_ARM = 0.046
+CRAZYFLIE_SPEC = load_vehicle("crazyflie21")
+"""The shipped brushed Crazyflie 2.1 file (``pinquad/data/crazyflie21.toml``): the
+constants below are read from it."""
+_CF_ACT = CRAZYFLIE_SPEC.actuators
+assert _CF_ACT is not None, "pinquad/data/crazyflie21.toml has no [actuators] table"
+CRAZYFLIE_ARM = CRAZYFLIE_SPEC.arm
 """Centre to motor axis [m] (firmware constant)."""
-KF_CRAZYFLIE = 2.06e-8
+KF_CRAZYFLIE = _CF_ACT.kf
 """Thrust coefficient [N/(rad/s)^2]: the pooled thrust-stand fit of both Bitcraze CSVs
 (2.056e-8), rounded. The two stand runs alone give 2.10e-8 and 1.91e-8: take +-5 % as the
 real uncertainty (see :func:`fit_thrust_stand`)."""
-YAW_RATIO_CRAZYFLIE = 0.006
+YAW_RATIO_CRAZYFLIE = _CF_ACT.yaw_ratio
 """Yaw torque / thrust [m], published 0.0060-0.0070 m (the firmware uses 0.005964)."""
-SPIN_CRAZYFLIE = (-1.0, 1.0, -1.0, 1.0)
+SPIN_CRAZYFLIE = tuple(float(v) for v in CRAZYFLIE_SPEC.spin)
 """Yaw-torque sign per motor M1..M4, as measured on the yaw flights (:func:`fit_yaw`)."""
 YAW_PATTERN = np.array([1.0, -1.0, 1.0, -1.0])
 """Weights of the yaw-torque pattern T1 - T2 + T3 - T4."""
@@ -80,24 +86,45 @@ class ActuatorModel:
     kf: float = KF_CRAZYFLIE
     arm: float = CRAZYFLIE_ARM
     yaw_ratio: float = YAW_RATIO_CRAZYFLIE
-    spin: tuple[float, float, float, float] = SPIN_CRAZYFLIE
+    spin: tuple[float, ...] = SPIN_CRAZYFLIE
+    xy: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self) -> None:
         s = tuple(float(v) for v in self.spin)
-        if len(s) != 4 or any(abs(v) != 1.0 for v in s) or s[0] != s[2] or s[1] != s[3] \
-                or s[0] == s[1]:
-            raise ValueError(f"spin must be +-(1, -1, 1, -1) (diagonal pairs alike); got {s}")
+        n = len(s) if self.xy is None else len(self.xy)
+        if self.xy is None and len(s) != 4:
+            raise ValueError(f"spin must have 4 entries for the X layout; got {s}")
+        if len(s) != n or any(abs(v) != 1.0 for v in s) or sum(s) != 0.0:
+            raise ValueError(f"spin must be one +-1 per rotor ({n}), as many +1 as -1; got {s}")
+        if n == 4 and (s[0] != s[2] or s[1] != s[3]):
+            raise ValueError(f"spin must be +-(1, -1, 1, -1) (opposite rotors alike); got {s}")
         object.__setattr__(self, "spin", s)
+
+    @classmethod
+    def from_spec(cls, spec: VehicleSpec, kf: float | None = None) -> ActuatorModel:
+        """The mixer of a vehicle file (its rotor positions, spins, yaw ratio; kf from the
+        file unless given). Raises ValueError if the file has no [actuators] table."""
+        if spec.actuators is None:
+            raise ValueError(f"{spec.source}: no [actuators] table (kf, kf_se, yaw_ratio): "
+                             "rotor speeds cannot be turned into thrust and torques")
+        return cls(kf=spec.actuators.kf if kf is None else kf, arm=spec.arm,
+                   yaw_ratio=spec.actuators.yaw_ratio, spin=tuple(spec.spin.tolist()),
+                   xy=tuple((float(x), float(y)) for x, y in spec.positions))
+
+    @property
+    def n_rotors(self) -> int:
+        """Number of rotors."""
+        return len(self.spin)
 
     @property
     def positions(self) -> Array:
-        """(4, 2) motor (x, y) in the body frame [m]."""
-        return motor_positions(self.arm)
+        """(n, 2) motor (x, y) in the body frame [m]."""
+        return motor_positions(self.arm) if self.xy is None else np.asarray(self.xy, float)
 
     def allocation(self) -> Array:
-        """(4, 4) matrix A with [F, tau_x, tau_y, tau_z] = A @ [T1..T4] ([N], [N m])."""
+        """(4, n) matrix A with [F, tau_x, tau_y, tau_z] = A @ [T1..Tn] ([N], [N m])."""
         xy = self.positions
-        return np.vstack([np.ones(4), xy[:, 1], -xy[:, 0],
+        return np.vstack([np.ones(self.n_rotors), xy[:, 1], -xy[:, 0],
                           self.yaw_ratio * np.asarray(self.spin)])
 
     def motor_thrust(self, rpm: Array) -> Array:
@@ -106,10 +133,11 @@ class ActuatorModel:
         return self.kf * omega * omega
 
     def wrench(self, rpm: Array) -> tuple[Array, Array]:
-        """Thrust (N,) [N] along body z and torque (N, 3) [N m, body] from rpm (N, 4)."""
+        """Thrust (N,) [N] along body z and torque (N, 3) [N m, body] from rpm (N, n)."""
         rpm = np.atleast_2d(np.asarray(rpm, dtype=float))
-        if rpm.shape[-1] != 4:
-            raise ValueError(f"rpm must have 4 columns (M1..M4); got shape {rpm.shape}")
+        if rpm.shape[-1] != self.n_rotors:
+            raise ValueError(f"rpm must have {self.n_rotors} columns (one per rotor); got "
+                             f"shape {rpm.shape}")
         out = self.motor_thrust(rpm) @ self.allocation().T
         return out[:, 0], out[:, 1:]
 
