@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.core.params import CRAZYFLIE21
-from pinquad.io.datadir import default_data_dir
+from pinquad.io.datadir import default_data_dir, missing_data_hint
 from pinquad.io.logs import LogFormatError
 from pinquad.vehicle.actuators import GRAM_FORCE, ThrustStandFit, fit_thrust_stand
 from pinquad.vehicle.steady_thrust import actuator_section, fit_steady_thrust
@@ -45,7 +45,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=None,
                         help="directory of thrust-stand CSVs, or the Crazyflie data directory "
                              "holding thrust_stand/ (default: $PINQUAD_CRAZYFLIE_DATA, else "
-                             "../shared/data/crazyflie next to the repository)")
+                             "../shared/data/crazyflie next to the repository, else the copy "
+                             "`python -m pinquad.data fetch crazyflie` downloads)")
     parser.add_argument("--csv", type=Path, default=None,
                         help="a CSV of steady points: rotor speed and measured total thrust, "
                              "units in the header (weight[g], thrust[N], rpm, omega[rad/s])")
@@ -76,7 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     csvs = sorted(data.glob("*.csv")) if data.is_dir() else []
     if not csvs:
         print(f"error: {data}: no thrust-stand CSV file found; expected a directory with "
-              "*.csv files having columns weight[g], rpm1..rpm4 (give it with --data DIR)",
+              f"*.csv files having columns weight[g], rpm1..rpm4: {missing_data_hint()}",
               file=sys.stderr)
         return 2
     try:

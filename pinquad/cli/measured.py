@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from pinquad.io.datadir import missing_data_hint
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
 from pinquad.realdata.observations import RealDataOptions, RealObservations, load_real
 from pinquad.realdata.thrust import thrust_coefficient
@@ -25,7 +26,8 @@ def add_measured_log_arguments(parser: argparse.ArgumentParser) -> None:
                              "clean logs)")
     parser.add_argument("--data", type=Path, default=None,
                         help="Crazyflie data directory (default: $PINQUAD_CRAZYFLIE_DATA, else "
-                             "../shared/data/crazyflie next to the repository)")
+                             "../shared/data/crazyflie next to the repository, else the copy "
+                             "`python -m pinquad.data fetch crazyflie` downloads)")
     parser.add_argument("--rotor-inertia", type=float, default=0.0,
                         help="J_r [kg m^2] added to the yaw torque as J_r sum spin_i omega_i'")
 
@@ -36,6 +38,9 @@ def measured_logs(logs: Sequence[str], data: Path | None
     paths), with kf from its thrust stand, under a progress bar. Raises LogFormatError /
     ValueError / FileNotFoundError."""
     flights = flights_dir(data)
+    if not flights.is_dir() and not all(Path(name).exists() for name in logs):
+        raise FileNotFoundError(f"{flights}: no such directory; expected the Crazyflie flight "
+                                f"logs: {missing_data_hint()}")
     kf = thrust_coefficient(stand_dir(data))
     for name in tqdm(logs, unit="log", file=sys.stderr):
         path = Path(name) if Path(name).exists() else flights / name

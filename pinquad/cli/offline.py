@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pinquad.cli.batch import BATCH_EXIT_CODES, is_batch, run_batch
 from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
 from pinquad.core.params import PAPER_SCENARIO
 from pinquad.discovery.null import NullSettings
@@ -71,9 +72,13 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m pinquad.offline",
         description="Offline EM identification of a quadcopter's mass and inertia. Without "
                     "--log: the paper's simulated offline experiment (Tables II and III).",
-        epilog=EXIT_CODES, formatter_class=HelpFormatter)
-    p.add_argument("--log", type=Path, help="identify from a recorded log (CSV, Parquet or "
-                   "Crazyflie micro-SD binary) instead of simulating")
+        epilog=f"{EXIT_CODES}; {BATCH_EXIT_CODES}", formatter_class=HelpFormatter)
+    p.add_argument("--log", type=Path, nargs="+", metavar="PATH",
+                   help="identify from a recorded log (CSV, Parquet or Crazyflie micro-SD "
+                        "binary) instead of simulating; several paths or a quoted glob "
+                        "pattern run a batch (pinquad.cli.batch): one run directory with a "
+                        "per-log table.md and each log's run in logs/<name>/, --jobs logs "
+                        "at a time")
     p.add_argument("--sensor", choices=["A", "B", "C"], action="append",
                    help="observation source(s); repeat for several (default: A, B and C for "
                         "simulation; B-like full use of what a log contains for --log)")
@@ -235,7 +240,10 @@ def run_log(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
+        if args.log is not None and is_batch(args.log):
+            return run_batch(args, run_log, argv=sys.argv[1:] if argv is None else argv)
         if args.log is not None:
+            args.log = args.log[0]
             return run_log(args)
         if args.mstep == "full":
             return _fail("--mstep full identifies one recorded log (--log PATH); the "

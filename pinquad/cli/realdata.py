@@ -18,6 +18,7 @@ from pinquad.cli.help import non_negative_int
 from pinquad.core.vehicle_file import load_vehicle
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.recorded import measured_effects
+from pinquad.io.datadir import missing_data_hint
 from pinquad.io.logs import LogFormatError
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
 from pinquad.realdata.observations import RealDataOptions, options_for_vehicle
@@ -46,7 +47,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=None,
                         help="Crazyflie data directory (with imrc_brushed/ and thrust_stand/) "
                              "or a directory of flight logs (default: $PINQUAD_CRAZYFLIE_DATA, "
-                             "else ../shared/data/crazyflie next to the repository)")
+                             "else ../shared/data/crazyflie next to the repository, else the "
+                             "copy `python -m pinquad.data fetch crazyflie` downloads)")
     parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
                         help="worker processes")
     parser.add_argument("--max-iterations", type=int, default=150, help="E-steps per log")
@@ -83,7 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         logs = [p for p in logs if p.name in set(args.only)]
     if not logs:
         print(f"error: {flights}: no flight log (jana*) found; expected the IMRC Lab micro-SD "
-              "logs (give the data directory with --data DIR)", file=sys.stderr)
+              f"logs: {missing_data_hint()}", file=sys.stderr)
         return 2
     try:
         # the mixer of the shipped brushed Crazyflie file (pinquad/data/crazyflie21.toml)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from pinquad.cli.common import output_problem
 from pinquad.experiments.realdiscovery import SPLITS, FlightFit, run_split
-from pinquad.io.datadir import default_data_dir
+from pinquad.io.datadir import default_data_dir, missing_data_hint
 from pinquad.io.runs import atomic_write_json
 from pinquad.report.realdiscovery import realdiscovery_markdown
 
@@ -22,8 +22,10 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Effect discovery on the measured Crazyflie flights: "
                                             "train on some logs, test on others.")
     p.add_argument("--data", type=Path, default=None,
-                   help="imrc_brushed/ directory (default: ../shared/data/crazyflie/imrc_brushed "
-                        "next to the repository)")
+                   help="imrc_brushed/ directory or the Crazyflie data directory (default: "
+                        "$PINQUAD_CRAZYFLIE_DATA, else ../shared/data/crazyflie next to the "
+                        "repository, else the copy `python -m pinquad.data fetch crazyflie` "
+                        "downloads)")
     p.add_argument("--splits", nargs="*", default=list(SPLITS), choices=list(SPLITS))
     p.add_argument("--out", type=Path, default=None, help="write realdiscovery.json/.md here")
     return p
@@ -38,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
         data = data / "imrc_brushed"
     if not data.is_dir():
         print(f"error: {data}: no such directory; expected the Crazyflie flight logs "
-              "(imrc_brushed/)", file=sys.stderr)
+              f"(imrc_brushed/): {missing_data_hint()}", file=sys.stderr)
         return 2
     if (code := output_problem(args.out, directory=True)) is not None:
         return code

@@ -1,0 +1,106 @@
+"""Batch identification (issue 23 part 2): ``python -m pinquad.offline --log A B C`` runs
+each log through the single --log pipeline into one batch directory with a per-log
+table; a broken file is its row's error and does not stop the others; exit codes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pinquad.cli.batch import expand_logs, is_batch
+from pinquad.cli.offline import main as offline_main
+from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
+from pinquad.experiments.batch import (
+    ALL_TRUSTED,
+    SOME_FAILED,
+    SOME_UNTRUSTED,
+    batch_exit_code,
+    failed_row,
+    row_from_report,
+    unique_names,
+)
+from pinquad.io.logs import write_log
+from pinquad.sim.simulator import SimConfig, flight_log, simulate
+
+# a cheap run: the point is the batch's mechanics and that each log goes through the
+# single --log pipeline unchanged, not the accuracy of a short EM (tests/test_offline_log.py)
+FAST = ["--sensor", "B", "--mstep", "regressor", "--no-information", "--no-discover",
+        "--jobs", "1", "--max-iterations", "8"]
+
+
+@pytest.fixture(scope="module")
+def good_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 10 s simulated sensor-B flight as CSV with the paper's initial guess."""
+    log = flight_log(simulate(SimConfig(sensor="B"), np.random.default_rng(23))).slice(0, 1000)
+    written = write_log(log, tmp_path_factory.mktemp("logs") / "flight.csv")
+    sidecar = Path(f"{written}.json")
+    meta = json.loads(sidecar.read_text())
+    meta["mass_guess"] = PAPER_INITIAL_MASS
+    meta["inertia_guess"] = np.asarray(PAPER_INITIAL_INERTIA).tolist()
+    sidecar.write_text(json.dumps(meta))
+    return Path(written)
+
+
+def test_batch_rows_equal_single_runs_and_a_broken_file_does_not_stop_it(
+        good_csv: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    broken = tmp_path / "broken.csv"
+    broken.write_text("t,pos_x\n0.0,1.0\n0.0,2.0\n")  # no actuation, t not increasing
+    single = tmp_path / "single"
+    single_code = offline_main(["--log", str(good_csv), *FAST, "--out", str(single)])
+    assert single_code in (0, 3)
+    assert (single / "report.json").is_file() and not (single / "table.md").exists()
+
+    out = tmp_path / "batch"
+    code = offline_main(["--log", str(good_csv), str(broken), *FAST, "--out", str(out)])
+    assert code == SOME_FAILED
+    table = (out / "table.md").read_text()
+    batch = json.loads((out / "batch.json").read_text())
+    rows = {r["name"]: r for r in batch["logs"]}
+    assert list(rows) == ["flight.csv", "broken.csv"] and batch["exit_code"] == SOME_FAILED
+    assert rows["broken.csv"]["status"] == "failed"
+    assert str(broken) in rows["broken.csv"]["error"] and rows["broken.csv"]["mass"] is None
+    assert rows["broken.csv"]["error"].replace("|", "/") in table
+    assert (out / "logs" / "broken.csv.txt").read_text().splitlines()[-1].startswith("error: ")
+    # the good log went through exactly the single --log pipeline
+    alone = json.loads((single / "report.json").read_text())["estimates"]
+    in_batch = json.loads((out / "logs" / "flight.csv" / "report.json").read_text())["estimates"]
+    assert in_batch["mass"] == alone["mass"] and in_batch["inertia"] == alone["inertia"]
+    assert rows["flight.csv"]["mass"] == alone["mass"]
+    assert rows["flight.csv"]["status"] == ("trusted" if single_code == 0 else "not trusted")
+    assert f"{alone['mass'] * 1e3:.3f}" in table
+    assert "1 failed" in capsys.readouterr().out
+
+
+def test_a_pattern_that_matches_nothing_is_bad_input(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]):
+    out = tmp_path / "batch"
+    assert offline_main(["--log", str(tmp_path / "*.csv"), "--out", str(out)]) == 2
+    assert "matches no file" in capsys.readouterr().err and not out.exists()
+
+
+def test_which_arguments_make_a_batch(tmp_path: Path):
+    for name in ("b.csv", "a.csv", "c.parquet"):
+        (tmp_path / name).write_text("")
+    assert not is_batch([tmp_path / "a.csv"])
+    assert is_batch([tmp_path / "a.csv", tmp_path / "b.csv"])
+    assert is_batch([tmp_path / "*.csv"])
+    assert expand_logs([tmp_path / "*.csv", tmp_path / "a.csv", tmp_path / "x.csv"]) == \
+        [tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "x.csv"]
+    assert unique_names(["d1/jana00", "d2/jana00", "jana01"]) == ["jana00", "jana00-2", "jana01"]
+
+
+def test_batch_exit_code_orders_failed_over_untrusted():
+    report = {"estimates": {"mass": 0.03, "inertia": np.eye(3).tolist(),
+                            "stderr": {"mass": 1e-4, "inertia_diag": [1e-7] * 3},
+                            "verdict": {"overall": "trusted", "parameters": {}}}}
+    ok = row_from_report("a", "a", report, 1.0)
+    report["estimates"]["verdict"]["overall"] = "not identifiable"
+    weak = row_from_report("b", "b", report, 1.0)
+    bad = failed_row("c", "c", "c: no such file", 0.0)
+    assert (ok.status, weak.status) == ("trusted", "not trusted")
+    assert batch_exit_code([ok]) == ALL_TRUSTED
+    assert batch_exit_code([ok, weak]) == SOME_UNTRUSTED
+    assert batch_exit_code([ok, weak, bad]) == SOME_FAILED
