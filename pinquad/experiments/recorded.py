@@ -317,13 +317,15 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
 
 def input_alternative(log: FlightLog, obs: Observations, run: Identification, mass0: float,
                       inertia0: Array, options: LogOptions) -> Array | None:
-    """For a log whose actuation is sampled (``LogMeta.actuation``): [m (kg), I_xx, I_yy,
+    """For a log whose actuation is taken as sampled without its sidecar saying so
+    (``LogMeta.actuation``, ``actuation_declared``): [m (kg), I_xx, I_yy,
     I_zz (kg m^2)] from the run's EM (its M-step, no standard errors) with each logged row
     held over its interval instead of the interval's mean (``interval_inputs``), the
     reading the log cannot rule out; the verdict compares it with the run's
     (``VerdictEvidence.input_alternative``). None for held logs and the ten-parameter
     M-step."""
-    if log.meta.actuation != "sampled" or run.mstep == "full":
+    meta = log.meta
+    if meta.actuation != "sampled" or meta.actuation_declared or run.mstep == "full":
         return None
     held = replace(obs, inputs=interval_inputs(np.column_stack([log.thrust, log.torque]), "held"))
     alt, _ = identify(held, mass0, inertia0, log.meta.gravity, options.estep, run.mstep,

@@ -51,7 +51,9 @@ class LogMeta:
     ``held``, each row's value acted over the interval that follows it (a zero-order
     hold: pinquad's simulator), or ``sampled``, each row holds the command of a faster
     controller at that instant, so it moves within the interval (a recorded log; what a
-    sidecar that does not say is taken to mean); vehicle_named: whether the log
+    sidecar that does not say is taken to mean); actuation_declared: the log's sidecar
+    says which (False: ``sampled`` is an assumption, and the verdict checks what rests on
+    it); vehicle_named: whether the log
     itself names the vehicle (False: no sidecar or no ``vehicle`` in it, and ``vehicle``
     is the default ``paper``, not the log's).
     """
@@ -63,14 +65,16 @@ class LogMeta:
     source: str = "simulation"
     notes: tuple[str, ...] = ()
     actuation: str = "held"
+    actuation_declared: bool = True
     vehicle_named: bool = True
 
 
 ACTUATION = ("held", "sampled")
 """The sidecar's ``actuation`` values (``LogMeta.actuation``)."""
 
-SAMPLED_NOTE = ("actuation sampled at each row (the sidecar does not say \"actuation\": "
-                "\"held\"): each transition uses the mean of its two rows' thrust and torques")
+SAMPLED_NOTE = ("actuation taken as sampled at each row (the sidecar does not say "
+                "\"actuation\": \"held\" or \"sampled\"): each transition uses the mean of "
+                "its two rows' thrust and torques, and the verdict checks what rests on that")
 
 
 @dataclass(frozen=True)
@@ -354,7 +358,7 @@ def _read_sidecar(path: Path) -> LogMeta:
     side = Path(str(path) + ".json")
     if not side.exists():
         return LogMeta(source=str(path), actuation="sampled", notes=(SAMPLED_NOTE,),
-                       vehicle_named=False)
+                       actuation_declared=False, vehicle_named=False)
     try:
         raw = json.loads(side.read_text(encoding="utf-8-sig", errors="replace"))
     except json.JSONDecodeError as exc:
@@ -392,7 +396,9 @@ def _read_sidecar(path: Path) -> LogMeta:
                              "acted until the next row; sampled: a faster controller's command "
                              "at the row's instant)")
     if actuation == "sampled":
-        notes = (*notes, SAMPLED_NOTE)
+        notes = (*notes, SAMPLED_NOTE if "actuation" not in raw else (
+            "actuation sampled at each row (the sidecar says so): each transition uses the "
+            "mean of its two rows' thrust and torques"))
     return LogMeta(
         vehicle=vehicle,
         mass_guess=mass_guess,
@@ -401,6 +407,7 @@ def _read_sidecar(path: Path) -> LogMeta:
         source=str(path),
         notes=notes,
         actuation=actuation,
+        actuation_declared="actuation" in raw,
         vehicle_named="vehicle" in raw,
     )
 
