@@ -5,21 +5,25 @@ the same functions (``pinquad.cli``); ``pinquad/__init__.py`` re-exports these n
     import pinquad
 
     log = pinquad.read_log("flight.csv")        # CSV, Parquet or Crazyflie micro-SD
-    fit = pinquad.identify(log)                 # mass [kg], inertia (3, 3) [kg m^2], stderr
+    fit = pinquad.identify(log)                 # mass [kg], inertia (3, 3) [kg m^2], stderr,
+                                                # fit.verdict: can the log carry each one?
     found = pinquad.discover(log, fit)          # selected effects, before/after residuals
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from pinquad.core.params import VEHICLES, Vehicle
-from pinquad.discovery.discover import discover as discover_effects
+from pinquad.discovery.null import NullSettings
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
+from pinquad.experiments.headline import run_verdict
 from pinquad.experiments.recorded import (
     LogOptions,
+    discover_calibrated,
     discovery_config,
     discovery_start,
     identify_log,
@@ -51,21 +55,28 @@ def identify(log: FlightLog, *, mstep: str = "regressor", sensor: str | None = N
     (compiled EKF + RTS), ``ieks`` or ``gtsam``; information: standard errors from the
     observed information (measured flights: combined with the block jackknife and the
     thrust-stand kf's uncertainty). The result keeps the smoothed posterior, the EM
-    history and the observations its E-step saw, which :func:`discover` starts from.
+    history and the observations its E-step saw, which :func:`discover` starts from, and
+    its ``verdict`` (``pinquad.identification.verdict``: per parameter, trusted or not
+    identifiable / model not adequate / implausible, with reasons).
     """
     options = LogOptions(sensors=() if sensor is None else (sensor,), msteps=(mstep,),
                          estep=estep, max_iterations=max_iterations, information=information)
-    return identify_log(log, options).runs[0]
+    result = identify_log(log, options)
+    run = result.runs[0]
+    return replace(run, verdict=run_verdict(result, run))
 
 
 def discover(log: FlightLog, identification: Identification,
-             config: DiscoveryConfig | None = None) -> DiscoveryResult:
+             config: DiscoveryConfig | None = None, null: NullSettings | None = None
+             ) -> DiscoveryResult:
     """What ``identification``'s model of ``log`` leaves unexplained: the effects of the
     DESIGN 4.4 vocabulary (drag, ground_effect, com_offset, wind, motor_lag, gyro_bias)
     that explain held-out residuals significantly, their coefficients with standard
     errors, the refitted mass and inertia, and the held-out residual RMS before and
     after. config: selection settings (default: those ``python -m pinquad.offline --log``
-    uses for this kind of log)."""
+    uses for this kind of log); null: the calibration of the selection against shadow
+    flights of the base fit (default ``NullSettings()``: 19, seed 0; an effect they
+    explain is not selected). Raises ValueError when discovery fails numerically."""
     if identification.mstep == "full":
         raise ValueError("effect discovery works on the diagonal model: identify with "
                          "mstep='regressor' first")
@@ -75,7 +86,10 @@ def discover(log: FlightLog, identification: Identification,
         kind = ("sdlog" if log.measured is not None else "measured-table") if measured \
             else "simulated"
         config = discovery_config(kind)
-    return discover_effects(start.obs, start.theta, start.posterior, cfg=config)
+    outcome = discover_calibrated(start, config, null)
+    if outcome.result is None:
+        raise ValueError(outcome.error or "effect discovery failed")
+    return outcome.result
 
 
 def simulate(vehicle: str | Vehicle = "paper", sensor: str = "B", seed: int = 0,

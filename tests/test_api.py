@@ -31,9 +31,10 @@ def test_readme_python_example_runs_and_prints_what_the_readme_says():
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     lines = out.stdout.strip().splitlines()
-    # The README states these four lines; the numbers are the identification's own
+    # The README states these five lines; the numbers are the identification's own
     # (mass within 1.5 % of the 34.7 g scale, the published inertia within 10 % on roll
-    # and pitch, drag found on this flight, the simulated 0.18 kg within 0.5 %).
+    # and pitch, I_zz not identifiable on this flight (the mass trusted), drag found, the
+    # simulated 0.18 kg within 0.5 %).
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     for line in lines:
         assert f"`{line}`" in readme, f"README does not show the printed line {line!r}"
@@ -41,8 +42,9 @@ def test_readme_python_example_runs_and_prints_what_the_readme_says():
     assert abs(mass_g / 34.7 - 1.0) < 0.015
     roll, pitch, _ = (float(v) for v in re.findall(r"[\d.]+", lines[1].split(":", 1)[1]))
     assert abs(roll / 16.57 - 1) < 0.10 and abs(pitch / 16.66 - 1) < 0.10
-    assert lines[2] == "unmodelled effects: ('drag',)"
-    sim_kg = float(re.search(r"([\d.]+) kg", lines[3]).group(1))
+    assert lines[2] == "verdict: not identifiable"
+    assert lines[3] == "unmodelled effects: ('drag',)"
+    sim_kg = float(re.search(r"([\d.]+) kg", lines[4]).group(1))
     assert abs(sim_kg / 0.18 - 1.0) < 0.005
 
 

@@ -15,6 +15,7 @@ from pinquad.estep.fast_smoother import loglik_quad, smooth_quad
 from pinquad.identification.em import EMResult, Smoother, initial_theta, run_em
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.full_inertia import FullIdentification
+from pinquad.identification.verdict import EstimateVerdict
 from pinquad.models.ssm import Observations, Theta
 from pinquad.mstep.updates import paper_mstep, regressor_mstep
 
@@ -66,7 +67,9 @@ class Identification:
     (CoM and full tensor with their standard errors) when ``mstep == "full"``;
     measured: the measured-flight fit (kf, jackknife, nuisance moment, model-free mass:
     a ``pinquad.realdata`` RealIdentification, a layer above this one) when the flight
-    is a rotor-speed log.
+    is a rotor-speed log; verdict: whether the log carries each estimate
+    (``pinquad.identification.verdict``; set by ``pinquad.identify`` and the recorded-log
+    report, None where nobody judged it).
     """
 
     mstep: str
@@ -89,6 +92,7 @@ class Identification:
     observations: Observations | None = field(default=None, repr=False, compare=False)
     full: FullIdentification | None = field(default=None, repr=False)
     measured: object | None = field(default=None, repr=False)
+    verdict: EstimateVerdict | None = field(default=None, repr=False, compare=False)
 
     @property
     def iterations(self) -> int:
