@@ -140,7 +140,8 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
     else:
         th_f, post_f, coeffs_f = th_tr, post_tr, coeffs_tr
         all_blocks = train
-    stderr = jackknife(obs, post_f, th_f, selected, cfg, all_blocks)
+    stderr = jackknife(obs, post_f, th_f, selected, cfg, all_blocks,
+                       sampling=cfg.sampling_nuisance)
     evidence = effect_evidence(selected, res0, pi0, res_tr, pi_tr, coeffs_tr, test)
     return DiscoveryResult(tuple(selected), coeffs_f, stderr, tuple(scores), before, after,
                            th_f.mass, np.asarray(th_f.inertia), th_f, post_f, validation,

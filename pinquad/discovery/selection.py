@@ -237,18 +237,19 @@ def score_candidate(res: Residuals, current: Sequence[str], cand: str, pi0: Arra
 
 def estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],
                            cfg: DiscoveryConfig, train: NDArray[np.bool_],
-                           hold_inertia: bool = False
+                           hold_inertia: bool = False, sampling: tuple[int, ...] = ()
                            ) -> tuple[dict[str, Array], Residuals, ModelFit]:
     """The coefficients of ``effects`` (name -> (p,)) fitted on the training blocks
     ``train`` (B,) at the posterior ``post``, with the residuals and the model fit they
-    came from (``hold_inertia``: the inertia held at ``theta``'s)."""
+    came from (``hold_inertia``: the inertia held at ``theta``'s; ``sampling``: the
+    nuisance columns fitted alongside, as in ``fit_model``; the refit passes
+    ``cfg.sampling_nuisance`` once its posterior has the effects in the model: at the
+    base posterior, which bent the states to absorb the missing effect, a free nuisance
+    took 20 % of a held-input drag flight's drag coefficient, at the refit's 2 %)."""
     res = compute_residuals(obs, post, theta.gravity, cfg.block_seconds)
     train = train[: res.n_blocks]
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
-    # no sampling nuisance here: on pinquad's own (held-input) drag flights the base
-    # posterior's distortion correlates with it and a free coefficient took 20 % of the
-    # drag coefficient (docs/discovery.md, "Actuation between samples")
-    mf = fit_model(res, effects, train, pi0, hold_inertia=hold_inertia, sampling=())
+    mf = fit_model(res, effects, train, pi0, hold_inertia=hold_inertia, sampling=sampling)
     coeffs = dict(mf.coefficients)
     if "gyro_bias" in effects:
         coeffs["gyro_bias"] = gyro_fit(res, train[res.gyro_block])[0]
@@ -256,8 +257,8 @@ def estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effe
 
 
 def jackknife(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],
-               cfg: DiscoveryConfig, train: NDArray[np.bool_], hold_inertia: bool = False
-               ) -> dict[str, Array]:
+               cfg: DiscoveryConfig, train: NDArray[np.bool_], hold_inertia: bool = False,
+               sampling: tuple[int, ...] = ()) -> dict[str, Array]:
     """Block-jackknife standard errors of the coefficients (robust to the residuals'
     serial correlation within a block)."""
     blocks = np.flatnonzero(train)
@@ -265,7 +266,7 @@ def jackknife(obs: Observations, post: Posterior, theta: Theta, effects: Sequenc
     for b in blocks:
         t = train.copy()
         t[b] = False
-        c, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, t, hold_inertia)
+        c, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, t, hold_inertia, sampling)
         for e in effects:
             draws[e].append(c[e])
     nb = blocks.size

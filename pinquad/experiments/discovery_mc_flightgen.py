@@ -6,8 +6,8 @@ the realistic Crazyflie-class value of ``pinquad.sim.effects``' defaults) and se
 
 1. fly the Crazyflie-class vehicle of ``flightgen`` (its own RK4 on quaternions at
    0.5 ms, its own geometric controller at that rate, the actuation SAMPLED at each log
-   row, motion capture at 100 Hz, default noise, no floor: ``flight_spec``) with the
-   effect in the truth;
+   row, motion capture at 100 Hz, default noise, no floor, one pass 7 cm above the ground
+   plane: ``flight_spec``) with the effect in the truth;
 2. write its CSV with ``flightgen.write_csv`` (the log does not mention the effect),
    read it with ``pinquad.io.read.read_log``;
 3. identify and discover exactly as ``python -m pinquad.offline --log`` does
@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from flightgen import CRAZYFLIE, Effects, FlightSpec, generate, write_csv
+from flightgen.trajectory import excursion
 from pinquad.experiments.recorded import LogOptions, discovery_section, identify_log, run_discovery
 from pinquad.io.read import read_log
 from pinquad.sim import effects as sim_effects
@@ -45,10 +46,11 @@ FG_CONDITIONS: tuple[str, ...] = ("none", "drag", "ground_effect", "com_offset",
 LOG_RATES: tuple[int, ...] = (100, 250, 500)
 PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
 
-HOVER_HEIGHT = 0.45
-"""Hover point [m]: the vertical excursion (at most +-0.4 m) then passes 5-85 cm above
-the ground plane, where a ground effect of k_ge = 1 adds up to ~5 % of the thrust (the
-flights have no floor to touch: ``floor=None``)."""
+LOWEST_PASS = 0.07
+"""Lowest point of the reference [m] above the ground plane: every flight's hover point
+is set so that its vertical excursion comes down to 7 cm once (as the low pass of
+``discovery_mc``'s route), where a ground effect of k_ge = 1 adds ~2.7 % of the thrust
+and nothing else changes (the flights have no floor to touch: ``floor=None``)."""
 
 
 def injected(condition: str) -> dict[str, float]:
@@ -70,12 +72,18 @@ def flightgen_effects(condition: str) -> Effects:
 def flight_spec(condition: str, seed: int, index: int, log_rate: int) -> FlightSpec:
     """Flight ``index`` of a condition: durations cycle 30, 40, 20 s; every other flight
     is aggressive (6 m/s^2 peak reference acceleration, else 1.5); trajectories
-    alternate sums of sines and minimum-snap splines in pairs; no floor."""
-    return FlightSpec(duration=(30.0, 40.0, 20.0)[index % 3],
-                      trajectory=("sines", "minsnap")[(index // 2) % 2],
-                      aggressive=index % 2 == 0, log_rate=log_rate, dt=0.0005, seed=seed,
-                      vehicle=CRAZYFLIE, effects=flightgen_effects(condition),
-                      hover_height=HOVER_HEIGHT, floor=None)
+    alternate sums of sines and minimum-snap splines in pairs; the hover point puts the
+    reference's lowest point at ``LOWEST_PASS``; no floor."""
+    duration, dt = (30.0, 40.0, 20.0)[index % 3], 0.0005
+    kind, aggressive = ("sines", "minsnap")[(index // 2) % 2], index % 2 == 0
+    # the reference's excursion is the first thing flightgen.generate draws from the
+    # seed's generator, so a fresh generator of the same seed reproduces it
+    t = np.arange(int(round(duration / dt)) + 1) * dt
+    lowest = float(excursion(t, kind, aggressive, np.random.default_rng(seed))[0, :, 2].min())
+    return FlightSpec(duration=duration, trajectory=kind, aggressive=aggressive,
+                      log_rate=log_rate, dt=dt, seed=seed, vehicle=CRAZYFLIE,
+                      effects=flightgen_effects(condition), hover_height=LOWEST_PASS - lowest,
+                      floor=None)
 
 
 def case_seed(base: int, condition: str, i: int) -> int:
