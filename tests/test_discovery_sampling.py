@@ -34,3 +34,13 @@ def test_a_clean_100_hz_flightgen_flight_selects_nothing(tmp_path):
     without = discover(start.obs, start.theta, start.posterior,
                        cfg=replace(cfg, sampling_nuisance=(), refit_em=False))
     assert "drag" in without.selected
+
+
+def test_discovery_command_rejects_a_condition_the_generator_does_not_have(capsys):
+    """``--generator flightgen`` with pinquad's ``drag+wind`` condition: exit 2, a message
+    naming the flightgen conditions, nothing flown."""
+    from pinquad.cli.discovery import main
+
+    assert main(["--generator", "flightgen", "--conditions", "drag+wind", "--seeds", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "drag+wind" in err and "ground_effect" in err
