@@ -85,7 +85,7 @@ def discover(log: FlightLog, identification: Identification,
         measured = log.thrust is None
         kind = ("sdlog" if log.measured is not None else "measured-table") if measured \
             else "simulated"
-        config = discovery_config(kind)
+        config = discovery_config(kind, log.meta.actuation)
     outcome = discover_calibrated(start, config, null)
     if outcome.result is None:
         raise ValueError(outcome.error or "effect discovery failed")

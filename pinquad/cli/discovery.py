@@ -1,6 +1,8 @@
 """``python -m pinquad.discovery``: the seeded Monte Carlo of effect discovery through the
 CSV ``--log`` path (``pinquad.experiments.discovery_mc``), or ``--merge`` of earlier runs'
-cases; tables by ``pinquad.report.discovery_mc``."""
+cases; tables by ``pinquad.report.discovery_mc``. ``--generator flightgen``: the same on
+flights of the independent generator at ``--log-rate`` 100 / 250 / 500 Hz
+(``pinquad.experiments.discovery_mc_flightgen``)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from pinquad.cli.common import output_problem
+from pinquad.experiments import discovery_mc_flightgen as fgmc
 from pinquad.experiments.discovery_mc import (
     CONDITIONS,
     CaseJob,
@@ -25,6 +28,7 @@ from pinquad.experiments.discovery_mc import (
 )
 from pinquad.io.runs import atomic_write_json, new_run_dir
 from pinquad.report.discovery_mc import discovery_mc_markdown
+from pinquad.report.discovery_mc_flightgen import flightgen_mc_markdown
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,7 +38,15 @@ def build_parser() -> argparse.ArgumentParser:
                                             "the CSV --log path (module pinquad.discovery_mc).")
     p.add_argument("--seeds", type=int, default=20, help="seeds per condition")
     p.add_argument("--base-seed", type=int, default=0, help="base seed")
-    p.add_argument("--conditions", nargs="*", default=list(CONDITIONS), choices=list(CONDITIONS))
+    p.add_argument("--generator", choices=("pinquad", "flightgen"), default="pinquad",
+                   help="pinquad: pinquad's own simulator (default); flightgen: the independent "
+                        "generator (RK4 on quaternions, geometric controller at 2 kHz, actuation "
+                        "sampled at each log row, mocap at 100 Hz)")
+    p.add_argument("--log-rate", type=int, nargs="+", default=list(fgmc.LOG_RATES),
+                   choices=list(fgmc.LOG_RATES), help="flightgen only: log rates [Hz]")
+    p.add_argument("--conditions", nargs="*", default=None,
+                   help=f"conditions (pinquad: {', '.join(CONDITIONS)}; flightgen: "
+                        f"{', '.join(fgmc.FG_CONDITIONS)}; default all)")
     p.add_argument("--jobs", type=int, default=1, help="worker processes")
     p.add_argument("--laps", type=int, default=1,
                    help="times round the route per flight (about 20 s a lap)")
@@ -56,6 +68,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.seeds < 1 or args.laps < 1:
         print("error: --seeds and --laps must be at least 1", file=sys.stderr)
         return 2
+    known = fgmc.FG_CONDITIONS if args.generator == "flightgen" else tuple(CONDITIONS)
+    if args.conditions is None:
+        args.conditions = list(known)
+    unknown = [c for c in args.conditions if c not in known]
+    if unknown:
+        print(f"error: unknown condition(s) {', '.join(unknown)} for --generator "
+              f"{args.generator}; choose from {', '.join(known)}", file=sys.stderr)
+        return 2
+    if args.generator == "flightgen":
+        return run_flightgen(args)
     out = args.out or new_run_dir("discovery-mc")
     if (code := output_problem(out, directory=True)) is not None:
         return code
@@ -88,6 +110,45 @@ def main(argv: list[str] | None = None) -> int:
     atomic_write_json(out / "discovery_mc.json", {"summary": summary,
                                                   "cases": [c.to_json() for c in cases]})
     (out / "discovery_mc.md").write_text("# Effect discovery Monte Carlo\n\n" + table + "\n")
+    print(f"written to {out}")
+    return 0
+
+
+def run_flightgen(args: argparse.Namespace) -> int:
+    """``--generator flightgen``: run, print the seeds and tables, write
+    discovery_mc_flightgen.json / .md and cases.jsonl to ``--out``. Returns 0."""
+    out = args.out or new_run_dir("discovery-mc-flightgen")
+    if (code := output_problem(out, directory=True)) is not None:
+        return code
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"flightgen discovery Monte Carlo: {len(args.conditions)} condition(s) x "
+          f"{args.seeds} seeds x log rates {', '.join(map(str, args.log_rate))} Hz, base seed "
+          f"{args.base_seed} (seed = base*100000 + condition*1000 + i, the same at every rate), "
+          f"{args.jobs} worker(s)")
+    t0 = time.perf_counter()
+    cases: list[fgmc.FlightgenCase] = []
+    with tempfile.TemporaryDirectory(prefix="pinquad-fgmc-") as tmp:
+        work = fgmc.plan(args.conditions, args.log_rate, args.seeds, args.base_seed,
+                         args.start_index, tmp)
+        for res in tqdm(fgmc.run_cases(work, args.jobs), total=len(work), unit="flight",
+                        file=sys.stderr):
+            cases.append(res)
+            fgmc.append_case(out, res)
+    rows = fgmc.summarize(cases)
+    seconds = time.perf_counter() - t0
+    print()
+    for cond in args.conditions:
+        seeds = sorted({c.seed for c in cases if c.condition == cond})
+        print(f"{cond}: seeds {seeds[0]}..{seeds[-1]}")
+    table = flightgen_mc_markdown(rows)
+    print(table)
+    print(f"\n{len(cases)} flights in {seconds:.0f} s")
+    atomic_write_json(out / "discovery_mc_flightgen.json",
+                      {"rows": rows, "seconds": seconds, "base_seed": args.base_seed,
+                       "seeds_per_condition": args.seeds,
+                       "cases": [c.to_json() for c in cases]})
+    (out / "discovery_mc_flightgen.md").write_text(
+        "# Effect discovery Monte Carlo on flightgen flights\n\n" + table + "\n")
     print(f"written to {out}")
     return 0
 

@@ -29,7 +29,12 @@ when, fitted on the training blocks together with the effects already selected,
 * it passes BIC on the training blocks (2 dJ > p log n) and improves the held-out
   Gaussian log-likelihood.
 
-The best such candidate is added and the search repeats until none passes. The refit
+Every model the selection compares, the base one included, also carries two nuisance
+columns with fitted coefficients (``residuals.sampling_columns``): half the change of
+the thrust force within the logged interval, so that a log whose actuation is the
+command sampled at each row of a faster controller (not held over the interval, as
+every model here assumes) does not read as drag (docs/discovery.md, "Actuation between
+samples"). The best such candidate is added and the search repeats until none passes. The refit
 folds the identified effects into the observations (thrust/torque corrections at the
 smoothed state, lagged inputs, de-biased gyro) and reruns EM with the unchanged
 E-step and M-step on the training blocks (the held-out transitions excluded from the
@@ -140,7 +145,8 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
     else:
         th_f, post_f, coeffs_f = th_tr, post_tr, coeffs_tr
         all_blocks = train
-    stderr = jackknife(obs, post_f, th_f, selected, cfg, all_blocks)
+    stderr = jackknife(obs, post_f, th_f, selected, cfg, all_blocks,
+                       sampling=cfg.sampling_nuisance)
     evidence = effect_evidence(selected, res0, pi0, res_tr, pi_tr, coeffs_tr, test)
     return DiscoveryResult(tuple(selected), coeffs_f, stderr, tuple(scores), before, after,
                            th_f.mass, np.asarray(th_f.inertia), th_f, post_f, validation,

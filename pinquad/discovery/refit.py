@@ -167,7 +167,8 @@ def _joint_refinement(obs: Observations, exclude: NDArray[np.bool_], coeffs: dic
         corr = replace(corrected_observations(obs, post.mean, coeffs), exclude=exclude)
         post = smoother(model_factory(coeffs)(corr, theta), corr.ys)
         theta = effect_mstep(coeffs)(post, corr, theta).theta
-        new, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train)
+        new, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train,
+                                          sampling=cfg.sampling_nuisance)
         change = max(float(np.max(np.abs(new[e] - coeffs[e])
                                   / np.maximum(np.abs(coeffs[e]), 1e-12))) for e in new)
         coeffs = new
@@ -229,7 +230,8 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
                     tol=1e-5, tol_loglik=1e-7, model_factory=factory)
         b_used = coeffs.get("gyro_bias")
         theta, post = em.theta, em.posterior
-        coeffs, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train)
+        coeffs, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train,
+                                             sampling=cfg.sampling_nuisance)
         if gyro:
             coeffs["gyro_bias"] = b_used
     if cfg.joint_iterations and not gyro:

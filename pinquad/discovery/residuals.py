@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.core.conventions import euler_rate_matrix_inv, wrap_angle
+from pinquad.core.conventions import euler_rate_matrix_inv, rotation_from_euler, wrap_angle
 from pinquad.discovery.library import TransitionData, lag_wrench, wrench_features
 from pinquad.discovery.result import ATT_AXES, AXES, GYRO_AXES, DiscoveryConfig
 from pinquad.models.ssm import Observations
@@ -37,7 +37,8 @@ class Residuals:
     data: effect features' view; gyro_res (N, 3) with NaN where unobserved;
     gyro_block (N,): block of each step; att_res (N, 3) [rad/s]: the attitude-kinematics
     residual (``ATT_AXES``) of transition k -> k+1, NaN on the last step and on excluded
-    transitions.
+    transitions; sampling (K, 6, 3): the intra-interval change of the known wrench
+    (``sampling_columns``), the nuisance columns of the selection's model comparisons.
     """
 
     idx: NDArray[np.int64]
@@ -50,6 +51,7 @@ class Residuals:
     gyro_block: NDArray[np.int64]
     n_blocks: int
     att_res: Array
+    sampling: Array
 
 
 def step_blocks(obs: Observations, seconds: float) -> NDArray[np.int64]:
@@ -85,8 +87,41 @@ def compute_residuals(obs: Observations, post: Posterior, gravity: float, block_
     att_res = np.full((obs.n, 3), np.nan)
     att_res[idx] = (wrap_angle(euler[idx + 1] - euler[idx]) / obs.dt
                     - np.einsum("kij,kj->ki", euler_rate_matrix_inv(euler[idx]), rates[idx]))
+    sampling = sampling_columns(post.mean, obs.inputs, idx)
     return Residuals(idx, block, stats.y, stats.tau, corr, data, gyro_res, steps_block, n_blocks,
-                     att_res)
+                     att_res, sampling)
+
+
+def sampling_columns(state: Array, inputs: Array, idx: NDArray[np.int64]) -> Array:
+    """Delta (K, 6, 3) [N, N m]: half the change of the known wrench over each used
+    transition k -> k+1, in the body frame at k, as three nuisance columns.
+
+    With the world thrust force f_k = R(Theta_k) [0, 0, F_k] [N] and
+    Delta_F,k = R_k^T (f_{k+1} - f_k) / 2: column 0 holds Delta_F,k's horizontal rows
+    (body x, y: the thrust DIRECTION's move, about dt F (omega_y, -omega_x) / 2), column 1
+    its vertical row (mostly the magnitude's change (F_{k+1} - F_k) / 2), column 2 the
+    torque rows (M_{k+1} - M_k) / 2 [N m].
+
+    Why: every model of pinquad integrates x_{k+1} = x_k + dt f(x_k, u_k), the input
+    held over the interval (pinquad's simulator does hold it). A log whose actuation is
+    the command SAMPLED at each row of a faster controller applied, over the interval,
+    about the trapezoid (w_k + w_{k+1}) / 2 = w_k + Delta_k; on a smooth trajectory the
+    missing Delta_k lines up with velocity (a sinusoid's jerk is -Omega^2 v) and reads as
+    drag of order m dt Omega^2 / 2. ``selection.fit_model`` fits columns 0 and 1 (by
+    default) in every model the selection compares; column 2 is left out because the
+    torque rows' change is what ``motor_lag`` explains, and a free coefficient there took
+    a 30 ms lag's torque signature away from it (docs/discovery.md, "Actuation between
+    samples").
+    """
+    rot = rotation_from_euler(state[:, 6:9])
+    thrust_world = rot[:, :, 2] * inputs[:, 0:1]   # R e3 F, (N, 3)
+    d_world = thrust_world[idx + 1] - thrust_world[idx]
+    d_body = 0.5 * np.einsum("kji,kj->ki", rot[idx], d_world)
+    out = np.zeros((idx.size, 6, 3))
+    out[:, 0:2, 0] = d_body[:, 0:2]
+    out[:, 2, 1] = d_body[:, 2]
+    out[:, 3:6, 2] = 0.5 * (inputs[idx + 1, 1:4] - inputs[idx, 1:4])
+    return out
 
 
 def effect_columns(res: Residuals, effects: Sequence[str], lag: float | None

@@ -45,7 +45,15 @@ class DiscoveryConfig:
     measured flights, whose inertia comes from a band-limited M-step, and quick checks);
     joint_iterations, joint_tol: after the passes, at most this many single-E-step
     updates of coefficients and parameters together, until the coefficients change by
-    less than joint_tol (relative; ``pinquad.discovery.refit``).
+    less than joint_tol (relative; ``pinquad.discovery.refit``);
+    sampling_nuisance: the nuisance columns of ``pinquad.discovery.residuals.
+    sampling_columns`` (the change of the known wrench within a logged interval) that
+    every model the selection compares carries (not the coefficients' fit), by index (0:
+    the thrust direction's move on the body x/y force rows, 1: the vertical force row;
+    not 2, the torque rows: docs/discovery.md, "Actuation between samples", says why; ()
+    for none, the default: a log whose input was held over each interval, as pinquad's
+    simulator's, has no such change; ``experiments.recorded.discovery_config`` turns them
+    on for sampled logs).
     """
 
     block_seconds: float = 2.0
@@ -60,6 +68,7 @@ class DiscoveryConfig:
     refit_em: bool = True
     joint_iterations: int = 60
     joint_tol: float = 1e-3
+    sampling_nuisance: tuple[int, ...] = ()
 
 
 DEFAULT_CONFIG = DiscoveryConfig()

@@ -346,9 +346,20 @@ def identify_log(log: FlightLog, options: LogOptions | None = None) -> LogResult
     return _measured(log, options, kind)
 
 
-def discovery_config(kind: str) -> DiscoveryConfig:
-    """Effect discovery's settings for a kind of log (``DISCOVERY_SETTINGS``)."""
-    return DiscoveryConfig(**DISCOVERY_SETTINGS.get(kind, {}))
+SAMPLED_NUISANCE = (0, 1)
+"""The sampling nuisance columns a log with sampled thrust and torque columns gets
+(``DiscoveryConfig.sampling_nuisance``)."""
+
+
+def discovery_config(kind: str, actuation: str = "held") -> DiscoveryConfig:
+    """Effect discovery's settings for a kind of log (``DISCOVERY_SETTINGS``) whose
+    actuation (``LogMeta.actuation``) is ``held`` or ``sampled``: a log with sampled
+    thrust and torque columns gets the sampling nuisance (``SAMPLED_NUISANCE``) in every
+    model the selection compares; held logs and measured rotor-speed flights do not."""
+    cfg = DiscoveryConfig(**DISCOVERY_SETTINGS.get(kind, {}))
+    if kind == "simulated" and actuation == "sampled":
+        cfg = replace(cfg, sampling_nuisance=SAMPLED_NUISANCE)
+    return cfg
 
 
 @dataclass(frozen=True)
@@ -370,7 +381,8 @@ def run_discovery(result: LogResult, null: NullSettings | None = None) -> Discov
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
-    return discover_calibrated(start, discovery_config(result.kind), null)
+    return discover_calibrated(start, discovery_config(result.kind, result.log.meta.actuation),
+                               null)
 
 
 def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,

@@ -1,0 +1,37 @@
+"""The tables of the flightgen discovery Monte Carlo (``python -m pinquad.discovery
+--generator flightgen``; rows from ``pinquad.experiments.discovery_mc_flightgen.summarize``)."""
+
+from __future__ import annotations
+
+import math
+
+
+def _pct(v: float) -> str:
+    return "-" if not math.isfinite(v) else f"{100.0 * v:.1f} %"
+
+
+def flightgen_mc_markdown(rows: list[dict]) -> str:
+    """Markdown: one row per (log rate, condition) with the counts against the targets,
+    then the base EM's and the reported estimates' RMS relative errors."""
+    head = ("| log rate | condition | n | named | exact set | nothing selected | "
+            "coef within 10 % | coef err median / max | held-out gain median | extra selected |")
+    lines = [head, "|" + "---|" * 10]
+    for r in rows:
+        if r["condition"] == "none":
+            named = exact = within = err = gain = ""
+        else:
+            named, exact = f"{r['named']}/{r['n']}", f"{r['exact']}/{r['n']}"
+            within = f"{r['coef_within_10pct']}/{r['n']}"
+            err = f"{_pct(r['coef_err_median'])} / {_pct(r['coef_err_max'])}"
+            gain = _pct(r["gain_median"])
+        extra = ", ".join(r["extra_selected"]) or "-"
+        lines.append(f"| {r['log_rate']} Hz | {r['condition']} | {r['n']} | {named} | {exact} | "
+                     f"{r['nothing_selected']}/{r['n']} | {within} | {err} | {gain} | {extra} |")
+    lines += ["", "RMS relative error over the seeds, base EM -> reported (refit when an "
+              "effect is selected):", "",
+              "| log rate | condition | mass | I_xx | I_yy | I_zz |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        cells = [f"{_pct(r['base_rms_rel_err'][p])} -> {_pct(r['final_rms_rel_err'][p])}"
+                 for p in ("mass", "I_xx", "I_yy", "I_zz")]
+        lines.append(f"| {r['log_rate']} Hz | {r['condition']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
