@@ -35,6 +35,7 @@ import numpy as np
 
 from flightgen import CRAZYFLIE, Effects, FlightSpec, generate, write_csv
 from flightgen.trajectory import excursion
+from pinquad.experiments.headline import headline
 from pinquad.experiments.recorded import LogOptions, discovery_section, identify_log, run_discovery
 from pinquad.io.read import read_log
 from pinquad.sim import effects as sim_effects
@@ -98,7 +99,11 @@ class FlightgenCase:
     coef_rel_err: the injected effect's max relative coefficient error (NaN: not
     selected or no effect); gain: held-out gain of the round that selected it (NaN);
     base_err / final_err (4,): relative errors of [m, I_xx, I_yy, I_zz] of the base EM
-    and of the reported estimate (the refit when an effect is selected); seconds."""
+    and of the reported estimate (the refit when an effect is selected); seconds;
+    null_rejected: effects the uncalibrated selection chose that the null calibration
+    (``pinquad.discovery.null``, 19 shadow flights) rejected; verdicts: parameter ->
+    the reported estimate's verdict (``offline --log``'s headline; empty in runs made
+    before it was recorded)."""
 
     condition: str
     log_rate: int
@@ -114,12 +119,15 @@ class FlightgenCase:
     base_err: tuple[float, ...]
     final_err: tuple[float, ...]
     seconds: float
+    null_rejected: tuple[str, ...] = ()
+    verdicts: dict[str, str] | None = None
 
     def to_json(self) -> dict:
         d = dict(self.__dict__)
         d["selected"] = list(self.selected)
         d["base_err"] = list(self.base_err)
         d["final_err"] = list(self.final_err)
+        d["null_rejected"] = list(self.null_rejected)
         return d
 
 
@@ -131,8 +139,9 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
     flight = generate(spec)
     path = write_csv(flight, workdir / f"fg-{condition}-{log_rate}-{seed}.csv")
     result = identify_log(read_log(path), LogOptions(msteps=("regressor",), estep="rts",
-                                                     max_iterations=100, information=False))
+                                                     max_iterations=100, information=True))
     outcome = run_discovery(result)
+    judged = headline(result, outcome).final.verdict
     section = discovery_section(outcome)
     truth = np.r_[CRAZYFLIE.mass, np.diag(CRAZYFLIE.inertia_matrix)]
     run = result.runs[0]
@@ -151,7 +160,9 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
     return FlightgenCase(condition, log_rate, seed, index, spec.duration, spec.aggressive,
                          spec.trajectory, tuple(coefs), coefs, err, gain,
                          tuple((base / truth - 1.0).tolist()),
-                         tuple((final / truth - 1.0).tolist()), time.perf_counter() - t0)
+                         tuple((final / truth - 1.0).tolist()), time.perf_counter() - t0,
+                         () if outcome.null is None else tuple(outcome.null.rejected),
+                         {p.name: p.verdict for p in judged.parameters})
 
 
 @dataclass(frozen=True)
@@ -204,7 +215,19 @@ def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
                          "seeds": [c.seed for c in cs],
                          "nothing_selected": sum(not c.selected for c in cs),
                          "extra_selected": sorted({e for c in cs for e in c.selected
-                                                   if e != cond})}
+                                                   if e != cond}),
+                         "null_rejected": sum(bool(c.null_rejected) for c in cs),
+                         "null_rejected_effects": sorted({e for c in cs
+                                                          for e in c.null_rejected})}
+            judged = [c for c in cs if c.verdicts]
+            # a confident wrong answer: a parameter more than 10 % off, called trusted
+            row["judged"] = len(judged)
+            row["trusted_but_off"] = {
+                p: sum(c.verdicts.get(p) == "trusted" and abs(c.final_err[i]) > 0.10
+                       for c in judged) for i, p in enumerate(PARAMS)}
+            row["off_flagged"] = {
+                p: sum(c.verdicts.get(p) != "trusted" and abs(c.final_err[i]) > 0.10
+                       for c in judged) for i, p in enumerate(PARAMS)}
             base = np.array([c.base_err for c in cs])
             final = np.array([c.final_err for c in cs])
             row["base_rms_rel_err"] = dict(zip(PARAMS, np.sqrt(np.mean(base**2, axis=0)).tolist(),
@@ -231,6 +254,7 @@ def read_cases(path: Path) -> list[FlightgenCase]:
             d = json.loads(line)
             d["selected"] = tuple(d["selected"])
             d["base_err"], d["final_err"] = tuple(d["base_err"]), tuple(d["final_err"])
+            d["null_rejected"] = tuple(d.get("null_rejected", ()))
             out.append(FlightgenCase(**d))
     return out
 

@@ -14,8 +14,9 @@ def flightgen_mc_markdown(rows: list[dict]) -> str:
     """Markdown: one row per (log rate, condition) with the counts against the targets,
     then the base EM's and the reported estimates' RMS relative errors."""
     head = ("| log rate | condition | n | named | exact set | nothing selected | "
-            "coef within 10 % | coef err median / max | held-out gain median | extra selected |")
-    lines = [head, "|" + "---|" * 10]
+            "coef within 10 % | coef err median / max | held-out gain median | extra selected | "
+            "rejected by the null (flights: effects) |")
+    lines = [head, "|" + "---|" * 11]
     for r in rows:
         if r["condition"] == "none":
             named = exact = within = err = gain = ""
@@ -25,8 +26,11 @@ def flightgen_mc_markdown(rows: list[dict]) -> str:
             err = f"{_pct(r['coef_err_median'])} / {_pct(r['coef_err_max'])}"
             gain = _pct(r["gain_median"])
         extra = ", ".join(r["extra_selected"]) or "-"
+        rejected = (f"{r.get('null_rejected', 0)}/{r['n']}: "
+                    + (", ".join(r.get("null_rejected_effects", [])) or "-"))
         lines.append(f"| {r['log_rate']} Hz | {r['condition']} | {r['n']} | {named} | {exact} | "
-                     f"{r['nothing_selected']}/{r['n']} | {within} | {err} | {gain} | {extra} |")
+                     f"{r['nothing_selected']}/{r['n']} | {within} | {err} | {gain} | {extra} | "
+                     f"{rejected} |")
     lines += ["", "RMS relative error over the seeds, base EM -> reported (refit when an "
               "effect is selected):", "",
               "| log rate | condition | mass | I_xx | I_yy | I_zz |", "|---|---|---|---|---|---|"]
@@ -34,4 +38,15 @@ def flightgen_mc_markdown(rows: list[dict]) -> str:
         cells = [f"{_pct(r['base_rms_rel_err'][p])} -> {_pct(r['final_rms_rel_err'][p])}"
                  for p in ("mass", "I_xx", "I_yy", "I_zz")]
         lines.append(f"| {r['log_rate']} Hz | {r['condition']} | " + " | ".join(cells) + " |")
+    judged = [r for r in rows if r.get("judged")]
+    if judged:
+        lines += ["", "Verdicts of the reported estimates: parameters more than 10 % from the "
+                  "truth, called trusted (a confident wrong answer) / called not trusted:", "",
+                  "| log rate | condition | judged | mass | I_xx | I_yy | I_zz |",
+                  "|---|---|---|---|---|---|---|"]
+        for r in judged:
+            cells = [f"{r['trusted_but_off'][p]} / {r['off_flagged'][p]}"
+                     for p in ("mass", "I_xx", "I_yy", "I_zz")]
+            lines.append(f"| {r['log_rate']} Hz | {r['condition']} | {r['judged']} | "
+                         + " | ".join(cells) + " |")
     return "\n".join(lines)
