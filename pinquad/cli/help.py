@@ -18,23 +18,22 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
-def non_negative_int(text: str) -> int:
-    """An argument that must be a whole number >= 0 (0 switches something off)."""
+def whole_number_at_least(text: str, minimum: int) -> int:
+    """``text`` as a whole number >= ``minimum``, else argparse's type error."""
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+        value = minimum - 1
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= {minimum}, got {text!r}")
     return value
+
+
+def non_negative_int(text: str) -> int:
+    """An argument that must be a whole number >= 0 (0 switches something off)."""
+    return whole_number_at_least(text, 0)
 
 
 def positive_int(text: str) -> int:
     """An argument that must be a whole number >= 1 (cycles, iterations, workers)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
+    return whole_number_at_least(text, 1)

@@ -34,10 +34,11 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,6 +58,8 @@ from pinquad.sim.control import design_gains
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 Array = NDArray[np.float64]
+J = TypeVar("J")
+R = TypeVar("R")
 
 CONDITIONS: dict[str, tuple[str, ...]] = {
     "none": (), "drag": ("drag",), "ground_effect": ("ground_effect",),
@@ -215,15 +218,20 @@ def run_job(job: CaseJob) -> CaseResult:
     return run_case(job.condition, job.seed, Path(job.workdir), job.laps)
 
 
-def run_cases(work: Sequence[CaseJob], jobs: int = 1) -> Iterator[CaseResult]:
-    """Each job's ``CaseResult`` in the order of ``work``, as it finishes; in ``jobs``
-    worker processes when more than one."""
+def in_order(run: Callable[[J], R], work: Sequence[J], jobs: int = 1) -> Iterator[R]:
+    """``run(job)`` of each job in the order of ``work``, as it finishes; in ``jobs``
+    worker processes when more than one (``run`` and the jobs picklable)."""
     if jobs > 1:
         with ProcessPoolExecutor(jobs) as pool:
-            yield from pool.map(run_job, work)
+            yield from pool.map(run, work)
     else:
         for job in work:
-            yield run_job(job)
+            yield run(job)
+
+
+def run_cases(work: Sequence[CaseJob], jobs: int = 1) -> Iterator[CaseResult]:
+    """Each job's ``CaseResult`` in the order of ``work`` (``in_order``)."""
+    return in_order(run_job, work, jobs)
 
 
 def summarize(cases: list[CaseResult]) -> dict:

@@ -27,7 +27,6 @@ import json
 import math
 import time
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +34,7 @@ import numpy as np
 
 from flightgen import CRAZYFLIE, Effects, FlightSpec, generate, write_csv
 from flightgen.trajectory import excursion
+from pinquad.experiments.discovery_mc import in_order
 from pinquad.experiments.headline import headline
 from pinquad.experiments.recorded import LogOptions, discovery_section, identify_log, run_discovery
 from pinquad.io.read import read_log
@@ -190,12 +190,7 @@ def plan(conditions: Sequence[str], rates: Sequence[int], seeds: int, base_seed:
 
 def run_cases(work: Sequence[FlightgenJob], jobs: int = 1) -> Iterator[FlightgenCase]:
     """Each job's case in the order of ``work``; in ``jobs`` worker processes if > 1."""
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs) as pool:
-            yield from pool.map(run_job, work)
-    else:
-        for job in work:
-            yield run_job(job)
+    return in_order(run_job, work, jobs)
 
 
 def _median_max(values: list[float]) -> tuple[float, float]:

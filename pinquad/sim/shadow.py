@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import wrap_angle
+from pinquad.core.kernels import rotation_of_angles
 from pinquad.models.ssm import Observations, Theta
 
 Array = NDArray[np.float64]
@@ -65,21 +66,15 @@ class ShadowSettings:
 
 @numba.njit(cache=True)
 def _derivative(x, force, torque, mass, inertia, inertia_inv, gravity, out):  # pragma: no cover
-    phi, theta, psi = x[6], x[7], x[8]
-    sf, cf = math.sin(phi), math.cos(phi)
-    st, ct = math.sin(theta), math.cos(theta)
-    sp, cp = math.sin(psi), math.cos(psi)
-    # R = Rz(psi) Ry(theta) Rx(phi); the body force (fx, fy, fz) in the world frame
-    r00, r01, r02 = ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp
-    r10, r11, r12 = ct * sp, sf * st * sp + cf * cp, cf * st * sp - sf * cp
-    r20, r21, r22 = -st, sf * ct, cf * ct
-    fx, fy, fz = force[0], force[1], force[2]
-    out[0] = x[3]
-    out[1] = x[4]
-    out[2] = x[5]
-    out[3] = (r00 * fx + r01 * fy + r02 * fz) / mass
-    out[4] = (r10 * fx + r11 * fy + r12 * fz) / mass
-    out[5] = (r20 * fx + r21 * fy + r22 * fz) / mass - gravity
+    # the body force in the world frame, R = Rz(psi) Ry(theta) Rx(phi)
+    rot = np.empty((3, 3))
+    rotation_of_angles(x[6], x[7], x[8], rot)
+    for a in range(3):
+        out[a] = x[3 + a]
+        out[3 + a] = (rot[a, 0] * force[0] + rot[a, 1] * force[1] + rot[a, 2] * force[2]) / mass
+    out[5] -= gravity
+    sf, cf = math.sin(x[6]), math.cos(x[6])
+    st, ct = math.sin(x[7]), math.cos(x[7])
     wx, wy, wz = x[9], x[10], x[11]
     tt = st / ct
     out[6] = wx + sf * tt * wy + cf * tt * wz
@@ -97,18 +92,6 @@ def _derivative(x, force, torque, mass, inertia, inertia_inv, gravity, out):  # 
 
 
 @numba.njit(cache=True)
-def _rot(e):  # pragma: no cover
-    sf, cf = math.sin(e[0]), math.cos(e[0])
-    st, ct = math.sin(e[1]), math.cos(e[1])
-    sp, cp = math.sin(e[2]), math.cos(e[2])
-    r = np.empty((3, 3))
-    r[0, 0], r[0, 1], r[0, 2] = ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp
-    r[1, 0], r[1, 1], r[1, 2] = ct * sp, sf * st * sp + cf * cp, cf * st * sp - sf * cp
-    r[2, 0], r[2, 1], r[2, 2] = -st, sf * ct, cf * ct
-    return r
-
-
-@numba.njit(cache=True)
 def _fly(x0, x_ref, euler_step, u_ff, dt, substeps, mass, inertia, inertia_inv, gravity,
          gains, noise, states, logged):  # pragma: no cover
     n = x_ref.shape[0]
@@ -123,6 +106,8 @@ def _fly(x0, x_ref, euler_step, u_ff, dt, substeps, mass, inertia, inertia_inv, 
     k3 = np.empty(12)
     k4 = np.empty(12)
     tmp = np.empty(12)
+    r_ref = np.empty((3, 3))
+    r = np.empty((3, 3))
     kp, kd, katt, krate = gains[0], gains[1], gains[2], gains[3]
     j = 0
     for k in range(n):
@@ -141,8 +126,8 @@ def _fly(x0, x_ref, euler_step, u_ff, dt, substeps, mass, inertia, inertia_inv, 
                     ref[q] = x_ref[k, q]
                 for q in range(4):
                     u[q] = u_ff[k, q]
-            r_ref = _rot(ref[6:9])
-            r = _rot(x[6:9])
+            rotation_of_angles(ref[6], ref[7], ref[8], r_ref)
+            rotation_of_angles(x[6], x[7], x[8], r)
             f_des = np.empty(3)
             for a in range(3):
                 f_des[a] = (r_ref[a, 2] * u[0]
