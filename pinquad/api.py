@@ -86,7 +86,7 @@ def discover(log: FlightLog, identification: Identification,
         kind = ("sdlog" if log.measured is not None else "measured-table") if measured \
             else "simulated"
         config = discovery_config(kind, log.meta.actuation)
-    outcome = discover_calibrated(start, config, null)
+    outcome = discover_calibrated(start, config, null, log.meta.actuation)
     if outcome.result is None:
         raise ValueError(outcome.error or "effect discovery failed")
     return outcome.result

@@ -115,10 +115,12 @@ def first_round_gains(result: DiscoveryResult) -> dict[str, float]:
 
 
 def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: dict[str, float],
-              cfg: DiscoveryConfig, settings: NullSettings = NullSettings()) -> NullCalibration:
+              cfg: DiscoveryConfig, settings: NullSettings = NullSettings(),
+              actuation: str = "sampled") -> NullCalibration:
     """Calibrate effects against shadow flights of the base fit (``theta``, ``posterior``:
     the base EM result on ``obs``; module docstring). observed: effect -> its first-round
-    held-out gain on the log (``first_round_gains``)."""
+    held-out gain on the log (``first_round_gains``); actuation: the log's, ``held`` or
+    ``sampled`` (``LogMeta.actuation``): the shadow flights are logged the same way."""
     start = time.perf_counter()
     observed = dict(observed)
     effects = list(observed)
@@ -128,7 +130,7 @@ def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: d
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
     sq_dist = []
     for _ in range(settings.replicates):
-        shadow = shadow_flight(obs, theta, posterior.mean, rng, settings.shadow)
+        shadow = shadow_flight(obs, theta, posterior.mean, rng, settings.shadow, actuation)
         sq_dist.append(np.mean(np.sum((shadow.states[:, 0:3] - posterior.mean[:, 0:3]) ** 2,
                                       axis=1)))
         post = smooth_quad(QuadSSM(shadow.obs, theta), shadow.obs.ys)

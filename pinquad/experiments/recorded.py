@@ -381,17 +381,19 @@ def run_discovery(result: LogResult, null: NullSettings | None = None) -> Discov
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
-    return discover_calibrated(start, discovery_config(result.kind, result.log.meta.actuation),
-                               null)
+    actuation = result.log.meta.actuation
+    return discover_calibrated(start, discovery_config(result.kind, actuation), null, actuation)
 
 
 def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
-                        null: NullSettings | None = None) -> DiscoveryOutcome:
+                        null: NullSettings | None = None, actuation: str = "held"
+                        ) -> DiscoveryOutcome:
     """Effect discovery (``pinquad.discovery.discover``) from ``start`` with its selection
     calibrated against the null (``pinquad.discovery.null``; default ``NullSettings()``):
     an effect whose evidence does not beat the shadow flights of the base fit is dropped
     from the candidates and discovery reruns without it, until every selected effect has
-    beaten the null. A numerical failure is reported in the outcome, not raised."""
+    beaten the null; actuation: the log's (``LogMeta.actuation``), how the shadow flights
+    are logged. A numerical failure is reported in the outcome, not raised."""
     null = NullSettings() if null is None else null
     calibrations: list[NullCalibration] = []
     try:
@@ -403,7 +405,7 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
                 break
             gains = first_round_gains(found)
             cal = calibrate(start.obs, start.theta, start.posterior,
-                            {e: gains[e] for e in fresh}, cfg, null)
+                            {e: gains[e] for e in fresh}, cfg, null, actuation)
             calibrations.append(cal)
             if not cal.rejected:
                 break

@@ -10,7 +10,9 @@ gravity g [m/s^2]; state x = [p (m), v (m/s), Theta (rad, ZYX Euler), omega (rad
     Theta' = E^{-1}(Theta) omega,   omega' = J^{-1} (tau + n_tau - omega x J omega)
 
 with classical RK4 at ``substeps`` steps h = dt / substeps per logged interval dt, the
-wrench held over each h. The wrench is that of a controller running at the fine rate:
+wrench held over each h. The wrench is that of a controller running at the fine rate
+(for a log whose input was held over each row, the command of the row's first instant,
+held):
 the recorded input u_k = (F, tau) interpolated linearly between log rows (feed-forward)
 plus a tracking law that holds the shadow on the recorded flight's smoothed states
 x_ref (interpolated the same way):
@@ -40,6 +42,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import wrap_angle
 from pinquad.core.kernels import rotation_of_angles
+from pinquad.models.sources import interval_inputs
 from pinquad.models.ssm import Observations, Theta
 
 Array = NDArray[np.float64]
@@ -93,7 +96,7 @@ def _derivative(x, force, torque, mass, inertia, inertia_inv, gravity, out):  # 
 
 @numba.njit(cache=True)
 def _fly(x0, x_ref, euler_step, u_ff, dt, substeps, mass, inertia, inertia_inv, gravity,
-         gains, noise, states, logged):  # pragma: no cover
+         gains, noise, hold, states, logged):  # pragma: no cover
     n = x_ref.shape[0]
     h = dt / substeps
     x = x0.copy()
@@ -126,36 +129,42 @@ def _fly(x0, x_ref, euler_step, u_ff, dt, substeps, mass, inertia, inertia_inv, 
                     ref[q] = x_ref[k, q]
                 for q in range(4):
                     u[q] = u_ff[k, q]
-            rotation_of_angles(ref[6], ref[7], ref[8], r_ref)
-            rotation_of_angles(x[6], x[7], x[8], r)
-            f_des = np.empty(3)
-            for a in range(3):
-                f_des[a] = (r_ref[a, 2] * u[0]
-                            + mass * (kp * (ref[a] - x[a]) + kd * (ref[3 + a] - x[3 + a])))
-            thrust = f_des[0] * r[0, 2] + f_des[1] * r[1, 2] + f_des[2] * r[2, 2]
-            norm = math.sqrt(f_des[0] ** 2 + f_des[1] ** 2 + f_des[2] ** 2)
-            # tilt error b3 x b3_des in the world frame, then into the body frame
-            cx = (r[1, 2] * f_des[2] - r[2, 2] * f_des[1]) / norm
-            cy = (r[2, 2] * f_des[0] - r[0, 2] * f_des[2]) / norm
-            cz = (r[0, 2] * f_des[1] - r[1, 2] * f_des[0]) / norm
-            e_att = np.empty(3)
-            for a in range(3):
-                e_att[a] = r[0, a] * cx + r[1, a] * cy + r[2, a] * cz
-            dpsi = ref[8] - x[8]
-            dpsi = math.atan2(math.sin(dpsi), math.cos(dpsi))
-            e_att[2] += dpsi
-            cmd = np.empty(3)
-            for a in range(3):
-                cmd[a] = katt * e_att[a] + krate * (ref[9 + a] - x[9 + a])
-            if i == 0:
-                logged[k, 0] = thrust
-            for a in range(3):
-                tq = u[1 + a]
-                for b in range(3):
-                    tq += inertia[a, b] * cmd[b]
-                torque[a] = tq + noise[j, 3 + a]
+            if i == 0 or not hold:
+                rotation_of_angles(ref[6], ref[7], ref[8], r_ref)
+                rotation_of_angles(x[6], x[7], x[8], r)
+                f_des = np.empty(3)
+                for a in range(3):
+                    f_des[a] = (r_ref[a, 2] * u[0]
+                                + mass * (kp * (ref[a] - x[a]) + kd * (ref[3 + a] - x[3 + a])))
+                thrust = f_des[0] * r[0, 2] + f_des[1] * r[1, 2] + f_des[2] * r[2, 2]
+                norm = math.sqrt(f_des[0] ** 2 + f_des[1] ** 2 + f_des[2] ** 2)
+                # tilt error b3 x b3_des in the world frame, then into the body frame
+                cx = (r[1, 2] * f_des[2] - r[2, 2] * f_des[1]) / norm
+                cy = (r[2, 2] * f_des[0] - r[0, 2] * f_des[2]) / norm
+                cz = (r[0, 2] * f_des[1] - r[1, 2] * f_des[0]) / norm
+                e_att = np.empty(3)
+                for a in range(3):
+                    e_att[a] = r[0, a] * cx + r[1, a] * cy + r[2, a] * cz
+                dpsi = ref[8] - x[8]
+                dpsi = math.atan2(math.sin(dpsi), math.cos(dpsi))
+                e_att[2] += dpsi
+                cmd = np.empty(3)
+                for a in range(3):
+                    cmd[a] = katt * e_att[a] + krate * (ref[9 + a] - x[9 + a])
                 if i == 0:
-                    logged[k, 1 + a] = tq
+                    logged[k, 0] = thrust
+                for a in range(3):
+                    tq = u[1 + a]
+                    for b in range(3):
+                        tq += inertia[a, b] * cmd[b]
+                    torque[a] = tq + noise[j, 3 + a]
+                    if i == 0:
+                        logged[k, 1 + a] = tq
+            else:
+                # a held log: the command of the interval's first instant acts throughout
+                thrust = logged[k, 0]
+                for a in range(3):
+                    torque[a] = logged[k, 1 + a] + noise[j, 3 + a]
             force[0] = noise[j, 0]
             force[1] = noise[j, 1]
             force[2] = thrust + noise[j, 2]
@@ -205,11 +214,15 @@ def input_roughness_gap(recorded: Array, shadow: Array) -> Array:
 
 
 def shadow_flight(obs: Observations, theta: Theta, reference: Array, rng: np.random.Generator,
-                  settings: ShadowSettings = ShadowSettings()) -> ShadowFlight:
+                  settings: ShadowSettings = ShadowSettings(), actuation: str = "sampled"
+                  ) -> ShadowFlight:
     """Fly the base model ``theta`` along ``reference`` (N, 12), the recorded flight's
     smoothed states, with the recorded inputs ``obs.inputs`` as feed-forward, and log it
-    like ``obs`` (module docstring). Randomness (process and measurement noise) from
-    ``rng`` only."""
+    like ``obs`` (module docstring). actuation: the recorded log's (``LogMeta.actuation``):
+    ``sampled``, the controller runs at the fine rate and the log keeps its command at each
+    row, read as the recorded log's is (``models.sources.interval_inputs``); ``held``, the
+    command of each row's instant acts over the row's interval, as in pinquad's simulator.
+    Randomness (process and measurement noise) from ``rng`` only."""
     n = obs.n
     substeps = settings.substeps(obs.dt)
     h = obs.dt / substeps
@@ -224,8 +237,10 @@ def shadow_flight(obs: Observations, theta: Theta, reference: Array, rng: np.ran
     _fly(np.ascontiguousarray(reference[0], dtype=float), np.ascontiguousarray(reference, dtype=float),
          euler_step, np.ascontiguousarray(obs.inputs, dtype=float), float(obs.dt), substeps,
          float(theta.mass), inertia, np.linalg.inv(inertia), float(theta.gravity), gains, noise,
-         states, logged)
-    logged += rng.standard_normal(logged.shape) * input_roughness_gap(obs.inputs, logged)
+         actuation == "held", states, logged)
+    # read as the recorded log is read, then as rough as the recorded inputs
+    inputs = interval_inputs(logged, actuation)
+    inputs = inputs + rng.standard_normal(inputs.shape) * input_roughness_gap(obs.inputs, inputs)
     clean = states @ obs.measurement_matrix().T
     meas_sd = np.sqrt(np.maximum(np.asarray(theta.noise.meas, dtype=float), 0.0))
     ys = clean + rng.standard_normal(clean.shape) * meas_sd
@@ -233,4 +248,4 @@ def shadow_flight(obs: Observations, theta: Theta, reference: Array, rng: np.ran
     if angle_rows.size:
         ys[:, angle_rows] = wrap_angle(ys[:, angle_rows])
     ys[np.isnan(obs.ys)] = np.nan
-    return ShadowFlight(replace(obs, inputs=logged, ys=ys), states)
+    return ShadowFlight(replace(obs, inputs=inputs, ys=ys), states)
