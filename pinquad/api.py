@@ -27,6 +27,7 @@ from pinquad.experiments.recorded import (
     discovery_config,
     discovery_start,
     identify_log,
+    input_reading,
 )
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog
@@ -81,12 +82,12 @@ def discover(log: FlightLog, identification: Identification,
         raise ValueError("effect discovery works on the diagonal model: identify with "
                          "mstep='regressor' first")
     start = discovery_start(identification)
-    if config is None:
-        measured = log.thrust is None
-        kind = ("sdlog" if log.measured is not None else "measured-table") if measured \
-            else "simulated"
-        config = discovery_config(kind, log.meta.actuation)
-    outcome = discover_calibrated(start, config, null, log.meta.actuation)
+    measured = log.thrust is None
+    kind = ("sdlog" if log.measured is not None else "measured-table") if measured \
+        else "simulated"
+    reading = input_reading(kind, log)
+    config = discovery_config(kind, reading) if config is None else config
+    outcome = discover_calibrated(start, config, null, reading)
     if outcome.result is None:
         raise ValueError(outcome.error or "effect discovery failed")
     return outcome.result

@@ -381,8 +381,16 @@ def run_discovery(result: LogResult, null: NullSettings | None = None) -> Discov
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
-    actuation = result.log.meta.actuation
+    actuation = input_reading(result.kind, result.log)
     return discover_calibrated(start, discovery_config(result.kind, actuation), null, actuation)
+
+
+def input_reading(kind: str, log: FlightLog) -> str:
+    """How the E-step's inputs of a log of ``kind`` were read: the sidecar's actuation
+    for a log with thrust and torque columns (``models.sources.interval_inputs``); a
+    measured rotor-speed flight's inputs are built on its own grid (``realdata``) and
+    taken as held over each step."""
+    return log.meta.actuation if kind == "simulated" else "held"
 
 
 def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
