@@ -47,7 +47,8 @@ def _drag_gain(start) -> float:
 
 def test_a_shadow_flight_is_a_flight_of_the_base_fit_logged_like_the_log(clean_start):
     obs, theta = clean_start.obs, clean_start.theta
-    shadow = shadow_flight(obs, theta, clean_start.posterior.mean, np.random.default_rng(3))
+    shadow = shadow_flight(obs, theta, clean_start.posterior.mean, np.random.default_rng(3),
+                           actuation="sampled")
     dist = np.linalg.norm(shadow.states[:, 0:3] - clean_start.posterior.mean[:, 0:3], axis=1)
     assert np.sqrt(np.mean(dist**2)) < 0.05
     assert np.array_equal(np.isnan(shadow.obs.ys), np.isnan(obs.ys))
@@ -65,11 +66,11 @@ def test_real_drag_beats_the_null_and_a_clean_flights_chance_gain_does_not(clean
                                                                             drag_start):
     settings = NullSettings(replicates=19, seed=0)
     drag = calibrate(drag_start.obs, drag_start.theta, drag_start.posterior,
-                     {"drag": _drag_gain(drag_start)}, CFG, settings)
+                     {"drag": _drag_gain(drag_start)}, CFG, settings, "sampled")
     assert drag.kept == ("drag",) and drag.p_value["drag"] == pytest.approx(0.05)
     assert drag.observed["drag"] > 0.5 > np.max(drag.null_gains["drag"])
     clean = calibrate(clean_start.obs, clean_start.theta, clean_start.posterior,
-                      {"drag": _drag_gain(clean_start)}, CFG, settings)
+                      {"drag": _drag_gain(clean_start)}, CFG, settings, "sampled")
     assert clean.rejected == ("drag",) and clean.p_value["drag"] > 0.05
     assert clean.null_gains["drag"].shape == (19,)
 

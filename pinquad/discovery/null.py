@@ -103,6 +103,11 @@ class NullCalibration:
                             "kept": e in self.kept} for e in self.observed},
             "rejected": list(self.rejected),
             "shadow_tracking_rms_m": self.tracking_rms,
+            "shadow_tracking_note": (
+                "the shadow flights stayed within 10 cm (RMS) of the log's path"
+                if self.tracking_rms <= 0.1 else
+                "the shadow flights strayed more than 10 cm (RMS) from the log's path: the "
+                "null is a flight unlike this one, read its p-values with care"),
             "seconds": self.seconds,
         }
 
@@ -116,7 +121,7 @@ def first_round_gains(result: DiscoveryResult) -> dict[str, float]:
 
 def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: dict[str, float],
               cfg: DiscoveryConfig, settings: NullSettings = NullSettings(),
-              actuation: str = "sampled") -> NullCalibration:
+              actuation: str = "held") -> NullCalibration:
     """Calibrate effects against shadow flights of the base fit (``theta``, ``posterior``:
     the base EM result on ``obs``; module docstring). observed: effect -> its first-round
     held-out gain on the log (``first_round_gains``); actuation: the log's, ``held`` or
@@ -141,7 +146,8 @@ def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: d
             gains[e].append(score.gain)
             passes[e] += int(score.passed)
     null_gains = {e: np.asarray(v, dtype=float) for e, v in gains.items()}
-    p_value = {e: float((1 + np.sum(null_gains[e] >= observed[e])) / (1 + settings.replicates))
+    # a shadow flight whose gain could not be scored (NaN) counts against the effect
+    p_value = {e: float((1 + np.sum(~(null_gains[e] < observed[e]))) / (1 + settings.replicates))
                for e in effects}
     kept = tuple(e for e in effects if p_value[e] <= settings.alpha)
     rejected = tuple(e for e in effects if e not in kept)

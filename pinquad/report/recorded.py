@@ -222,6 +222,8 @@ def null_lines(null: dict) -> list[str]:
     lines = [f"  null calibration: {null['replicates']} shadow flights of the base fit "
              f"(seed {null['seed']}, {null['seconds']:.0f} s); an effect is kept when its "
              f"held-out gain beats them (p <= {null['alpha']:g})"]
+    if null.get("shadow_tracking_rms_m", 0.0) > 0.1:
+        lines.append(f"    note: {null['shadow_tracking_note']}")
     for name, e in null["effects"].items():
         lines.append(f"    {name}: gain {100 * e['heldout_gain']:.1f} % vs null max "
                      f"{100 * e['null_gain_max']:.1f} % (passed the uncalibrated selection on "

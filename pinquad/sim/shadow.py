@@ -214,7 +214,7 @@ def input_roughness_gap(recorded: Array, shadow: Array) -> Array:
 
 
 def shadow_flight(obs: Observations, theta: Theta, reference: Array, rng: np.random.Generator,
-                  settings: ShadowSettings = ShadowSettings(), actuation: str = "sampled"
+                  settings: ShadowSettings = ShadowSettings(), actuation: str = "held"
                   ) -> ShadowFlight:
     """Fly the base model ``theta`` along ``reference`` (N, 12), the recorded flight's
     smoothed states, with the recorded inputs ``obs.inputs`` as feed-forward, and log it
