@@ -28,6 +28,7 @@ from pinquad.experiments.recorded import (
     discovery_start,
     identify_log,
     input_reading,
+    log_kind,
 )
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog
@@ -82,9 +83,7 @@ def discover(log: FlightLog, identification: Identification,
         raise ValueError("effect discovery works on the diagonal model: identify with "
                          "mstep='regressor' first")
     start = discovery_start(identification)
-    measured = log.thrust is None
-    kind = ("sdlog" if log.measured is not None else "measured-table") if measured \
-        else "simulated"
+    kind = log_kind(log)
     reading = input_reading(kind, log)
     config = discovery_config(kind, reading) if config is None else config
     outcome = discover_calibrated(start, config, null, reading)

@@ -196,10 +196,24 @@ def discovery_start(run: Identification) -> DiscoveryStart:
     torques of its observations (``realdata.corrected``) and out of its parameters."""
     if run.posterior is None or run.observations is None or run.theta is None:
         raise ValueError("this identification kept no posterior to start discovery from")
-    if isinstance(run.theta, RealTheta):
-        return DiscoveryStart(corrected(run.observations, run.theta), plain_theta(run.theta),
-                              run.posterior)
-    return DiscoveryStart(run.observations, run.theta, run.posterior)
+    return start_from(run.observations, run.theta, run.posterior)
+
+
+def start_from(obs: Observations, theta: Theta | RealTheta, posterior: Posterior
+               ) -> DiscoveryStart:
+    """The ``DiscoveryStart`` of a fit: a measured-flight fit's nuisance moment
+    (``RealTheta``) moved into the torques of its observations and out of its parameters."""
+    if isinstance(theta, RealTheta):
+        return DiscoveryStart(corrected(obs, theta), plain_theta(theta), posterior)
+    return DiscoveryStart(obs, theta, posterior)
+
+
+def log_kind(log: FlightLog) -> str:
+    """``simulated`` (thrust and torque columns), ``sdlog`` (a Crazyflie micro-SD log) or
+    ``measured-table`` (a table of rotor speeds): what ``identify_log`` dispatches on."""
+    if log.thrust is not None:
+        return "simulated"
+    return "sdlog" if log.measured is not None else "measured-table"
 
 
 def measured_vehicle(log: FlightLog) -> tuple[RealDataOptions, ThrustCoefficient | None]:
@@ -340,9 +354,9 @@ def identify_log(log: FlightLog, options: LogOptions | None = None) -> LogResult
     identified as asked; numpy's LinAlgError when EM fails numerically."""
     options = options or LogOptions()
     check_log(log)  # units and impossible values, before any EM (pinquad.io.sanity)
-    if log.thrust is not None:
+    kind = log_kind(log)
+    if kind == "simulated":
         return _with_applied_wrench(log, options)
-    kind = "sdlog" if log.measured is not None else "measured-table"
     return _measured(log, options, kind)
 
 
@@ -431,8 +445,8 @@ def measured_effects(obs: Observations, theta: RealTheta, posterior: Posterior,
     nuisance moment moved into the torques, as ``discovery_start``), summarised for the
     real-vehicle table: ``selected`` [{effect, heldout_gain, null_gain_max, p_value}],
     ``rejected`` (effects the null explained), ``replicates``, ``seed``, ``error``."""
-    start = DiscoveryStart(corrected(obs, theta), plain_theta(theta), posterior)
-    outcome = discover_calibrated(start, discovery_config("sdlog"), null)
+    outcome = discover_calibrated(start_from(obs, theta, posterior), discovery_config("sdlog"),
+                                  null)
     cal = outcome.null
     out: dict = {"selected": [], "rejected": [] if cal is None else list(cal.rejected),
                  "replicates": 0 if cal is None else cal.replicates,

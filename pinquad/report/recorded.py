@@ -239,10 +239,10 @@ def discovery_summary(section: dict) -> str:
     sel = section["selected"]
     null = section.get("null_calibration", {})
     if not sel:
-        return "\n".join(["effect discovery: no significant unmodelled effect (held-out test"
-                          + (", null calibration)" if null.get("replicates") else ")"),
-                          *null_lines(null)[: 1 + len(null.get("effects", {}))
-                                            if null.get("replicates") else 0]])
+        calibrated = bool(null.get("replicates"))
+        head = ("effect discovery: no significant unmodelled effect (held-out test"
+                + (", null calibration)" if calibrated else ")"))
+        return "\n".join([head, *(null_lines(null) if calibrated else [])])
     lines = [f"effect discovery: selected {', '.join(s['effect'] for s in sel)}"]
     for s in sel:
         co = ", ".join(f"{n} = {v:.4g} ± {s['stderr'][n]:.2g} {s['units'][n]}"
