@@ -22,6 +22,7 @@ from pinquad.identification.verdict import (
     VerdictEvidence,
     innovation_consistency,
     judge,
+    torque_excitation,
     torque_share,
     vehicle_range,
 )
@@ -127,6 +128,53 @@ def test_torque_share_reads_how_much_the_torques_explain():
     # excluded transitions are left out: excluding all but a few leaves too few to judge
     few = replace(noisy, exclude=np.r_[np.ones(noisy.n - 5, dtype=bool), np.zeros(5, dtype=bool)])
     assert np.isnan(torque_share(few, mean, np.diag(J))).all()
+
+
+def _excitation_obs(dt: float, tau: np.ndarray) -> Observations:
+    n = tau.shape[0]
+    inputs = np.column_stack([np.full(n, M * 9.81), tau])
+    return Observations(np.arange(n) * dt, dt, inputs, ("gyro",), np.zeros((n, 3)),
+                        np.zeros(12), np.ones(12))
+
+
+def _theta(torque_intensity: np.ndarray, fixed_q: np.ndarray | None = None) -> Theta:
+    wrench = np.r_[1e-6, 1e-6, 1e-6, torque_intensity]
+    return Theta(M, np.diag(J), NoiseModel(wrench, np.full(6, 1e-8), np.full(3, 1e-4), fixed_q))
+
+
+def test_torque_excitation_compares_the_torques_with_the_noise_in_the_same_band():
+    rng = np.random.default_rng(11)
+    intensity = np.array([1e-13, 4e-13, 9e-13])  # N^2 m^2 s
+    # white torques at 100 Hz: the band is 0-50 Hz, the whole Nyquist band, no filter;
+    # rms sigma against sqrt(2 S 50 Hz) = sqrt(100 S)
+    sigma = np.array([2e-6, 3e-6, 6e-6])
+    tau = sigma * rng.standard_normal((20000, 3))
+    ratio, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity))
+    np.testing.assert_allclose(ratio, sigma / np.sqrt(100 * intensity), rtol=0.02)
+    assert words == "0-50 Hz"
+    # a 2 Hz sine logged at 500 Hz passes the 50 Hz low-pass whole: rms A / sqrt(2),
+    # and the noise is still counted over 50 Hz, not the 250 Hz Nyquist band
+    t = np.arange(25000) * 0.002
+    amp = np.array([1e-5, 2e-5, 3e-5])
+    ratio, _ = torque_excitation(_excitation_obs(0.002, amp * np.sin(2 * np.pi * 2 * t)[:, None] + 1e-4),
+                                 _theta(intensity))
+    np.testing.assert_allclose(ratio, amp / np.sqrt(2) / np.sqrt(100 * intensity), rtol=0.01)
+    # not measured: a fixed noise model, or an M-step that reads one band only
+    fixed, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity, np.ones(12)))
+    assert np.isnan(fixed).all() and "fixed" in words
+    banded, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity), (3.0, 8.0))
+    assert np.isnan(banded).all() and "3-8 Hz" in words
+
+
+def test_torques_no_larger_than_the_noise_make_that_inertia_not_identifiable():
+    quiet = replace(GOOD, torque_excitation=np.array([0.5, 4.0, 1.9]), excitation_band="0-50 Hz")
+    verdict = judge(M, np.diag(J), SMALL_SE, quiet, CF)
+    assert [p.verdict for p in verdict.parameters] == [TRUSTED, NOT_IDENTIFIABLE, TRUSTED,
+                                                         NOT_IDENTIFIABLE]
+    assert "0.50x the process noise's (0-50 Hz" in verdict.get("I_xx").reasons[0]
+    # at the threshold (2x) and NaN (not measured) judge nothing
+    edge = replace(quiet, torque_excitation=np.array([2.0, np.nan, 2.0]))
+    assert judge(M, np.diag(J), SMALL_SE, edge, CF).overall == TRUSTED
 
 
 @pytest.fixture(scope="module")
