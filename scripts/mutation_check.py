@@ -1,0 +1,306 @@
+"""Hand-made mutations for issue 25 ("tests that can fail"): each break is a one-line
+text substitution in the code under test; the named test must FAIL under it.
+
+For every break: the file is changed in a temporary copy of the repository, the named
+test runs there with pytest, the file is put back (same bytes and modification time,
+Python's caches of the untouched files stay valid; numba compiles afresh for each break,
+since its cache of a caller does not notice a changed callee), and a
+markdown table is printed: killed (the test failed, as it must), SURVIVED (the test
+passed: it does not guard what it names) or error (the break did not apply, or pytest
+could not run). The first assertion line pytest printed is the evidence.
+
+    PYTHONPATH=$PWD python scripts/mutation_check.py            # every break
+    PYTHONPATH=$PWD python scripts/mutation_check.py wrap mstep  # breaks whose id holds a word
+    PYTHONPATH=$PWD python scripts/mutation_check.py --list      # the breaks, nothing run
+
+Not part of the test suite (it runs other tests, one per break; about 20 minutes on
+2 cores). The copy sits beside a link to ``../shared`` so that tests reading
+``../shared/data`` find the real data as they do in the checkout. Exit 0 when every
+break was killed, 1 otherwise. The table is docs/tests.md's evidence column.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+TIMEOUT_S = 900
+
+
+@dataclass(frozen=True)
+class Break:
+    """One deliberate break: in ``path`` (relative to the repository) the text ``old``,
+    which must occur exactly once, becomes ``new``; ``test`` (a pytest node id) must
+    fail. ``item``: the issue's list item it answers; ``what``: the break in words."""
+
+    id: str
+    item: str
+    test: str
+    path: str
+    old: str
+    new: str
+    what: str
+
+
+BREAKS: tuple[Break, ...] = (
+    # -- item 1: the vacuous sensor cases and the Euler wrap that never ran
+    Break("sensor-source", "1 sensor B/C carry nothing",
+          "tests/test_fast_smoother.py::test_each_source_carries_its_channels[B]",
+          "pinquad/sim/simulator.py", "suite = SENSORS[config.sensor]", 'suite = SENSORS["A"]',
+          "every flight is sampled by sensor A's suite, whatever SimConfig.sensor says"),
+    Break("estep-wrap", "1 Euler wrap never ran",
+          "tests/test_fast_smoother.py::test_wrapped_euler_residuals",
+          "pinquad/estep/passes.py", "nu[a] = wrap(res) if is_angle[i] else res", "nu[a] = res",
+          "the compiled EKF update skips the wrap of Euler innovations"),
+    Break("mstep-wrap", "1 Euler wrap never ran (M-step)",
+          "tests/test_fast_mstep.py::test_compiled_measurement_variances_match_numpy",
+          "pinquad/mstep/compiled.py", "res = wrap(res)", "res = res",
+          "the compiled measurement-variance M-step skips the wrap of Euler residuals"),
+    # -- item 2: self-comparisons
+    Break("mean-error-floor", "2 mean_error(x, x)",
+          "tests/test_bench.py::test_mean_error_against_a_hand_computed_case",
+          "pinquad/experiments/bench_cases.py", "scale = np.where(scale < 1e-3, 1.0, scale)",
+          "scale = np.where(scale < 0.0, 1.0, scale)",
+          "mean_error scales near-zero components by their own tiny size (no floor of 1)"),
+    Break("newton-wrapper", "2 wrapper vs the function it wraps",
+          "tests/test_fast_mstep.py::test_compiled_inertia_newton_matches_python",
+          "pinquad/mstep/updates.py",
+          "    return compiled.inertia_newton(float(mass), np.ascontiguousarray(a_t, dtype=float),",
+          "    return np.array(previous, dtype=float)\n"
+          "    return compiled.inertia_newton(float(mass), np.ascontiguousarray(a_t, dtype=float),",
+          "the M-step's inertia_newton returns its start (the kernel is never called)"),
+    Break("newton-kernel", "2 wrapper vs the function it wraps",
+          "tests/test_fast_mstep.py::test_compiled_inertia_newton_matches_python",
+          "pinquad/mstep/compiled.py", "for _ in range(100):", "for _ in range(1):",
+          "the compiled inertia Newton solve stops after one step"),
+    Break("discovery-before", "2 discovery returns dict(before)",
+          "tests/test_discovery.py::test_drag_is_named_and_its_coefficient_found",
+          "pinquad/discovery/discover.py",
+          "return DiscoveryResult(tuple(selected), coeffs, stderr, tuple(scores), before, after,",
+          "return DiscoveryResult(tuple(selected), coeffs, stderr, tuple(scores), before, "
+          "dict(before),",
+          "discovery reports the base residual as the residual after the effects"),
+    Break("motor-split", "2 motor_split identities",
+          "tests/test_realdata.py::test_motor_split_of_a_hand_built_hover",
+          "pinquad/realdata/mass_balance.py",
+          "omega2 = np.asarray(real.log.rpm, dtype=float)[rows] ** 2",
+          "omega2 = np.asarray(real.log.rpm, dtype=float)[rows] ** 1",
+          "motor_split divides the thrust by rotor speed, not speed squared"),
+    # -- item 3: exit code only, the simulated offline command
+    Break("ieks-update", "3 MAP E-step estimates",
+          "tests/test_estep_crosscheck.py::test_offline_command_with_the_map_e_steps[ieks]",
+          "estimators/iterated.py",
+          "        value, jac = self._f[k]\n        return value + jac @ (x - self.trajectory[k]), jac",
+          "        value, jac = self._f[k]\n        return value, jac",
+          "the iterated smoother's linearised transition ignores the state's deviation"),
+    Break("regressor-mass", "3 simulated offline estimates",
+          "tests/test_estep_crosscheck.py::test_simulated_offline_command_regressor_estimates",
+          "pinquad/mstep/updates.py", "    mass = closed_form_mass(", "    mass = 1.01 * closed_form_mass(",
+          "the regressor M-step's mass 1 % high"),
+    # -- item 4: the paper's M-step
+    Break("paper-mstep", "4 paper M-step never exercised",
+          "tests/test_estep_crosscheck.py::test_simulated_offline_command_paper_mstep",
+          "pinquad/mstep/updates.py",
+          "    new = Theta(mass=mass, inertia=np.diag(new_i), noise=theta.noise, gravity=theta.gravity)",
+          "    new = theta",
+          "the paper's M-step returns its input"),
+    # -- item 5: the wall-clock assertion moved to the benchmark
+    Break("latency", "5 latency measured, not asserted",
+          "tests/test_online.py::test_update_latency_is_measured_for_the_benchmark",
+          "pinquad/experiments/online.py", "    return np.asarray(est.latencies[5:])",
+          "    return np.zeros(len(est.latencies[5:]))",
+          "the latency measurement returns zeros"),
+    # -- item 6: tolerances stated from what the method promises
+    Break("kf-2pc", "6 realdata mass 1.5 %",
+          "tests/test_realdata.py::test_clean_log_mass_within_1p5_percent_of_the_scale",
+          "pinquad/realdata/thrust.py", "    kf = float(ks.mean())", "    kf = 1.02 * float(ks.mean())",
+          "the thrust constant 2 % high (inside the old 3 %, outside the target's 1.5 %)"),
+    Break("online-memory", "6 online inertia check restored",
+          "tests/test_online.py::test_one_closed_loop_flight_from_the_papers_start[inf]",
+          "pinquad/mstep/updates.py", "    if earlier is None:\n        return left",
+          "    if True:\n        return None",
+          "the online M-step forgets every transition that left the window (window-only)"),
+    Break("full-kernel-1e-5", "6 compiled vs generic at 1e-9 (full model)",
+          "tests/test_full_inertia.py::test_compiled_e_step_equals_the_generic_one_on_the_full_model",
+          "pinquad/estep/full_kernels.py", "x_next[9 + r] = x[9 + r] + dt * acc[3 + r]",
+          "x_next[9 + r] = x[9 + r] + dt * acc[3 + r] * (1.0 + 1e-5)",
+          "the compiled ten-parameter transition's angular acceleration 1e-5 relative off"),
+    Break("effect-kernel-1e-3", "6 compiled vs generic at 1e-9 (effect model)",
+          "tests/test_discovery.py::test_compiled_e_step_takes_the_effect_model",
+          "pinquad/estep/effect_kernels.py", "f_b[j] = -drag[j] * v_b + w_b",
+          "f_b[j] = -drag[j] * (1.0 + 1e-3) * v_b + w_b",
+          "the compiled effect transition's drag 1e-3 relative off"),
+    # -- item 7: assert the physics, not the defect
+    Break("ground-effect", "7 ground effect: physics, not 0.93",
+          "tests/test_discovery.py::test_ground_effect_coefficient_converges_in_the_joint_refinement",
+          "pinquad/discovery/library.py",
+          "phi[:, 2, 0] = data.inputs[:, 0] * ground_effect_gain(",
+          "phi[:, 2, 0] = 0.0 * data.inputs[:, 0] * ground_effect_gain(",
+          "the estimator's ground-effect regressor is zero (the term is dropped)"),
+    # -- item 8: modules no test imported
+    Break("control-min-jerk", "8 sim.control",
+          "tests/test_control_sensors.py::test_min_jerk_blend_closed_form_end_conditions",
+          "pinquad/sim/control.py", "acc = 60 * s - 180 * s**2 + 120 * s**3",
+          "acc = 60 * s - 180 * s**2 + 100 * s**3", "the minimum-jerk acceleration's s^3 term"),
+    Break("sensors-rate", "8 sim.sensors",
+          "tests/test_control_sensors.py::test_sensor_suite_rates_nan_rows_and_noise_level[B]",
+          "pinquad/sim/sensors.py",
+          'SENSOR_B = SensorSuite("B", position_every=2, velocity_every=2, euler_every=2,',
+          'SENSOR_B = SensorSuite("B", position_every=2, velocity_every=2, euler_every=0,',
+          "sensor B no longer measures Euler angles"),
+    Break("window-copy", "8 identification.window",
+          "tests/test_window_flight.py::test_window_prior_takes_the_previous_posterior_row_at_the_new_start",
+          "pinquad/identification/window.py", "return post.mean[j].copy(),", "return post.mean[j],",
+          "the window prior hands out the previous posterior's own array"),
+    Break("nees-band", "8 experiments.flight",
+          "tests/test_window_flight.py::test_nees_band_against_tables_and_wilson_hilferty",
+          "pinquad/experiments/flight.py", "lo = chi2.ppf((1 - level) / 2, dim * n_steps) / n_steps",
+          "lo = chi2.ppf((1 - level), dim * n_steps) / n_steps",
+          "the NEES band's lower end at the 5 % point instead of 2.5 %"),
+    Break("objective", "8 estimators.objective",
+          "tests/test_objective.py::test_gradient_matches_hand_derivation_and_finite_differences",
+          "estimators/objective.py", "half_sq += 0.5 * float(np.sum(trans_b * trans_b))",
+          "half_sq += 0.25 * float(np.sum(trans_b * trans_b))",
+          "the transition factors weigh half in the objective"),
+    Break("cli-whole-number", "8 cli",
+          "tests/test_cli.py::test_offline_rejects_bad_arguments_with_exit_code_2",
+          "pinquad/cli/help.py", "    if value < minimum:", "    if value < minimum - 1:",
+          "the whole-number check lets minimum - 1 through (--cycles 0, --jobs 0)"),
+    Break("report-std", "8 report.offline",
+          "tests/test_report_viz.py::test_summarize_and_tables_on_two_cycles_worked_by_hand",
+          "pinquad/report/offline.py", "std=float(np.std(v, ddof=1))", "std=float(np.std(v, ddof=0))",
+          "the result tables' standard deviation without Bessel's correction"),
+    Break("viz-run-truth", "8 viz.run",
+          "tests/test_report_viz.py::test_load_run_holds_the_report_numbers",
+          "viz/run.py", 'true_inertia_diag=_diag_or_none(truth.get("inertia")),',
+          'true_inertia_diag=_diag_or_none(est.get("inertia")),',
+          "the viewer reads the estimate's inertia as the truth"),
+    Break("table-kf", "8 realdata table job",
+          "tests/test_cli.py::test_realdata_table_job_on_jana00_weighs_the_vehicle",
+          "pinquad/realdata/table.py", "        real = load_real(job.path, job.options, kf)",
+          "        real = load_real(job.path, job.options, replace(kf, kf=1.05 * kf.kf))",
+          "the table's workers read the thrust constant 5 % high"),
+    Break("realdiscovery-after", "8 realdiscovery main",
+          "tests/test_cli.py::test_realdiscovery_drag_split_finds_drag",
+          "pinquad/experiments/realdiscovery.py",
+          '"after": evaluate(f, alone.pi, alone_coeffs)}',
+          '"after": evaluate(f, alone.pi, {})}',
+          "the held-out flights are scored without the trained effect"),
+    Break("report-batch-json", "8 report.batch",
+          "tests/test_report_tables.py::test_batch_table_counts_and_json_worked_by_hand",
+          "pinquad/report/batch.py", "        return v if math.isfinite(v) else None",
+          "        return v", "batch.json keeps a failed log's NaN (not JSON)"),
+    Break("report-flight-band", "8 report.flight",
+          "tests/test_report_tables.py::test_flight_tables_worked_by_hand",
+          "pinquad/report/flight.py", "plo, phi = nees_band(sum(r.n_steps for r in rs))",
+          "plo, phi = nees_band(rs[0].n_steps)",
+          "the pooled NEES band computed for one run's length"),
+    Break("report-realdiscovery", "8 report.realdiscovery",
+          "tests/test_report_tables.py::test_realdiscovery_markdown_worked_by_hand",
+          "pinquad/report/realdiscovery.py", "{1e3 * a[x]:.2f} ({100 * (a[x] / b[x] - 1):+.0f} %)",
+          "{1e3 * a[x]:.2f} ({100 * (b[x] / a[x] - 1):+.0f} %)",
+          "the split table's change printed as before / after - 1"),
+    Break("realdata-table-mass", "8 realdata table path",
+          "tests/test_report_tables.py::test_realdata_command_prints_the_table_for_one_log",
+          "pinquad/report/realdata.py", "({_short_reasons(r)}) | {_judged(r, 0, 1e3)} | ",
+          "({_short_reasons(r)}) | {_judged(r, 0, 1.02e3)} | ",
+          "the realdata table prints the mass 2 % high"),
+)
+
+
+def copy_tree(dest: Path) -> Path:
+    """A copy of the repository (sources, tests, caches; not .git) in ``dest``, beside a
+    link to ``../shared``; returns the copy's root."""
+    root = dest / REPO.name
+    shutil.copytree(REPO, root, symlinks=True,
+                    ignore=shutil.ignore_patterns(".git", "runs", ".pytest_cache", "*.egg-info"))
+    shared = REPO.parent / "shared"
+    if shared.exists():
+        (dest / "shared").symlink_to(shared)
+    return root
+
+
+def first_failure(output: str) -> str:
+    """The first informative assertion line pytest printed (an ``E`` line; a bare
+    ``AssertionError:`` and printed arrays skipped) and, for numpy's assert_allclose, its
+    largest relative difference; shortened."""
+    lines = [re.sub(r"\s+", " ", ln[1:].strip()) for ln in output.splitlines()
+             if ln.startswith("E ")]
+    lines = [ln for ln in lines if ln and ln != "AssertionError:"
+             and not ln.startswith(("x:", "y:", "[", "array(", "+", "-", "?"))]
+    if lines:
+        picked = [lines[0]] + [ln for ln in lines[1:] if ln.startswith("Max relative")][:1]
+        text = "; ".join(picked)
+        return text[:200] + ("..." if len(text) > 200 else "")
+    tail = [ln for ln in output.splitlines() if ln.strip()]
+    return tail[-1][:200] if tail else ""
+
+
+def run_break(root: Path, brk: Break) -> tuple[str, str, float]:
+    """(outcome, evidence, seconds) of one break in the copy at ``root``."""
+    target = root / brk.path
+    original = REPO / brk.path
+    text = original.read_text()
+    count = text.count(brk.old)
+    if count != 1:
+        return "error", f"the text to break occurs {count} times in {brk.path}", 0.0
+    target.write_text(text.replace(brk.old, brk.new))
+    # A fresh numba cache per break: numba's cache of a compiled caller does not notice
+    # a change in a callee's file, so a cached caller would run the unbroken kernel.
+    cache = root.parent / f"numba_cache_{brk.id}"
+    env = {**os.environ, "PYTHONPATH": str(root), "NUMBA_CACHE_DIR": str(cache)}
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", brk.test],
+            cwd=root, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
+        out, code = proc.stdout + proc.stderr, proc.returncode
+    except subprocess.TimeoutExpired:
+        out, code = f"timed out after {TIMEOUT_S} s", -1
+    finally:
+        shutil.copy2(original, target)  # same bytes and mtime: caches stay valid
+    seconds = time.perf_counter() - t0
+    if code == 1:
+        return "killed", first_failure(out), seconds
+    if code == 0:
+        return "SURVIVED", "the test passed under the break", seconds
+    return "error", f"pytest exit {code}: {first_failure(out)}", seconds
+
+
+def main(argv: list[str]) -> int:
+    if "--list" in argv:
+        for b in BREAKS:
+            found = (REPO / b.path).read_text().count(b.old)
+            print(f"{b.id:20s} {b.path}: {b.what} (text found {found}x)\n{'':20s} -> {b.test}")
+        return 0
+    chosen = [b for b in BREAKS if not argv or any(w in b.id for w in argv)]
+    if not chosen:
+        print(f"error: no break id contains any of {argv}; see --list", file=sys.stderr)
+        return 2
+    print("| break | issue item | file: change | test | outcome | evidence (first assertion "
+          "line) | s |")
+    print("|---|---|---|---|---|---|---|")
+    killed = 0
+    with tempfile.TemporaryDirectory(prefix="pinquad_mutation_") as tmp:
+        root = copy_tree(Path(tmp))
+        for brk in chosen:
+            outcome, evidence, seconds = run_break(root, brk)
+            killed += outcome == "killed"
+            evidence = evidence.replace("|", "\\|")
+            print(f"| {brk.id} | {brk.item} | `{brk.path}`: {brk.what} | "
+                  f"`{brk.test.removeprefix('tests/')}` | {outcome} | {evidence} | "
+                  f"{seconds:.0f} |", flush=True)
+    print(f"\n{killed}/{len(chosen)} breaks killed")
+    return 0 if killed == len(chosen) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
