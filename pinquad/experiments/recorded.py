@@ -73,7 +73,9 @@ class LogOptions:
     of ``regressor``, ``paper``, ``full`` (``full``: all ten inertial parameters, logs
     with thrust and torques only); estep: ``rts``, ``ieks`` or ``gtsam``;
     max_iterations: E-steps at most per EM run (>= 1); information: compute standard
-    errors from the observed information.
+    errors from the observed information; band (lo, hi) [Hz]: the torque rows' band of a
+    rotor-speed log's inertia M-step (``realdata.identify_real``; 3-8 Hz for the measured
+    Crazyflie flights, whose unmodelled torques the band keeps out).
     """
 
     sensors: tuple[str, ...] = ()
@@ -81,6 +83,7 @@ class LogOptions:
     estep: str = "rts"
     max_iterations: int = 100
     information: bool = True
+    band: tuple[float, float] = (3.0, 8.0)
 
     def __post_init__(self) -> None:
         unknown = [m for m in self.msteps if m not in MSTEPS]
@@ -88,6 +91,8 @@ class LogOptions:
             raise ValueError(f"M-steps must be some of {', '.join(MSTEPS)}; got {self.msteps}")
         if self.max_iterations < 1:
             raise ValueError(f"max_iterations must be at least 1; got {self.max_iterations}")
+        if not 0.0 < self.band[0] < self.band[1]:
+            raise ValueError(f"torque band must be 0 < LO < HI [Hz]; got {self.band}")
 
 
 @dataclass(frozen=True)
@@ -259,7 +264,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
         if "regressor" in options.msteps:
             ident, post, theta = identify_real(
                 real, mass0, inertia0, options.max_iterations, options.information,
-                name=Path(str(log.meta.source)).name, estep=options.estep)
+                band=options.band, name=Path(str(log.meta.source)).name, estep=options.estep)
             runs.append(_from_measured(ident, label, post, theta, real.obs))
             if first is None:
                 first = (real, post.mean)
