@@ -37,7 +37,6 @@ from scipy.signal import butter, sosfiltfilt
 
 from estimators.ekf import predict, update
 from pinquad.core.params import VEHICLES
-from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 
 Array = NDArray[np.float64]
@@ -93,16 +92,11 @@ class VehicleRange:
 def vehicle_range(vehicle: str, mass_guess: float | None = None,
                   inertia_guess: Array | None = None,
                   thresholds: VerdictThresholds = DEFAULT_THRESHOLDS) -> VehicleRange | None:
-    """The range of a known vehicle (``core.params.VEHICLES``: its URDF values; a vehicle
-    file: its body); for an unknown name the sidecar's guesses; None when neither is
-    known."""
+    """The range of a known vehicle (``core.params.VEHICLES``: its URDF values); for an
+    unknown name the sidecar's guesses; None when neither is known."""
     known = VEHICLES.get(vehicle)
     if known is not None:
         mass, inertia, source = known.mass, known.inertia_diag, f"{vehicle} URDF"
-    elif is_vehicle_file(vehicle):
-        spec = load_vehicle(vehicle)
-        mass, inertia = spec.mass, np.diag(spec.inertia).copy()
-        source = f"the body of {spec.source}"
     elif mass_guess is not None and inertia_guess is not None:
         mass = float(mass_guess)
         inertia = np.diag(np.asarray(inertia_guess, dtype=float).reshape(3, 3)).copy()
