@@ -12,7 +12,7 @@ import pytest
 
 from pinquad.cli import axis_inertia, offline, realdata, realdiscovery, response
 from pinquad.core.paper_results import OFFLINE_INERTIA, OFFLINE_MASS, OFFLINE_MASS_BOUND
-from pinquad.core.params import vehicle_from_spec
+from pinquad.core.params import PAPER_VEHICLE, vehicle_from_spec
 from pinquad.core.vehicle_file import load_vehicle
 from pinquad.experiments.recorded import LogOptions, measured_vehicle, over_max_thrust
 from pinquad.experiments.vehicle_file_mc import (
@@ -29,7 +29,6 @@ from pinquad.vehicle.model import load_model
 
 ROOT = Path(__file__).resolve().parents[1]
 QUAD = ROOT / "docs" / "vehicles" / "quad250_plus.toml"
-PAPER_TRUTH = (0.18, (2.5e-4, 3.1e-4, 2.0e-4))
 
 
 def test_inverse_mixer_gives_back_the_wrench():
@@ -56,7 +55,7 @@ def test_plus_quad_from_its_file_identified_from_its_rotor_speeds(tmp_path):
     assert abs(err[0]) <= OFFLINE_MASS_BOUND, err
     low = np.array([OFFLINE_MASS["B"][0], *(r[0] for r in OFFLINE_INERTIA["B"])])
     high = np.array([OFFLINE_MASS["B"][1], *(r[1] for r in OFFLINE_INERTIA["B"])])
-    truth = np.array([PAPER_TRUTH[0], *PAPER_TRUTH[1]])
+    truth = np.array([PAPER_VEHICLE.mass, *PAPER_VEHICLE.inertia_diag])  # Table III's truth
     paper = (low / truth - 1.0, high / truth - 1.0)
     assert np.all(err[1:] >= paper[0][1:]) and np.all(err[1:] <= paper[1][1:]), (err, paper)
 
