@@ -12,10 +12,15 @@ from collections.abc import Sequence
 import numpy as np
 from tqdm import tqdm
 
-from pinquad.cli.measured import add_measured_log_arguments, measured_logs, positive_factors
+from pinquad.cli.measured import (
+    add_measured_log_arguments,
+    measured_logs,
+    measured_vehicle_spec,
+    positive_factors,
+    reference_inertia,
+)
 from pinquad.io.logs import LogFormatError
 from pinquad.realdata.axis_inertia import UNRELIABLE_SE, AxisFit, identify_axes, simulated_axes
-from pinquad.realdata.dataset import PUBLISHED_INERTIA
 
 
 def _cell(fit: AxisFit) -> str:
@@ -64,10 +69,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     rows = []
     try:
-        for name, real in measured_logs(args.logs, args.data):
+        spec = measured_vehicle_spec(args.vehicle)
+        reference = reference_inertia(spec)
+        for name, real in measured_logs(args.logs, args.data, args.vehicle):
             for part in range(args.parts):
                 label = name if args.parts == 1 else f"{name} [{part + 1}/{args.parts}]"
-                rows.append((label, identify_axes(real, PUBLISHED_INERTIA, args.rotor_inertia,
+                rows.append((label, identify_axes(real, reference, args.rotor_inertia,
                                                   part, args.parts)))
             kf = real.kf.kf
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
@@ -96,7 +103,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         cells.append(f"{1e6 * m:.1f} ± {1e6 * sd:.1f} ({100 * sd / m:.0f} %, {kept.size} of "
                      f"{len(rows)})")
     print("| mean ± sd ((!) left out) | " + " | ".join(cells) + " |")
-    print("| published (CF 2.0, no decks) | "
-          + " | ".join(f"{1e6 * v:.2f}" for v in PUBLISHED_INERTIA) + " |")
+    print(f"| reference: {spec.reference.inertia_note or 'the file body inertia'} | "
+          + " | ".join(f"{1e6 * v:.2f}" for v in reference) + " |")
     print(f"\n{len(rows)} logs in {time.perf_counter() - t0:.0f} s")
     return 0

@@ -31,8 +31,10 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.cli.batch import BATCH_EXIT_CODES, is_batch, run_batch
+from pinquad.cli.file_vehicle import run_file_vehicle
 from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
 from pinquad.core.params import PAPER_SCENARIO
+from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.headline import headline
 from pinquad.experiments.offline_mc import CycleJob, run_cycles
@@ -95,10 +97,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cycles", type=positive_int, default=20, help="Monte Carlo cycles per sensor")
     p.add_argument("--seed", type=int, default=0, help="base seed of the Monte Carlo cycles")
     p.add_argument("--vehicle", default=None, metavar="NAME|FILE",
-                   help="simulated vehicle: paper (default) or crazyflie21 (flies the paper's "
-                        "scenario scaled by 0.3); with --log: the log's vehicle, a shipped "
-                        "name or a vehicle file (.toml, docs/vehicles.md), overriding the "
+                   help="simulated vehicle: paper (default), crazyflie21 (flies the paper's "
+                        "scenario scaled by 0.3) or a vehicle file (.toml, docs/vehicles.md: "
+                        "flown with sensor B, logged with rotor speeds and identified from "
+                        "that log, --cycles seeds one after the other); with --log: the "
+                        "log's vehicle, a shipped name or a vehicle file, overriding the "
                         "log's sidecar")
+    p.add_argument("--band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                   help="torque band [Hz] of the inertia M-step on a rotor-speed log "
+                        "(default 3-8 Hz, the measured Crazyflie flights'; a simulated "
+                        "vehicle file's cycles: 0.2-45 Hz)")
     p.add_argument("--max-iterations", type=positive_int, default=100,
                    help="E-steps at most per EM run")
     p.add_argument("--jobs", type=positive_int, default=os.cpu_count() or 1,
@@ -179,7 +187,8 @@ def run_log(args: argparse.Namespace) -> int:
     """
     options = LogOptions(sensors=tuple(args.sensor or ()), msteps=_msteps(args.mstep),
                          estep=args.estep, max_iterations=args.max_iterations,
-                         information=not args.no_information)
+                         information=not args.no_information,
+                         **({} if args.band is None else {"band": tuple(args.band)}))
     null = NullSettings(args.null_replicates, args.null_seed)  # its range checked before work
     t0 = time.perf_counter()
     print(f"pinquad offline --log {args.log}: E-step {args.estep}, "
@@ -250,9 +259,11 @@ def main(argv: list[str] | None = None) -> int:
                          "Monte Carlo experiment runs the regressor and paper M-steps")
         if args.vehicle is None:
             args.vehicle = "paper"
+        if is_vehicle_file(args.vehicle):
+            return run_file_vehicle(args)
         if args.vehicle not in ("paper", "crazyflie21"):
-            return _fail(f"--vehicle {args.vehicle}: the Monte Carlo experiment flies paper or "
-                         "crazyflie21; a vehicle file is read with --log")
+            return _fail(f"--vehicle {args.vehicle}: the Monte Carlo experiment flies paper, "
+                         "crazyflie21 or a vehicle file (.toml)")
         return run_simulation(args)
     except LogFormatError as exc:
         return _fail(str(exc))

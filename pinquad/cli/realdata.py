@@ -1,7 +1,10 @@
 """``python -m pinquad.realdata [--data DIR] [--jobs N] [--rotor-inertia pooled|per-flight|
-none|VALUE]`` identifies every flight of the IMRC Lab data set and prints the table
-(pooled J_r: a first pass fits J_r per flight on the pool logs, then every log is
-identified with J_r fixed)."""
+none|VALUE] [--vehicle NAME|FILE]`` identifies every flight of the IMRC Lab data set (or,
+with a vehicle file, every flight log in ``--data``) and prints the table (pooled J_r: a
+first pass fits J_r per flight on the pool logs, then every log is identified with J_r
+fixed). The vehicle (default the shipped crazyflie21) gives the mixer, kf (the shipped
+file: the thrust stand in the data directory), the fault thresholds, where EM starts and
+the reference the table compares with."""
 
 from __future__ import annotations
 
@@ -19,12 +22,13 @@ from pinquad.core.vehicle_file import load_vehicle
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.recorded import measured_effects
 from pinquad.io.datadir import missing_data_hint
-from pinquad.io.logs import LogFormatError
+from pinquad.io.logs import LogFormatError, vehicle_file_named
+from pinquad.io.read import is_flight_log
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
 from pinquad.realdata.observations import RealDataOptions, options_for_vehicle
 from pinquad.realdata.rotor_inertia import pooled_rotor_inertia
 from pinquad.realdata.table import TableJob, run_jobs
-from pinquad.realdata.thrust import thrust_coefficient
+from pinquad.realdata.thrust import thrust_coefficient, vehicle_thrust_coefficient
 from pinquad.report.realdata import format_table
 
 
@@ -43,7 +47,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m pinquad.realdata",
         description="Identify mass and inertia of the real Crazyflie from every micro-SD "
-                    "flight log and print the table (scale 34.7 g, published inertia).")
+                    "flight log and print the table against the vehicle file's [reference] "
+                    "(the scale's mass, the published inertia).")
+    parser.add_argument("--vehicle", default="crazyflie21", metavar="NAME|FILE",
+                        help="the flights' vehicle: crazyflie21 (default: the jana* logs of "
+                             "the data set, kf from its thrust stand) or a vehicle file (.toml, "
+                             "docs/vehicles.md; every flight log in --data, kf from the file)")
     parser.add_argument("--data", type=Path, default=None,
                         help="Crazyflie data directory (with imrc_brushed/ and thrust_stand/) "
                              "or a directory of flight logs (default: $PINQUAD_CRAZYFLIE_DATA, "
@@ -73,26 +82,37 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "pooled (default: one J_r fitted jointly on the --pool logs, each "
                              "pool log identified with the J_r of the others, leave-one-out), "
                              "per-flight (fitted on each log), none, or a value [kg m^2]")
-    parser.add_argument("--pool", nargs="*", default=list(POOL_FLIGHTS),
-                        help="logs the pooled J_r is fitted on (default: the seven with every "
-                             "rotor speed measured); run whatever --only says")
+    parser.add_argument("--pool", nargs="*", default=None,
+                        help="logs the pooled J_r is fitted on (default: crazyflie21's seven "
+                             "with every rotor speed measured; a vehicle file's: every log); "
+                             "run whatever --only says")
     args = parser.parse_args(argv)
-    flights = flights_dir(args.data)
-    logs = sorted(p for p in flights.iterdir() if p.is_file() and p.name.startswith("jana")) \
-        if flights.is_dir() else []
+    shipped = args.vehicle == "crazyflie21"
+    try:
+        vehicle = args.vehicle if shipped else vehicle_file_named(args.vehicle, Path.cwd(),
+                                                                  "--vehicle")
+        spec = load_vehicle(vehicle)
+    except (LogFormatError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    flights = flights_dir(args.data) if shipped or args.data is None else args.data
+    logs = sorted(p for p in flights.iterdir() if p.is_file() and (
+        p.name.startswith("jana") if shipped else is_flight_log(p))) if flights.is_dir() else []
     all_logs = list(logs)
     if args.only:
         logs = [p for p in logs if p.name in set(args.only)]
     if not logs:
-        print(f"error: {flights}: no flight log (jana*) found; expected the IMRC Lab micro-SD "
+        what = "jana*" if shipped else "micro-SD, CSV or Parquet"
+        print(f"error: {flights}: no flight log ({what}) found; expected the IMRC Lab micro-SD "
               f"logs: {missing_data_hint()}", file=sys.stderr)
         return 2
     try:
-        # the mixer of the shipped brushed Crazyflie file (pinquad/data/crazyflie21.toml)
-        options = options_for_vehicle(load_vehicle("crazyflie21"), RealDataOptions(
+        # the mixer and fault thresholds of the vehicle file (shipped:
+        # pinquad/data/crazyflie21.toml); kf of the shipped one from the data's thrust stand
+        options = options_for_vehicle(spec, RealDataOptions(
             channels=tuple(c.strip() for c in args.channels.split(",")), faults=args.faults))
         stand = stand_dir(args.data)
-        kf = thrust_coefficient(stand)
+        kf = thrust_coefficient(stand) if shipped else vehicle_thrust_coefficient(spec)
     except (LogFormatError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -110,15 +130,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     effects = None if args.no_discover else partial(measured_effects, null=null)
     try:
         if mode == "pooled":
-            pool = [p for p in all_logs if p.name in set(args.pool)]
+            pool_names = set(args.pool if args.pool is not None else
+                             POOL_FLIGHTS if shipped else [p.name for p in all_logs])
+            pool = [p for p in all_logs if p.name in pool_names]
             if len(pool) < 2:
-                print(f"error: --pool {' '.join(args.pool)}: fewer than two of these logs in "
+                print(f"error: --pool {' '.join(sorted(pool_names))}: fewer than two of these logs in "
                       f"{flights}; expected at least two to pool J_r over", file=sys.stderr)
                 return 2
             print(f"pass 1: J_r fitted per flight on the {len(pool)} pool logs "
                   f"({', '.join(p.name for p in pool)}) to pool it", file=sys.stderr)
             first = run_jobs([TableJob(p, options, args.max_iterations, False, tuple(args.band),
-                                       stand, keep_band_stats=True) for p in pool], args.jobs)
+                                       stand, keep_band_stats=True, kf=kf, vehicle=vehicle)
+                              for p in pool], args.jobs)
             bad = [(p.name, r) for p, r in zip(pool, first, strict=True) if isinstance(r, str)]
             if bad:
                 print("error: pool log not identified: " + "; ".join(f"{n}: {w}" for n, w in bad),
@@ -135,7 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 jobs.append(TableJob(p, replace(options, rotor_inertia=jr), args.max_iterations,
                                      not args.no_information, tuple(args.band), stand,
                                      fit_rotor_inertia=False, rotor_source=src,
-                                     effects=effects))
+                                     effects=effects, kf=kf, vehicle=vehicle))
         else:
             fixed = 0.0 if isinstance(mode, str) else mode
             src = {"per-flight": "fitted on this log", "none": ""}.get(mode, "given") \
@@ -143,7 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             jobs = [TableJob(p, replace(options, rotor_inertia=fixed), args.max_iterations,
                              not args.no_information, tuple(args.band), stand,
                              fit_rotor_inertia=mode == "per-flight", rotor_source=src,
-                             effects=effects)
+                             effects=effects, kf=kf, vehicle=vehicle)
                     for p in logs]
         results = run_jobs(jobs, args.jobs)
     except (LogFormatError, ValueError) as exc:
@@ -151,7 +174,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     failed = [(j.path.name, r) for j, r in zip(jobs, results, strict=True) if isinstance(r, str)]
     results = [r for r in results if not isinstance(r, str)]
-    print(format_table(results, rotor))
+    print(format_table(results, rotor, spec))
     for name, why in failed:
         print(f"\n{name}: not identified: {why}")
     print(f"\n{len(results)} logs in {time.perf_counter() - t0:.0f} s "

@@ -10,8 +10,9 @@ import time
 from pathlib import Path
 
 from pinquad.cli.common import output_problem
-from pinquad.experiments.realdiscovery import SPLITS, FlightFit, run_split
+from pinquad.experiments.realdiscovery import POOLED, SPLITS, FlightFit, run_split
 from pinquad.io.datadir import default_data_dir, missing_data_hint
+from pinquad.io.logs import LogFormatError, vehicle_file_named
 from pinquad.io.runs import atomic_write_json
 from pinquad.report.realdiscovery import realdiscovery_markdown
 
@@ -27,6 +28,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "repository, else the copy `python -m pinquad.data fetch crazyflie` "
                         "downloads)")
     p.add_argument("--splits", nargs="*", default=list(SPLITS), choices=list(SPLITS))
+    p.add_argument("--vehicle", default="crazyflie21", metavar="NAME|FILE",
+                   help="the logs' vehicle: crazyflie21 (default, the IMRC Lab splits) or a "
+                        "vehicle file (.toml, docs/vehicles.md); with a file give the split: "
+                        "--train, --test, --effect, logs in --data")
+    p.add_argument("--train", nargs="+", metavar="LOG", help="training logs of a split of "
+                   "your own (names in --data)")
+    p.add_argument("--test", nargs="+", metavar="LOG", help="its test logs")
+    p.add_argument("--effect", choices=list(POOLED), default="drag",
+                   help="the effect that split is about")
     p.add_argument("--out", type=Path, default=None, help="write realdiscovery.json/.md here")
     return p
 
@@ -38,6 +48,20 @@ def main(argv: list[str] | None = None) -> int:
     data = args.data or default_data_dir() / "imrc_brushed"
     if (data / "imrc_brushed").is_dir():
         data = data / "imrc_brushed"
+    vehicle = args.vehicle
+    if vehicle != "crazyflie21":
+        try:
+            vehicle = vehicle_file_named(vehicle, Path.cwd(), "--vehicle")
+        except LogFormatError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+    if (args.train is None) != (args.test is None) or (
+            vehicle != "crazyflie21" and args.train is None):
+        print("error: a split of your own needs both --train and --test (and a vehicle file "
+              "needs one: the built-in splits are the IMRC Lab Crazyflie's)", file=sys.stderr)
+        return 2
+    splits = ({"custom": (tuple(args.train), tuple(args.test), args.effect)}
+              if args.train is not None else {s: SPLITS[s] for s in args.splits})
     if not data.is_dir():
         print(f"error: {data}: no such directory; expected the Crazyflie flight logs "
               f"(imrc_brushed/): {missing_data_hint()}", file=sys.stderr)
@@ -48,11 +72,11 @@ def main(argv: list[str] | None = None) -> int:
     cache: dict[str, FlightFit] = {}
     results = {}
     try:
-        for s in args.splits:
-            print(f"split {s}: train {', '.join(SPLITS[s][0])}; test {', '.join(SPLITS[s][1])}; "
-                  f"effect {SPLITS[s][2]}",
+        for s, split in splits.items():
+            print(f"split {s}: train {', '.join(split[0])}; test {', '.join(split[1])}; "
+                  f"effect {split[2]}",
                   flush=True)
-            results[s] = run_split(s, data, cache)
+            results[s] = run_split(s, data, cache, split, vehicle)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

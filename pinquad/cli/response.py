@@ -15,9 +15,14 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from pinquad.cli.common import output_problem
-from pinquad.cli.measured import add_measured_log_arguments, measured_logs, positive_factors
+from pinquad.cli.measured import (
+    add_measured_log_arguments,
+    measured_logs,
+    measured_vehicle_spec,
+    positive_factors,
+    reference_inertia,
+)
 from pinquad.io.logs import LogFormatError
-from pinquad.realdata.dataset import PUBLISHED_INERTIA
 from pinquad.realdata.response import ApparentInertia, apparent_inertia, simulated_response
 from pinquad.report.response import (
     band_lines,
@@ -99,20 +104,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                               tuple(args.band))
     t0 = time.perf_counter()
     try:
-        results = [apparent_inertia(real, name, args.rotor_inertia, reference=PUBLISHED_INERTIA)
-                   for name, real in measured_logs(args.logs, args.data)]
+        reference = reference_inertia(measured_vehicle_spec(args.vehicle))
+        results = [apparent_inertia(real, name, args.rotor_inertia, reference=reference)
+                   for name, real in measured_logs(args.logs, args.data, args.vehicle)]
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(f"apparent inertia |H_j(f)| = |S_a,tau / S_a,a| per axis, J_r = "
           f"{args.rotor_inertia:g} kg m^2 on the yaw torque; {len(results)} logs")
-    print(format_response(results, published=PUBLISHED_INERTIA))
+    print(format_response(results, published=reference))
     for line in band_lines(results, "logs"):
         print(line)
     print()
     for r in results:
-        print(unexplained_line(r, "the published inertia"))
-    if args.out is not None and not _figure(results, args.out, PUBLISHED_INERTIA):
+        print(unexplained_line(r, "the vehicle file's reference inertia"))
+    if args.out is not None and not _figure(results, args.out, reference):
         return 2
     print(f"{len(results)} logs in {time.perf_counter() - t0:.0f} s")
     return 0

@@ -27,3 +27,11 @@ EKF_TABLE = {
     "pos_mean": 1.02e-2, "pos_std": 0.77e-2, "pos_max": 5.24e-2,
     "euler_mean": 1.04e-2, "euler_std": 0.83e-2, "euler_max": 8.67e-2,
 }
+
+# The bounds pinquad's offline experiment (``python -m pinquad.offline``, the paper's
+# scenario, 20 cycles x sensors A, B, C, regressor M-step; README and docs/paper.md)
+# meets on every cycle: a vehicle from a file is held to them.
+OFFLINE_MASS_BOUND = 0.00065
+"""Largest relative mass error of any cycle (0.065 %)."""
+OFFLINE_INERTIA_BOUND = 0.03
+"""Largest relative error of any inertia entry of any cycle (3 %)."""

@@ -87,6 +87,24 @@ class Actuators:
 
 
 @dataclass(frozen=True)
+class FaultSettings:
+    """How the measured-flight pipeline judges this vehicle's rotor readings (the file's
+    optional ``[faults]`` table; ``realdata.faults``).
+
+    flight_rpm [rev/min]: rotors at flight speed from here (None: half the hover speed,
+    a quarter of the hover thrust); max_rpm [rev/min]: a reading above is beyond the
+    motor's reach (None: the speed of ``max_thrust``, unchecked without one);
+    repair_rel_se (4,) [1]: relative uncertainty of [m, I_xx, I_yy, I_zz] added when
+    rotor speeds are rebuilt from PWM, as measured for this vehicle (empty: no PWM
+    repair, implausible rows are excluded instead).
+    """
+
+    flight_rpm: float | None = None
+    max_rpm: float | None = None
+    repair_rel_se: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
 class VehicleSpec:
     """A vehicle file, read.
 
@@ -96,7 +114,7 @@ class VehicleSpec:
     starts, with guess_note in words; positions (n, 2) [m]: rotor (x, y) in the body
     frame, in log order; spin (n,): +-1 yaw-torque sign per rotor; arm [m]: the largest
     centre-to-rotor distance; layout: ``x``, ``+`` or ``custom``; actuators;
-    reference; description.
+    reference; description; faults: the ``[faults]`` table.
     """
 
     name: str
@@ -114,6 +132,7 @@ class VehicleSpec:
     reference: Reference
     urdf: Path | None = None
     description: str = ""
+    faults: FaultSettings = FaultSettings()
 
     @property
     def n_rotors(self) -> int:
@@ -263,6 +282,19 @@ def _actuators(r: _Reader) -> Actuators | None:
         battery=tuple((str(k), float(v)) for k, v in battery.items()))
 
 
+def _faults(r: _Reader) -> FaultSettings:
+    tab = r.table("faults")
+    rel = tab.get("repair_rel_se", [])
+    if not isinstance(rel, list) or (rel and len(rel) != 4) or any(
+            isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0 for v in rel):
+        raise r.fail("faults.repair_rel_se", "[m, Ixx, Iyy, Izz]: four relative standard "
+                     "errors >= 0", rel)
+    return FaultSettings(
+        flight_rpm=r.number(tab, "faults", "flight_rpm", unit=" [rev/min]", required=False),
+        max_rpm=r.number(tab, "faults", "max_rpm", unit=" [rev/min]", required=False),
+        repair_rel_se=tuple(float(v) for v in rel))
+
+
 def parse_vehicle(text: str, path: Path) -> VehicleSpec:
     """A :class:`VehicleSpec` from TOML ``text`` (``path`` names it in errors and anchors
     relative paths). Raises VehicleFileError."""
@@ -308,7 +340,7 @@ def parse_vehicle(text: str, path: Path) -> VehicleSpec:
             inertia=r.inertia(ref, "reference", "inertia", required=False),
             mass_note=r.text(ref, "reference", "mass_note"),
             inertia_note=r.text(ref, "reference", "inertia_note")),
-        urdf=urdf, description=r.text(data, "", "description"))
+        urdf=urdf, description=r.text(data, "", "description"), faults=_faults(r))
 
 
 def _urdf_inertial(urdf: Path, path: Path) -> tuple[float, Array]:

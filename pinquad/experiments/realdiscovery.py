@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.core.vehicle_file import load_vehicle
 from pinquad.discovery.discover import discover
 from pinquad.discovery.library import SPECS
 from pinquad.discovery.residuals import (
@@ -41,12 +42,18 @@ from pinquad.discovery.residuals import (
 )
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import ProfiledFit, profiled_fit
+from pinquad.io.read import read_log
 from pinquad.io.sdlog import read_sdflight
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real
 from pinquad.realdata.model import corrected, plain_theta
-from pinquad.realdata.observations import build_observations
-from pinquad.realdata.raw import raw_from_sdflight
+from pinquad.realdata.observations import (
+    RealDataOptions,
+    build_observations,
+    options_for_vehicle,
+)
+from pinquad.realdata.raw import raw_flight, raw_from_sdflight
+from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
 
 Array = NDArray[np.float64]
 
@@ -78,11 +85,19 @@ class FlightFit:
     max_speed: float
 
 
-def fit_flight(path: Path, max_iterations: int = 60) -> FlightFit:
-    """Base identification (``realdata.identify_real``) and discovery of one log."""
-    raw = raw_from_sdflight(read_sdflight(path))
-    real = build_observations(raw)
-    mass0, inertia0, _ = default_guess("crazyflie21")
+def fit_flight(path: Path, max_iterations: int = 60, vehicle: str = "crazyflie21",
+               kf: ThrustCoefficient | None = None) -> FlightFit:
+    """Base identification (``realdata.identify_real``) and discovery of one log of
+    ``vehicle`` (the shipped crazyflie21: kf from the data directory's thrust stand unless
+    given; a vehicle file: its mixer, fault thresholds, kf and [guess])."""
+    if vehicle == "crazyflie21":
+        raw, options = raw_from_sdflight(read_sdflight(path)), RealDataOptions()
+    else:
+        spec = load_vehicle(vehicle)
+        raw, options = raw_flight(read_log(path)), options_for_vehicle(spec)
+        kf = kf or vehicle_thrust_coefficient(spec)
+    real = build_observations(raw, options, kf)
+    mass0, inertia0, _ = default_guess(vehicle)
     ident, post, theta = identify_real(real, mass0, inertia0, max_iterations, False, name=path.name)
     obs = corrected(real.obs, theta)
     plain = plain_theta(theta)
@@ -143,16 +158,19 @@ def evaluate(fit: FlightFit, pi: Array, coeffs: dict[str, Array],
     return heldout_rms(res, pi, coeffs, np.ones(res.n_blocks, dtype=bool), window, steps_mask)
 
 
-def run_split(name: str, data: Path, cache: dict[str, FlightFit]) -> dict:
-    """Train / test one split; returns its table entries."""
-    train_names, test_names, target = SPLITS[name]
+def run_split(name: str, data: Path, cache: dict[str, FlightFit],
+              split: tuple[tuple[str, ...], tuple[str, ...], str] | None = None,
+              vehicle: str = "crazyflie21") -> dict:
+    """Train / test one split (``SPLITS[name]``, or ``split`` = (training logs, test logs,
+    effect) when given) of ``vehicle``'s logs in ``data``; returns its table entries."""
+    train_names, test_names, target = split if split is not None else SPLITS[name]
     for n in (*train_names, *test_names):
         if n not in cache:
             path = data / n
             if not path.is_file():
                 raise FileNotFoundError(f"{path}: flight log not found (expected the shared "
-                                        "Crazyflie data, imrc_brushed/)")
-            cache[n] = fit_flight(path)
+                                        "Crazyflie data, imrc_brushed/, or --data DIR)")
+            cache[n] = fit_flight(path, vehicle=vehicle)
     train = [cache[n] for n in train_names]
     test = [cache[n] for n in test_names]
     votes = {e: sum(e in f.selected for f in train) for e in POOLED}

@@ -22,6 +22,7 @@ others: the paper's m0 = 0.001 kg, I0 = diag(1e-4, 2e-4, 1e-4) kg m^2).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -73,7 +74,9 @@ class LogOptions:
     of ``regressor``, ``paper``, ``full`` (``full``: all ten inertial parameters, logs
     with thrust and torques only); estep: ``rts``, ``ieks`` or ``gtsam``;
     max_iterations: E-steps at most per EM run (>= 1); information: compute standard
-    errors from the observed information.
+    errors from the observed information; band (lo, hi) [Hz]: the torque rows' band of a
+    rotor-speed log's inertia M-step (``realdata.identify_real``; 3-8 Hz for the measured
+    Crazyflie flights, whose unmodelled torques the band keeps out).
     """
 
     sensors: tuple[str, ...] = ()
@@ -81,6 +84,7 @@ class LogOptions:
     estep: str = "rts"
     max_iterations: int = 100
     information: bool = True
+    band: tuple[float, float] = (3.0, 8.0)
 
     def __post_init__(self) -> None:
         unknown = [m for m in self.msteps if m not in MSTEPS]
@@ -88,6 +92,8 @@ class LogOptions:
             raise ValueError(f"M-steps must be some of {', '.join(MSTEPS)}; got {self.msteps}")
         if self.max_iterations < 1:
             raise ValueError(f"max_iterations must be at least 1; got {self.max_iterations}")
+        if not 0.0 < self.band[0] < self.band[1]:
+            raise ValueError(f"torque band must be 0 < LO < HI [Hz]; got {self.band}")
 
 
 @dataclass(frozen=True)
@@ -222,12 +228,17 @@ def measured_vehicle(log: FlightLog) -> tuple[RealDataOptions, ThrustCoefficient
     the data directory's thrust stand). Raises ValueError when the file contradicts the
     log: another number of rotors, or a hover thrust above the file's maximum."""
     vehicle = log.meta.vehicle
+    assert log.rpm is not None
+    n = log.rpm.shape[1]
     if not is_vehicle_file(vehicle):
+        if n != len(RealDataOptions().spin):
+            raise ValueError(f"{log.meta.source}: the log has {n} rotor speeds (rpm_1..rpm_{n}) "
+                             f"but vehicle {vehicle!r} (read as the shipped crazyflie21) has "
+                             f"{len(RealDataOptions().spin)} rotors; give the vehicle file that "
+                             "matches the log (--vehicle FILE)")
         return RealDataOptions(), None
     spec = load_vehicle(vehicle)
     options = options_for_vehicle(spec)
-    assert log.rpm is not None
-    n = log.rpm.shape[1]
     if n != spec.n_rotors:
         raise ValueError(f"{log.meta.source}: the log has {n} rotor speeds (rpm_1..rpm_{n}) but "
                          f"the vehicle file {spec.source} has {spec.n_rotors} rotors")
@@ -238,7 +249,30 @@ def measured_vehicle(log: FlightLog) -> tuple[RealDataOptions, ThrustCoefficient
         raise ValueError(f"{spec.source}: hover needs {mass * log.meta.gravity:.3f} N for "
                          f"{mass * 1e3:.1f} g but the file's rotors give at most {top:.3f} N "
                          f"({spec.n_rotors} x max_thrust {spec.actuators.max_thrust} N)")  # type: ignore[union-attr]
+    if top is not None:
+        over_max_thrust(log, spec.actuators.max_thrust, kf.kf, spec.source)  # type: ignore[union-attr]
     return options, kf
+
+
+def over_max_thrust(log: FlightLog, max_thrust: float, kf: float, where: object,
+                    share: float = 0.01) -> None:
+    """Raise ValueError when the log's rotors spin faster than the file's ``max_thrust``
+    [N] allows, omega_max = sqrt(max_thrust / kf) [rad/s], in more than ``share`` of the
+    rows with a reading (a rotor that often makes more thrust than its maximum says the
+    file's kf or max_thrust is not this vehicle's); the message names the column."""
+    assert log.rpm is not None
+    rpm_max = math.sqrt(max_thrust / kf) * 60.0 / (2.0 * math.pi)
+    rpm = np.asarray(log.rpm, dtype=float)
+    finite = np.isfinite(rpm)
+    over = (np.where(finite, rpm, 0.0) > rpm_max).sum(axis=0) / np.maximum(finite.sum(axis=0), 1)
+    if over.max() > share:
+        i = int(np.argmax(over))
+        raise ValueError(f"{log.meta.source}: column rpm_{i + 1} reads above {rpm_max:.0f} "
+                         f"rev/min, the speed of the vehicle file's max_thrust {max_thrust:g} N "
+                         f"at kf = {kf:.4e} N/(rad/s)^2 ({where}), in {100 * over[i]:.1f} % of "
+                         f"its rows (median {np.nanmedian(rpm[:, i]):.0f} rev/min); expected at "
+                         f"most {100 * share:g} %: the file's kf or max_thrust is not this "
+                         "vehicle's")
 
 
 def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
@@ -259,7 +293,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
         if "regressor" in options.msteps:
             ident, post, theta = identify_real(
                 real, mass0, inertia0, options.max_iterations, options.information,
-                name=Path(str(log.meta.source)).name, estep=options.estep)
+                band=options.band, name=Path(str(log.meta.source)).name, estep=options.estep)
             runs.append(_from_measured(ident, label, post, theta, real.obs))
             if first is None:
                 first = (real, post.mean)

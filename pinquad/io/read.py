@@ -27,6 +27,14 @@ def read_log(path: str | Path) -> FlightLog:
     return logs.read_log(path)
 
 
+def is_flight_log(path: Path) -> bool:
+    """Whether a file is a log :func:`read_log` reads: a CSV or Parquet table by its
+    suffix, a Crazyflie micro-SD log by its content (a sidecar ``.json`` is not)."""
+    if path.suffix.lower() in (".csv", ".parquet"):
+        return True
+    return path.suffix.lower() != ".json" and sdlog.is_sdlog(path)
+
+
 def with_sidecar_vehicle(log: FlightLog) -> FlightLog:
     """A micro-SD log with the vehicle its sidecar ``<log>.json`` names (``"vehicle"``: a
     shipped name or a vehicle file, relative to the sidecar), if it has one. Raises

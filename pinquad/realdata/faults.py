@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from scipy.signal import lfilter
 
 from pinquad.io.logs import FlightLog
+from pinquad.vehicle.actuators import CRAZYFLIE_SPEC
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -102,18 +103,21 @@ def _row_median(x: Array) -> Array:
         return np.nanmedian(x, axis=1)
 
 
-def detect_actuation_faults(log: FlightLog, flight_rpm: float = 10000.0,
+def detect_actuation_faults(log: FlightLog, flight_rpm: float | None = None,
                             dropout_rpm: float = 1000.0, partner_ratio: float = 0.7,
-                            max_rpm: float = 30000.0, unreliable_fraction: float = 0.05
+                            max_rpm: float | None = None, unreliable_fraction: float = 0.05
                             ) -> ActuationFaultReport:
     """Flag implausible rotor readings and a stuck battery voltage (see module docstring).
 
-    Thresholds: flight_rpm [rev/min] (10000 rev/min gives about a quarter of hover
-    thrust on the Crazyflie, whose hover speed is about 19500 rev/min); dropout_rpm
-    [rev/min]; partner_ratio [1] (clean flights, including the yaw sweeps, stay above
-    0.85); max_rpm [rev/min] (the thrust stand tops out near 24000); unreliable_fraction
-    [1] of airborne rows above which a motor's whole channel is distrusted.
+    Thresholds: flight_rpm [rev/min] and max_rpm [rev/min] (None: the shipped
+    crazyflie21 file's ``[faults]``, which says why); dropout_rpm [rev/min];
+    partner_ratio [1] (clean flights, including the yaw sweeps, stay above 0.85);
+    unreliable_fraction [1] of airborne rows above which a motor's whole channel is
+    distrusted.
     """
+    defaults = CRAZYFLIE_SPEC.faults
+    flight_rpm = float(defaults.flight_rpm if flight_rpm is None else flight_rpm)  # type: ignore[arg-type]
+    max_rpm = float(defaults.max_rpm if max_rpm is None else max_rpm)  # type: ignore[arg-type]
     n = log.n
     source = log.meta.source
     notes: list[str] = []

@@ -28,7 +28,6 @@ from pinquad.identification.identify import get_smoother, loglik_function
 from pinquad.identification.verdict import EstimateVerdict
 from pinquad.models.ssm import Theta
 from pinquad.realdata.band_mstep import BandStats, RealMStep
-from pinquad.realdata.dataset import SCALE_MASS
 from pinquad.realdata.mass_balance import MotorSplit, motor_split, quasi_static_mass
 from pinquad.realdata.model import corrected, real_model
 from pinquad.realdata.observations import RealObservations
@@ -41,24 +40,19 @@ Array = NDArray[np.float64]
 YAW_RATIO_REL_SE = CRAZYFLIE_SPEC.actuators.yaw_ratio_se / YAW_RATIO_CRAZYFLIE  # type: ignore[union-attr]
 """Relative standard uncertainty of the yaw torque/thrust ratio: published values span
 0.0060-0.0070 m around the 0.006 m used, taken as +-0.0005 m (one standard deviation)."""
-REPAIR_REL_SE = np.array([0.011, 0.07, 0.05, 0.24])
-"""Relative standard uncertainty of [m, I_xx, I_yy, I_zz] added when rotor speeds were
-rebuilt from PWM, measured by hiding M1 on the seven clean flights (zero in ~30 % of the
-rows, a stuck half value elsewhere, as on jana20-29), rebuilding it with the partner map
-and identifying again: root-mean-square change of the estimate over the seven flights
-(mass 1.1 %: mean +0.55 %, largest +2.6 % on jana01; I_xx 7 %, I_yy 5 %, I_zz 24 %).
-
-On jana20-29 themselves the rebuilt M1 is checked against M1's own readings: the stuck
-channel updates a few hundred times per flight, and each fresh value is half the speed
-(a ratio to M3 of 0.48 where the clean flights give 0.92-0.99); twice the fresh values
-agree with the partner-map rebuild to +0.5..+1.3 % (median, six logs) and -0.5 % (jana25),
-residual 50-160 rev/min. The +2.3..+3.3 % mass excess of those flights is not the repair:
-the mocap-acceleration force balance with the measured M2 + M3 + M4 alone gives
-26.9-27.0 g-equivalents there against 26.1-26.5 on jana02-05 (same M1/M3 and M2/M4 speed
-balance), +2.5-3 % from motors that were never rebuilt, and it persists in slow level
-flight (< 0.3 m/s, |v_z| < 0.1 m/s) and away from the floor. Thrust per rpm^2 (air
-density, propellers) or the vehicle's mass differed in that session; flight data
-identify only kf / m and cannot tell which."""
+# REPAIR_REL_SE, the uncertainty PWM repair adds, is the vehicle file's
+# [faults] repair_rel_se (pinquad/data/crazyflie21.toml says how it was measured); on
+# jana20-29 themselves the rebuilt M1 is checked against M1's own readings: the stuck
+# channel updates a few hundred times per flight, and each fresh value is half the speed
+# (a ratio to M3 of 0.48 where the clean flights give 0.92-0.99); twice the fresh values
+# agree with the partner-map rebuild to +0.5..+1.3 % (median, six logs) and -0.5 % (jana25),
+# residual 50-160 rev/min. The +2.3..+3.3 % mass excess of those flights is not the repair:
+# the mocap-acceleration force balance with the measured M2 + M3 + M4 alone gives
+# 26.9-27.0 g-equivalents there against 26.1-26.5 on jana02-05 (same M1/M3 and M2/M4 speed
+# balance), +2.5-3 % from motors that were never rebuilt, and it persists in slow level
+# flight (< 0.3 m/s, |v_z| < 0.1 m/s) and away from the floor. Thrust per rpm^2 (air
+# density, propellers) or the vehicle's mass differed in that session; flight data
+# identify only kf / m and cannot tell which.
 
 
 @dataclass(frozen=True)
@@ -118,26 +112,23 @@ class RealIdentification:
         """[m, I_xx, I_yy, I_zz] (4,) [kg, kg m^2]."""
         return np.concatenate([[self.mass], self.inertia])
 
-    @property
-    def mass_rel_error(self) -> float:
-        """m / 34.7 g - 1."""
-        return self.mass / SCALE_MASS - 1.0
-
 
 
 def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
-                          yaw_rel: float = YAW_RATIO_REL_SE, repaired: bool = False) -> Array:
+                          yaw_rel: float = YAW_RATIO_REL_SE,
+                          repair_rel: Array | None = None) -> Array:
     """se_total (4,) of [m, I_xx, I_yy, I_zz]: every input is proportional to kf, so
     each estimate is too (relative uncertainty kf_rel); I_zz is also proportional to the
-    yaw torque ratio (yaw_rel); rotor speeds rebuilt from PWM add ``REPAIR_REL_SE``:
+    yaw torque ratio (yaw_rel); rotor speeds rebuilt from PWM add repair_rel (4,), the
+    vehicle file's ``[faults] repair_rel_se`` (None: not repaired):
 
         se_total_i^2 = se_stat_i^2 + p_i^2 (kf_rel^2 [+ yaw_rel^2 for I_zz]
-                                            [+ REPAIR_REL_SE_i^2 if repaired])
+                                            [+ repair_rel_i^2 if repaired])
     """
     rel = np.full(4, kf_rel**2)
     rel[3] += yaw_rel**2
-    if repaired:
-        rel += REPAIR_REL_SE**2
+    if repair_rel is not None:
+        rel += np.asarray(repair_rel, dtype=float)**2
     stat = np.where(np.isfinite(se_stat), se_stat, 0.0)
     return np.sqrt(stat**2 + params**2 * rel)
 
@@ -177,7 +168,9 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     se_stat = np.fmax(se_info, se_jack)
     se_total = total_standard_errors(params, se_stat, real.kf.rel_se,
                                      yaw_rel=real.options.yaw_ratio_se / real.options.yaw_ratio,
-                                     repaired=bool(real.repaired))
+                                     repair_rel=np.asarray(real.options.repair_rel_se)
+                                     if real.repaired and real.options.repair_rel_se
+                                     else None)
     history = np.column_stack([np.concatenate([[mass0], res.mass]),
                                np.vstack([np.diag(inertia0), res.inertia_diag])])
     coef = getattr(theta, "moment_coef", None)

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.conventions import rotation_from_euler
+from pinquad.core.conventions import GRAVITY, rotation_from_euler
 from pinquad.core.vehicle_file import VehicleSpec
 from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
 from pinquad.io.sdlog import is_sdlog, read_sdflight
@@ -74,6 +74,10 @@ GRID_DT = 0.01
 
 CRAZYFLIE_YAW_RATIO_SE = CRAZYFLIE_SPEC.actuators.yaw_ratio_se  # type: ignore[union-attr]
 """Standard error of the shipped crazyflie21 file's yaw torque ratio [m]."""
+CRAZYFLIE_FAULTS = CRAZYFLIE_SPEC.faults
+"""The shipped crazyflie21 file's ``[faults]``: flight_rpm, max_rpm, repair_rel_se."""
+assert CRAZYFLIE_FAULTS.flight_rpm is not None and CRAZYFLIE_FAULTS.max_rpm is not None, \
+    "pinquad/data/crazyflie21.toml: [faults] needs flight_rpm and max_rpm"
 
 
 # ----------------------------------------------------------------------------- options
@@ -94,7 +98,10 @@ class RealDataOptions:
     crazyflie21 file, :func:`options_for_vehicle` for another);
     contact_height [m], contact_speed [m/s], flight_rpm [rev/min], contact_margin [s]:
     ground-contact detection (module docstring); outlier_m [m], outlier_rad [rad]:
-    motion-capture glitch thresholds.
+    motion-capture glitch thresholds; max_rpm [rev/min]: a reading above is implausible
+    (``faults.detect_actuation_faults``); repair_rel_se (4,) [1]: the uncertainty PWM
+    repair adds to [m, I_xx, I_yy, I_zz] (``identify.total_standard_errors``). The
+    defaults of these three are the shipped crazyflie21 file's ``[faults]``.
     """
 
     dt: float = GRID_DT
@@ -110,10 +117,12 @@ class RealDataOptions:
     yaw_ratio_se: float = CRAZYFLIE_YAW_RATIO_SE
     contact_height: float = 0.03
     contact_speed: float = 0.2
-    flight_rpm: float = 10000.0
+    flight_rpm: float = CRAZYFLIE_FAULTS.flight_rpm  # type: ignore[assignment]
     contact_margin: float = 0.3
     outlier_m: float = 0.05
     outlier_rad: float = 0.2
+    max_rpm: float = CRAZYFLIE_FAULTS.max_rpm  # type: ignore[assignment]
+    repair_rel_se: tuple[float, ...] = CRAZYFLIE_FAULTS.repair_rel_se
 
     def __post_init__(self) -> None:
         bad = [c for c in self.channels if c not in ("pos", "vel", "euler", "gyro")]
@@ -128,18 +137,32 @@ class RealDataOptions:
 def options_for_vehicle(spec: VehicleSpec, base: RealDataOptions | None = None
                         ) -> RealDataOptions:
     """Options whose mixer is a vehicle file's (rotor positions, spins, yaw ratio and its
-    standard error, rotor inertia when the file fixes it). Raises ValueError if the file
-    has no [actuators] table."""
+    standard error, rotor inertia when the file fixes it) and whose fault thresholds are
+    its ``[faults]``, else derived from it: flight_rpm half the hover speed of the
+    reference (else body) mass, omega_h = sqrt(m g / (n kf)); max_rpm the speed of
+    ``max_thrust``, sqrt(max_thrust / kf) (no limit without one); without
+    ``repair_rel_se`` (or with other than four rotors) no PWM repair: implausible rows are
+    excluded. Raises ValueError if the file has no [actuators] table."""
     base = base or RealDataOptions()
     act = spec.actuators
     if act is None:
         raise ValueError(f"{spec.source}: no [actuators] table (kf, kf_se, yaw_ratio): rotor "
                          "speeds cannot be turned into thrust and torques")
+    mass = spec.reference.mass if spec.reference.mass is not None else spec.mass
+    rpm_per_rad_s = 60.0 / (2.0 * math.pi)
+    hover = math.sqrt(mass * GRAVITY / (spec.n_rotors * act.kf)) * rpm_per_rad_s
+    flt = spec.faults
+    top = (flt.max_rpm if flt.max_rpm is not None else math.inf if act.max_thrust is None
+           else math.sqrt(act.max_thrust / act.kf) * rpm_per_rad_s)
+    repairable = bool(flt.repair_rel_se) and spec.n_rotors == 4
     return replace(base, yaw_ratio=act.yaw_ratio, yaw_ratio_se=act.yaw_ratio_se,
                    spin=tuple(float(v) for v in spec.spin), arm=spec.arm,
                    xy=tuple((float(x), float(y)) for x, y in spec.positions),
                    rotor_inertia=act.rotor_inertia if act.rotor_inertia is not None
-                   else base.rotor_inertia)
+                   else base.rotor_inertia,
+                   flight_rpm=flt.flight_rpm if flt.flight_rpm is not None else 0.5 * hover,
+                   max_rpm=top, repair_rel_se=flt.repair_rel_se,
+                   faults=base.faults if repairable else "exclude")
 
 
 SENSOR_CHANNELS = {
@@ -312,7 +335,8 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     notes: list[str] = [kf.note]
     dt = options.dt
 
-    report = detect_actuation_faults(log, flight_rpm=options.flight_rpm)
+    report = detect_actuation_faults(log, flight_rpm=options.flight_rpm,
+                                    max_rpm=options.max_rpm)
     rpm, untrusted_rows, rebuilt, repair_notes = _repair(raw, report, options.faults)
     untrusted_motors = report.motor_mask | report.unreliable[None, :]
     notes.extend(repair_notes)

@@ -19,7 +19,7 @@ from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
 from pinquad.realdata.model import RealTheta, corrected, plain_theta
 from pinquad.realdata.observations import RealDataOptions, load_real
-from pinquad.realdata.thrust import thrust_coefficient
+from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
 
 Array = NDArray[np.float64]
 
@@ -30,7 +30,9 @@ class TableJob:
     effects: a module-level function run in the worker on the fit (observations, theta,
     smoothed posterior) whose summary of the effects found becomes
     ``RealIdentification.effects`` (``experiments.recorded.measured_effects``: effect
-    discovery with its null calibration; None: not run)."""
+    discovery with its null calibration; None: not run); kf: the thrust coefficient
+    (None: fitted to the ``stand`` folder); vehicle: a shipped name or a vehicle file,
+    whose [guess] EM starts from and whose body the verdict's plausible range is."""
 
     path: Path
     options: RealDataOptions
@@ -42,6 +44,8 @@ class TableJob:
     keep_band_stats: bool = False
     rotor_source: str = ""
     effects: Callable[[Observations, RealTheta, Posterior], dict] | None = None
+    kf: ThrustCoefficient | None = None
+    vehicle: str = "crazyflie21"
 
 
 def run_table_job(job: TableJob) -> RealIdentification | str:
@@ -50,9 +54,9 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
     flight if ``job.fit_rotor_inertia`` and ``job.options.rotor_inertia`` is 0, else the
     options' fixed value."""
     try:
-        kf = thrust_coefficient(job.stand)
+        kf = job.kf if job.kf is not None else thrust_coefficient(job.stand)
         real = load_real(job.path, job.options, kf)
-        mass0, inertia0, _ = default_guess("crazyflie21")
+        mass0, inertia0, _ = default_guess(job.vehicle)
         ident, post, theta = identify_real(real, mass0, inertia0, job.max_iterations,
                                            job.information, job.band, name=job.path.name,
                                            fit_rotor_inertia=job.fit_rotor_inertia,
@@ -61,11 +65,12 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
         return str(exc)
     effects = None if job.effects is None else job.effects(real.obs, theta, post)
     return replace(ident, rotor_source=job.rotor_source,
-                   verdict=real_verdict(ident, real.obs, post.mean, theta), effects=effects)
+                   verdict=real_verdict(ident, real.obs, post.mean, theta, job.vehicle),
+                   effects=effects)
 
 
 def real_verdict(ident: RealIdentification, obs: Observations, mean: Array,
-                 theta: RealTheta) -> EstimateVerdict:
+                 theta: RealTheta, vehicle: str = "crazyflie21") -> EstimateVerdict:
     """The verdict of a measured flight's estimate (``pinquad.identification.verdict``):
     its total standard errors against the Crazyflie's range, the torques (with the
     fitted nuisance moment) explaining the angular acceleration on the M-step's band,
@@ -73,7 +78,7 @@ def real_verdict(ident: RealIdentification, obs: Observations, mean: Array,
     plain = replace(plain_theta(theta), inertia=np.diag(ident.inertia))
     ev = data_evidence(corrected(obs, theta), plain, mean, tuple(ident.band))
     return judge(ident.mass, np.diag(ident.inertia), ident.se_total, ev,
-                 vehicle_range("crazyflie21"))
+                 vehicle_range(vehicle))
 
 
 def run_jobs(jobs: Sequence[TableJob], workers: int) -> list[RealIdentification | str]:

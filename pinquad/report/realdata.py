@@ -6,10 +6,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
-from pinquad.realdata.dataset import FLIGHTS, PUBLISHED_INERTIA, SCALE_MASS, YAW_FLIGHTS
-from pinquad.realdata.identify import YAW_RATIO_REL_SE, RealIdentification
+from pinquad.core.vehicle_file import VehicleSpec
+from pinquad.realdata.dataset import FLIGHTS, YAW_FLIGHTS
+from pinquad.realdata.identify import RealIdentification
 from pinquad.realdata.rotor_inertia import PooledRotorInertia
+from pinquad.vehicle.actuators import CRAZYFLIE_SPEC
 
 
 def _short_reasons(ident: RealIdentification) -> str:
@@ -72,25 +75,48 @@ def effect_words(r: RealIdentification) -> str:
     return "; ".join(parts) or "none"
 
 
+def reference_values(spec: VehicleSpec) -> tuple[float, NDArray[np.float64], str, str]:
+    """(mass [kg], inertia (3,) [kg m^2], how the mass is known, how the inertia is known)
+    a vehicle file's flights are compared with: its ``[reference]``, else its body."""
+    ref = spec.reference
+    mass = ref.mass if ref.mass is not None else spec.mass
+    inertia = (np.asarray(ref.inertia, dtype=float) if ref.inertia is not None
+               else np.diag(spec.inertia).copy())
+    return (mass, inertia, ref.mass_note or "the file's body mass",
+            ref.inertia_note or "the file's body inertia")
+
+
 def format_table(results: Sequence[RealIdentification],
-                 rotor: PooledRotorInertia | None = None) -> str:
+                 rotor: PooledRotorInertia | None = None,
+                 spec: VehicleSpec = CRAZYFLIE_SPEC) -> str:
     """The markdown table of the identified flights and the summaries below it
-    (``rotor``: the pooled rotor inertia the flights were identified with, described)."""
+    (``rotor``: the pooled rotor inertia the flights were identified with, described;
+    ``spec``: the vehicle file, whose ``[reference]`` the flights are compared with)."""
     if not results:
         return "(no flights)"
     kf = results[0].kf
+    ref_mass, ref_inertia, _, inertia_note = reference_values(spec)
+    act = spec.actuators
+    yaw_rel = 0.0 if act is None else act.yaw_ratio_se / act.yaw_ratio
+    repair = spec.faults.repair_rel_se
+    repair_words = (
+        f"and for logs whose rotor speeds were rebuilt from PWM the repair's (mass "
+        f"{100 * repair[0]:.1f} %, I_xx {100 * repair[1]:.0f} %, I_yy {100 * repair[2]:.0f} %, "
+        f"I_zz {100 * repair[3]:.0f} %, measured by rebuilding M1 on the clean logs). "
+        if repair else "(no PWM repair for this vehicle: implausible rows are excluded). ")
     lines = [
-        "| log | what was flown | used / excluded transitions (why) | mass [g] | vs 34.7 g | "
+        f"| log | what was flown | used / excluded transitions (why) | mass [g] | vs "
+        f"{1e3 * ref_mass:g} g | "
         "I_xx [1e-6 kg m^2] | I_yy | I_zz | verdict | EM iterations | effects found "
         "(held-out gain vs the null's) |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
-        within = abs(r.mass - SCALE_MASS) <= 2.0 * r.se_total[0]
+        within = abs(r.mass - ref_mass) <= 2.0 * r.se_total[0]
         lines.append(
             f"| {r.name} | {FLIGHTS.get(r.name, '')} | {r.n_used} / {r.n_excluded} "
             f"({_short_reasons(r)}) | {_judged(r, 0, 1e3)} | "
-            f"{100 * r.mass_rel_error:+.2f} %{'' if within else ' (!)'} | "
+            f"{100 * (r.mass / ref_mass - 1.0):+.2f} %{'' if within else ' (!)'} | "
             + " | ".join(_judged(r, i, 1e6, ".1f") for i in (1, 2, 3))
             + f" | {_verdict_words(r)} | {r.iterations}{'' if r.converged else ' (not converged)'}"
             + f" | {effect_words(r)} |")
@@ -106,17 +132,15 @@ def format_table(results: Sequence[RealIdentification],
         "value ± total standard error (statistical standard error): statistical = larger of "
         "the observed-information and the block-jackknife standard errors; total adds kf's "
         f"{100 * kf.rel_se:.1f} % (all estimates are proportional to kf), for I_zz the "
-        f"yaw ratio's {100 * YAW_RATIO_REL_SE:.1f} %, and for logs whose rotor speeds were "
-        "rebuilt from PWM the repair's (mass 1.1 %, I_xx 7 %, I_yy 5 %, I_zz 24 %, measured "
-        "by rebuilding M1 on the clean logs). (!) marks a mass more than two total standard "
-        "errors from the scale.",
+        f"yaw ratio's {100 * yaw_rel:.1f} %, " + repair_words
+        + "(!) marks a mass more than two total standard errors from the scale.",
         "",
         kf.note,
     ]
     if rotor is not None:
         lines += ["", rotor.describe()]
     masses = np.array([r.mass for r in results])
-    rel = masses / SCALE_MASS - 1.0
+    rel = masses / ref_mass - 1.0
     lines += ["", f"mass: mean {1e3 * masses.mean():.2f} g, spread (sd) {1e3 * masses.std(ddof=1):.2f} g "
               f"over {masses.size} logs; |error| <= 1.5 % in {int(np.sum(np.abs(rel) <= 0.015))} "
               f"of {masses.size}; worst {100 * rel[np.argmax(np.abs(rel))]:+.2f} % "
@@ -127,9 +151,9 @@ def format_table(results: Sequence[RealIdentification],
             "model-free check, mass that balances the mean vertical thrust (kf sum omega^2 "
             "along the vertical over g + the mean vertical acceleration, the same "
             "transitions, no EM): " + ", ".join(
-                f"{r.name} {1e3 * q:.2f} g ({100 * (q / SCALE_MASS - 1.0):+.1f} %)"
+                f"{r.name} {1e3 * q:.2f} g ({100 * (q / ref_mass - 1.0):+.1f} %)"
                 for r, q in zip(results, qs, strict=True) if np.isfinite(q)))
-    lines += _rebuilt_motor_lines(results)
+    lines += _rebuilt_motor_lines(results, ref_mass)
     yaw = [r for r in results if r.name in YAW_FLIGHTS]
     if len(yaw) >= 2:
         izz = np.array([r.inertia[2] for r in yaw])
@@ -151,16 +175,18 @@ def format_table(results: Sequence[RealIdentification],
                                             for m, s in zip(mean, sd, strict=True)) + " |",
         "| spread sd / mean | " + " | ".join(f"{100 * s / m:.0f} %"
                                           for m, s in zip(mean, sd, strict=True)) + " |",
-        "| Crazyflie 2.0, no decks (published) | "
-        + " | ".join(f"{1e6 * v:.2f}" for v in PUBLISHED_INERTIA) + " |",
+        f"| reference: {inertia_note} | "
+        + " | ".join(f"{1e6 * v:.2f}" for v in ref_inertia) + " |",
     ]
     return "\n".join(lines)
 
 
-def _rebuilt_motor_lines(results: Sequence[RealIdentification]) -> list[str]:
+def _rebuilt_motor_lines(results: Sequence[RealIdentification], ref_mass: float
+                         ) -> list[str]:
     """What the logs with rebuilt rotor speeds say about the mass without the rebuild: the
     measured motors' part of the model-free mass, and the mass if each rebuilt motor
-    carried a share of the thrust anywhere in the range it carries on the clean logs."""
+    carried a share of the thrust anywhere in the range it carries on the clean logs
+    (ref_mass [kg]: the scale's)."""
     split = {r.name: r.motor_split for r in results if r.motor_split is not None}
     clean = {n: m for n, m in split.items() if not m.rebuilt}
     faulty = {n: m for n, m in split.items() if m.rebuilt}
@@ -179,11 +205,11 @@ def _rebuilt_motor_lines(results: Sequence[RealIdentification]) -> list[str]:
         "the four-motor mean thrust, and with a share anywhere in that range the faulty "
         "logs' mass would be "
         + ", ".join(f"{n} {1e3 * m.mass_if(lo):.2f}-{1e3 * m.mass_if(hi):.2f} g "
-                    f"({100 * (m.mass_if(lo) / SCALE_MASS - 1):+.1f} to "
-                    f"{100 * (m.mass_if(hi) / SCALE_MASS - 1):+.1f} %)"
+                    f"({100 * (m.mass_if(lo) / ref_mass - 1):+.1f} to "
+                    f"{100 * (m.mass_if(hi) / ref_mass - 1):+.1f} %)"
                     for n, m in faulty.items())
         + "; within 1.5 % of the scale needs a share of at most "
-        + ", ".join(f"{n} {m.share_for(1.015 * SCALE_MASS):.3f}" for n, m in faulty.items())
+        + ", ".join(f"{n} {m.share_for(1.015 * ref_mass):.3f}" for n, m in faulty.items())
         + " (the repaired M1 gives "
         + ", ".join(f"{n} {m.share[i]:.3f}" for n, m in faulty.items()) + ")"]
     own = {n: m for n, m in faulty.items() if m.all_measured_rows}
@@ -192,6 +218,6 @@ def _rebuilt_motor_lines(results: Sequence[RealIdentification]) -> list[str]:
             f"model-free mass on the transitions where no rotor speed comes from the PWM map "
             f"(M{i + 1} measured, its pulse-divided readings multiplied back): "
             + ", ".join(f"{n} {1e3 * m.all_measured_mass:.2f} g "
-                        f"({100 * (m.all_measured_mass / SCALE_MASS - 1):+.1f} %, "
+                        f"({100 * (m.all_measured_mass / ref_mass - 1):+.1f} %, "
                         f"{m.all_measured_rows} transitions)" for n, m in own.items()))
     return words

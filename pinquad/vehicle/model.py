@@ -55,6 +55,16 @@ def _urdf_model(name: str) -> pin.Model:
     return pin.buildModelFromUrdf(urdf_path(name), pin.JointModelFreeFlyer())
 
 
+@lru_cache(maxsize=1)
+def _rigid_body_model() -> pin.Model:
+    """One rigid body on a free-flyer root, for a vehicle without a packaged URDF (a
+    vehicle file's): its inertia is set by :func:`load_model` like a URDF's."""
+    model = pin.Model()
+    joint = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "root_joint")
+    model.appendBodyToJoint(joint, pin.Inertia.Identity(), pin.SE3.Identity())
+    return model
+
+
 def dynamic_parameters(vehicle: Vehicle) -> Array:
     """Pinocchio's 10 dynamic parameters pi of the vehicle about the body origin.
 
@@ -80,9 +90,11 @@ def vehicle_from_dynamic_parameters(template: Vehicle, params: Array) -> Vehicle
 
 
 def load_model(vehicle: Vehicle) -> pin.Model:
-    """Pinocchio model of the vehicle: its URDF on a free-flyer root, with the body's
-    inertia replaced by the vehicle's mass, CoM and inertia."""
-    model = _urdf_model(vehicle.name).copy()
+    """Pinocchio model of the vehicle: its URDF on a free-flyer root (one rigid body when
+    pinquad ships no URDF of that name: a vehicle from a file), with the body's inertia
+    replaced by the vehicle's mass, CoM and inertia."""
+    shipped = (resources.files("pinquad") / "data" / f"{vehicle.name}.urdf").is_file()
+    model = (_urdf_model(vehicle.name) if shipped else _rigid_body_model()).copy()
     model.inertias[1] = pin.Inertia.FromDynamicParameters(dynamic_parameters(vehicle))
     model.gravity = pin.Motion(np.array([0.0, 0.0, -vehicle.gravity]), np.zeros(3))
     return model
