@@ -142,7 +142,7 @@ def _theta(torque_intensity: np.ndarray, fixed_q: np.ndarray | None = None) -> T
     return Theta(M, np.diag(J), NoiseModel(wrench, np.full(6, 1e-8), np.full(3, 1e-4), fixed_q))
 
 
-def test_torque_excitation_compares_the_torques_with_the_noise_in_the_same_band():
+def test_torque_excitation_compares_sampled_torques_with_the_noise_in_the_same_band():
     rng = np.random.default_rng(11)
     intensity = np.array([1e-13, 4e-13, 9e-13])  # N^2 m^2 s
     # white torques at 100 Hz: the band is 0-50 Hz, the whole Nyquist band, no filter;
@@ -164,6 +164,9 @@ def test_torque_excitation_compares_the_torques_with_the_noise_in_the_same_band(
     assert np.isnan(fixed).all() and "fixed" in words
     banded, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity), (3.0, 8.0))
     assert np.isnan(banded).all() and "3-8 Hz" in words
+    # a held input (what acted over each row, no unrecorded answer to the noise): not measured
+    held, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity), None, "held")
+    assert np.isnan(held).all() and "held" in words
 
 
 def test_torques_no_larger_than_the_noise_make_that_inertia_not_identifiable():
@@ -171,7 +174,7 @@ def test_torques_no_larger_than_the_noise_make_that_inertia_not_identifiable():
     verdict = judge(M, np.diag(J), SMALL_SE, quiet, CF)
     assert [p.verdict for p in verdict.parameters] == [TRUSTED, NOT_IDENTIFIABLE, TRUSTED,
                                                          NOT_IDENTIFIABLE]
-    assert "0.50x the process noise's (0-50 Hz" in verdict.get("I_xx").reasons[0]
+    assert "0.50x the size of the process noise's (0-50 Hz" in verdict.get("I_xx").reasons[0]
     # at the threshold (2x) and NaN (not measured) judge nothing
     edge = replace(quiet, torque_excitation=np.array([2.0, np.nan, 2.0]))
     assert judge(M, np.diag(J), SMALL_SE, edge, CF).overall == TRUSTED

@@ -17,6 +17,7 @@ from pinquad.experiments.recorded import (
     LogResult,
     discovery_config,
     discovery_start,
+    input_reading,
 )
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.identify import Identification
@@ -85,6 +86,11 @@ def _band(run: Identification) -> tuple[float, float] | None:
     return None if run.measured is None else tuple(run.measured.band)
 
 
+def _actuation(result: LogResult) -> str:
+    """How the log's inputs acted between rows, as the E-step read them."""
+    return input_reading(result.kind, result.log)
+
+
 def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     """The verdict of one run of a log (its own posterior and observations; a run that kept
     none is judged on its values and standard errors alone)."""
@@ -95,7 +101,8 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     else:
         theta = replace(start.theta, inertia=np.asarray(run.inertia))
         model = None if run.full is None else FullQuadSSM(start.obs, theta)
-        ev = data_evidence(start.obs, theta, start.posterior.mean, _band(run), model)
+        ev = data_evidence(start.obs, theta, start.posterior.mean, _band(run), model,
+                           _actuation(result))
     if run is result.runs[0]:
         ev = replace(ev, input_alternative=result.input_alternative)
     products = None
@@ -121,7 +128,8 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
     theta = replace(found.theta, mass=float(found.mass), inertia=np.asarray(found.inertia))
     obs = corrected_observations(start.obs, found.posterior.mean, found.coefficients)
     model = model_factory(found.coefficients)(obs, theta)
-    ev = replace(data_evidence(obs, theta, found.posterior.mean, _band(run), model),
+    ev = replace(data_evidence(obs, theta, found.posterior.mean, _band(run), model,
+                               _actuation(result)),
                  input_alternative=result.input_alternative)
     if discovery_config(result.kind).refit_em:
         stderr = standard_errors(observed_information(obs, theta, loglik_quad))

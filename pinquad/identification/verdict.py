@@ -282,15 +282,16 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         ident = [] if vrange is None else _range_check(
             name, stderr[i + 1], vrange.inertia_lo[i], vrange.inertia_hi[i], 1e6, "e-6 kg m^2", th)
         ident += _input_check(name, i + 1, value, stderr[i + 1], evidence, 1e6, "e-6 kg m^2", th)
+        if np.isfinite(excitation[i]) and excitation[i] < th.min_torque_excitation:
+            ident.insert(0, f"the logged torques about body {name[-1]} are {excitation[i]:.2f}x "
+                            f"the size of the process noise's ({evidence.excitation_band}; at "
+                            f"least {th.min_torque_excitation:g}x needed): torques no larger "
+                            f"than the unrecorded disturbances, such as a fast controller's "
+                            f"answers to them, do not carry the inertia")
         if np.isfinite(share[i]) and share[i] < th.min_torque_share:
             ident.insert(0, f"torques explain {100 * share[i]:.0f} % of the angular "
                             f"acceleration about body {name[-1]} ({evidence.torque_band}; at "
                             f"least {100 * th.min_torque_share:.0f} % needed)")
-        if np.isfinite(excitation[i]) and excitation[i] < th.min_torque_excitation:
-            ident.insert(0, f"the logged torques about body {name[-1]} are {excitation[i]:.2f}x "
-                            f"the process noise's ({evidence.excitation_band}; at least "
-                            f"{th.min_torque_excitation:g}x needed): they are mostly a "
-                            f"controller's answers to disturbances the log does not record")
         params.append(_judge(name, value, stderr[i + 1], {
             NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: rotation, IMPLAUSIBLE: implausible}))
     if stderr_products is not None:
@@ -301,15 +302,16 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
             if vrange is not None:  # |I_ij| <= I_kk / 2 for any rigid body
                 half = 0.5 * vrange.inertia_hi[k]
                 ident = _range_check(name, se, -half, half, 1e6, "e-6 kg m^2", th)
-            low = [a for a in (i, j) if np.isfinite(share[a]) and share[a] < th.min_torque_share]
-            if low:
-                ident.insert(0, f"torques explain {100 * min(share[a] for a in low):.0f} % of "
-                                f"the angular acceleration about a body axis it couples")
             quiet = [a for a in (i, j) if np.isfinite(excitation[a])
                      and excitation[a] < th.min_torque_excitation]
             if quiet:
                 ident.insert(0, f"the logged torques about a body axis it couples are "
-                                f"{min(excitation[a] for a in quiet):.2f}x the process noise's")
+                                f"{min(excitation[a] for a in quiet):.2f}x the size of the "
+                                f"process noise's")
+            low = [a for a in (i, j) if np.isfinite(share[a]) and share[a] < th.min_torque_share]
+            if low:
+                ident.insert(0, f"torques explain {100 * min(share[a] for a in low):.0f} % of "
+                                f"the angular acceleration about a body axis it couples")
             params.append(_judge(name, inertia[i, j], se, {
                 NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: rotation, IMPLAUSIBLE: list(tensor)}))
     overall = _worst([p.verdict for p in params])
@@ -370,7 +372,8 @@ noise's bandwidth up to the Nyquist frequency would grow with the rate)."""
 
 
 def torque_excitation(obs: Observations, theta: Theta,
-                      band: tuple[float, float] | None = None) -> tuple[Array, str]:
+                      band: tuple[float, float] | None = None,
+                      actuation: str = "sampled") -> tuple[Array, str]:
     """How far the logged torques stand out from the process noise, per body axis (3,) [-],
     and the band it was measured on (in words).
 
@@ -380,7 +383,14 @@ def torque_excitation(obs: Observations, theta: Theta,
     noise of intensity S has variance 2 S B in a band of width B). A ratio near 1 means the
     torques are the size of the disturbances, i.e. mostly a controller's answer to them.
 
-    NaN when theta's noise is the fixed one (``NoiseModel.fixed_q``: not estimated from
+    Measured only for a log whose input is a faster controller's command sampled at each
+    row (``actuation`` ``sampled``, ``LogMeta.actuation``): there the command moved within
+    each interval in answer to the disturbances, unrecorded. A held input (``held``: what
+    acted over the whole interval, as pinquad's simulator logs it) leaves no such answer
+    unrecorded, and EM's inertia stays right at small ratios (pinquad's CoM-offset
+    flight, seed 7: 1.35 about z, 2 % off), so the ratio is NaN there.
+
+    NaN too when theta's noise is the fixed one (``NoiseModel.fixed_q``: not estimated from
     this log) or not positive, and for an M-step that reads one band (lo, hi) [Hz] only
     (the measured flights'): EM fits one white intensity over all frequencies, which on
     those flights also holds the unmodelled low-frequency moments the band M-step leaves
@@ -390,6 +400,8 @@ def torque_excitation(obs: Observations, theta: Theta,
     out = np.full(3, np.nan)
     if band is not None:
         return out, f"not measured on an M-step that reads {band[0]:g}-{band[1]:g} Hz only"
+    if actuation != "sampled":
+        return out, "not measured: the log's input is held over each row"
     nyquist = 0.5 / obs.dt
     tau = np.asarray(obs.inputs[:-1, 1:4], dtype=float)
     width = min(EXCITATION_BAND, nyquist)
@@ -447,15 +459,16 @@ def innovation_consistency(obs: Observations, theta: Theta, model=None) -> dict[
 
 
 def data_evidence(obs: Observations, theta: Theta, mean: Array,
-                  band: tuple[float, float] | None = None, model=None) -> VerdictEvidence:
+                  band: tuple[float, float] | None = None, model=None,
+                  actuation: str = "held") -> VerdictEvidence:
     """The evidence of a fit at theta: torque shares on the smoothed means (N, 12) (on the
     M-step's band when it reads the inertia from one), the torques against the process
-    noise (``torque_excitation``) and the EKF's innovation consistency (``model``:
-    default ``QuadSSM(obs, theta)``; the ten-parameter model's ``FullQuadSSM`` for a fit
-    with a centre of mass)."""
+    noise (``torque_excitation``, for a log whose ``actuation`` is ``sampled``) and the
+    EKF's innovation consistency (``model``: default ``QuadSSM(obs, theta)``; the
+    ten-parameter model's ``FullQuadSSM`` for a fit with a centre of mass)."""
     words = "all frequencies" if band is None else f"{band[0]:g}-{band[1]:g} Hz, the M-step's band"
     com = np.asarray(theta.com, dtype=float)
-    excitation, excitation_words = torque_excitation(obs, theta, band)
+    excitation, excitation_words = torque_excitation(obs, theta, band, actuation)
     return VerdictEvidence(torque_share(obs, mean, theta.inertia, band, com if com.any() else None),
                            words, innovation_consistency(obs, theta, model),
                            torque_excitation=excitation, excitation_band=excitation_words)
