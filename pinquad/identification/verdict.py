@@ -42,6 +42,7 @@ from scipy.signal import butter, sosfiltfilt
 from estimators.ekf import predict, update
 from pinquad.core.params import VEHICLES
 from pinquad.models.ssm import Observations, QuadSSM, Theta
+from pinquad.mstep.stats import transition_mask
 
 Array = NDArray[np.float64]
 
@@ -319,6 +320,15 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
     return EstimateVerdict(tuple(params), overall, reasons)
 
 
+def mstep_transitions(obs: Observations) -> NDArray[np.bool_]:
+    """(N - 1,) the transitions k -> k+1 the M-step uses (``mstep.stats.transition_mask``)
+    that were not reset either."""
+    used = transition_mask(obs)
+    if obs.resets.size:
+        used &= ~np.asarray(obs.resets[: obs.n - 1], dtype=bool)
+    return used
+
+
 def torque_share(obs: Observations, mean: Array, inertia: Array,
                  band: tuple[float, float] | None = None, com: Array | None = None) -> Array:
     """Share of the angular-acceleration variance the torques explain, per body axis (3,).
@@ -347,12 +357,7 @@ def torque_share(obs: Observations, mean: Array, inertia: Array,
         sos = butter(2, [band[0] / nyquist, min(band[1] / nyquist, 0.99)], btype="band",
                      output="sos")
         accel, u = sosfiltfilt(sos, accel, axis=0), sosfiltfilt(sos, u, axis=0)
-    used = np.ones(obs.n - 1, dtype=bool)
-    if obs.exclude.size:
-        used &= ~np.asarray(obs.exclude[: obs.n - 1], dtype=bool)
-    if obs.resets.size:
-        used &= ~np.asarray(obs.resets[: obs.n - 1], dtype=bool)
-    used &= np.isfinite(accel).all(axis=1) & np.isfinite(u).all(axis=1)
+    used = mstep_transitions(obs) & np.isfinite(accel).all(axis=1) & np.isfinite(u).all(axis=1)
     out = np.full(3, np.nan)
     if used.sum() < 10:
         return out
@@ -402,21 +407,16 @@ def torque_excitation(obs: Observations, theta: Theta,
         return out, f"not measured on an M-step that reads {band[0]:g}-{band[1]:g} Hz only"
     if actuation != "sampled":
         return out, "not measured: the log's input is held over each row"
+    if theta.noise.fixed_q is not None:
+        return out, "not measured: the noise model is fixed, not estimated from this log"
     nyquist = 0.5 / obs.dt
     tau = np.asarray(obs.inputs[:-1, 1:4], dtype=float)
     width = min(EXCITATION_BAND, nyquist)
     words = f"0-{width:g} Hz"
     if EXCITATION_BAND < 0.99 * nyquist:
         tau = sosfiltfilt(butter(2, EXCITATION_BAND / nyquist, output="sos"), tau, axis=0)
-    if theta.noise.fixed_q is not None:
-        return out, "not measured: the noise model is fixed, not estimated from this log"
     intensity = np.asarray(theta.noise.wrench, dtype=float)[3:6]
-    used = np.ones(obs.n - 1, dtype=bool)
-    if obs.exclude.size:
-        used &= ~np.asarray(obs.exclude[: obs.n - 1], dtype=bool)
-    if obs.resets.size:
-        used &= ~np.asarray(obs.resets[: obs.n - 1], dtype=bool)
-    used &= np.isfinite(tau).all(axis=1)
+    used = mstep_transitions(obs) & np.isfinite(tau).all(axis=1)
     if used.sum() < 10:
         return out, words
     rms = np.std(tau[used], axis=0)
