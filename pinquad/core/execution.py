@@ -14,6 +14,12 @@ backend, so the numbers are too:
 - ``cluster_workers`` = N (``--cluster local:N``): a Dask ``LocalCluster`` of N worker
   processes of one thread each, started for the run and closed after it.
 
+Every task runs with one BLAS / OpenMP thread, whatever the backend: a Dask worker starts
+with one (its nanny sets OPENBLAS_NUM_THREADS=1), a pool worker would inherit as many as
+the machine has cores, and the thread count changes the last digits of BLAS reductions
+(measured: discovery's refit coefficients moved by ~1e-7 relative). Pinned, the same
+task gives the same bits on every backend, and N workers use N cores, not N x cores.
+
 Dask (the ``distributed`` package, ``pip install 'pinquad[cluster]'``) is imported only
 when asked for, inside ``open_executor``: the package works without it.
 """
@@ -28,6 +34,8 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
+
+from threadpoolctl import threadpool_limits
 
 CLUSTER_SPEC = re.compile(r"local:(\d+)")
 """``--cluster`` spec: ``local:N``, a local Dask cluster of N >= 1 worker processes."""
@@ -91,6 +99,38 @@ class Backend:
         return f"{self.jobs} worker process(es)" if self.jobs > 1 else "1 worker (this process)"
 
 
+@dataclass(frozen=True)
+class OneThreadTask:
+    """``fn`` called with BLAS and OpenMP limited to one thread in the calling process
+    (module docstring); picklable when ``fn`` is (a module-level function)."""
+
+    fn: Callable[..., Any]
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        with threadpool_limits(limits=1):
+            return self.fn(*args, **kwargs)
+
+
+class OneThreadExecutor(Executor):
+    """The backend's Executor with every task wrapped in ``OneThreadTask``: what
+    ``open_executor`` yields, so no backend runs a task any other way."""
+
+    def __init__(self, inner: Executor):
+        self.inner = inner
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        return self.inner.submit(OneThreadTask(fn), *args, **kwargs)
+
+    def map(self, fn: Callable[..., Any], *iterables: Any, timeout: float | None = None,
+            chunksize: int = 1) -> Iterator[Any]:
+        """``fn`` over ``iterables``, the results in their order (not of finishing)."""
+        return self.inner.map(OneThreadTask(fn), *iterables, timeout=timeout,
+                              chunksize=chunksize)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self.inner.shutdown(wait=wait)
+
+
 class InProcessExecutor(Executor):
     """An Executor that runs each task at once in this process (the pool of one worker:
     no process to start, the same task functions and order as the pool)."""
@@ -141,10 +181,10 @@ def open_executor(backend: Backend, tasks: int | None = None) -> Iterator[Execut
     if not backend.dask:
         workers = backend.jobs if tasks is None else max(1, min(backend.jobs, tasks))
         if workers == 1:
-            yield InProcessExecutor()
+            yield OneThreadExecutor(InProcessExecutor())
         else:
             with ProcessPoolExecutor(max_workers=workers) as pool:
-                yield pool
+                yield OneThreadExecutor(pool)
         return
     try:
         import distributed  # optional and heavy: only when a Dask backend is asked for
@@ -178,7 +218,7 @@ def open_executor(backend: Backend, tasks: int | None = None) -> Iterator[Execut
         # pure=False: every task is run, none is taken from an earlier identical call
         executor = client.get_executor(pure=False)
         try:
-            yield executor
+            yield OneThreadExecutor(executor)
         except BaseException:
             executor.shutdown(wait=False)
             raise
