@@ -22,10 +22,10 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
+from pinquad.core.execution import Backend, open_executor
 from pinquad.experiments.batch import (
     BatchRow,
     batch_exit_code,
@@ -122,37 +122,33 @@ def run_log_task(task: LogTask) -> LogOutcome:
     return LogOutcome(code if not error else -1, error, seconds)
 
 
-def process_pool(jobs: int) -> Executor:
-    """The default backend: a local pool of ``jobs`` worker processes."""
-    return ProcessPoolExecutor(max_workers=jobs)
-
-
 def run_batch(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], int],
-              executor: Callable[[int], Executor] = process_pool,
-              argv: Sequence[str] = ()) -> int:
-    """Identify every log of ``args.log`` (module docstring) and write the batch run
+              backend: Backend, argv: Sequence[str] = ()) -> int:
+    """Identify every log of ``args.log`` (module docstring) on ``backend`` (the process
+    pool or a Dask cluster: the same tasks, the same rows) and write the batch run
     directory; returns the batch exit code. Raises ValueError / OutputError on bad
-    arguments, before any work."""
+    arguments, BackendError when the backend cannot be had, before any work."""
     logs = expand_logs(args.log)
     writer = RunWriter(args.out or new_run_dir("batch"))  # --out checked before any work
     names = unique_names([str(p) for p in logs])
     t0 = time.perf_counter()
-    print(f"pinquad offline batch: {len(logs)} logs, {args.jobs} worker(s), E-step "
+    print(f"pinquad offline batch: {len(logs)} logs, {backend.describe()}, E-step "
           f"{args.estep}, M-step(s) {args.mstep}{', no discovery' if args.no_discover else ''}")
-    with writer:
-        tasks = [LogTask(run_one, args, p, writer.path(f"logs/{n}"), writer.path(f"logs/{n}.txt"))
+    with open_executor(backend, len(logs)) as pool, writer:
+        # absolute paths: a Dask worker need not share this process's working directory
+        tasks = [LogTask(run_one, args, p.absolute(), writer.path(f"logs/{n}").absolute(),
+                         writer.path(f"logs/{n}.txt").absolute())
                  for p, n in zip(logs, names, strict=True)]
-        with executor(min(args.jobs, len(tasks))) as pool:
-            outcomes = list(pool.map(run_log_task, tasks))
+        outcomes = list(pool.map(run_log_task, tasks))
         rows: list[BatchRow] = []
-        for task, name, outcome in zip(tasks, names, outcomes, strict=True):
+        for task, given, name, outcome in zip(tasks, logs, names, outcomes, strict=True):
             report = task.out / "report.json"
             if outcome.error or not report.is_file():
-                rows.append(failed_row(name, str(task.log), outcome.error or
+                rows.append(failed_row(name, str(given), outcome.error or
                                        f"no report written (exit code {outcome.code})",
                                        outcome.seconds))
             else:
-                rows.append(row_from_report(name, str(task.log), json.loads(report.read_text()),
+                rows.append(row_from_report(name, str(given), json.loads(report.read_text()),
                                             outcome.seconds))
             print(f"  {name}: {rows[-1].status}"
                   + (f" ({rows[-1].error})" if rows[-1].error else ""))

@@ -1,5 +1,6 @@
 """What the command lines share: the check of ``--out`` before any work
-(``output_problem``), the online commands'
+(``output_problem``), the execution backend's options (``--jobs``, ``--scheduler``,
+``--cluster``: ``add_backend_arguments``), the online commands'
 ``--memory`` value and its description (the measured-flight diagnostics' log arguments
 are in ``pinquad.cli.measured``)."""
 
@@ -10,6 +11,8 @@ import math
 import sys
 from pathlib import Path
 
+from pinquad.cli.help import positive_int
+from pinquad.core.execution import INSTALL_HINT, Backend, BackendError, parse_cluster_spec
 from pinquad.io.runs import OutputError, check_output_directory, check_output_file
 
 
@@ -48,3 +51,36 @@ def memory_label(memory_s: float | None) -> str:
         return "every airborne sample (incremental EM)"
     return f"forgotten with time constant {memory_s:g} s"
 
+
+
+def cluster_arg(text: str) -> int:
+    """``--cluster local:N``: N, else argparse's type error (exit 2, the expected form)."""
+    try:
+        return parse_cluster_spec(text)
+    except BackendError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--cluster ")) from None
+
+
+def add_backend_arguments(parser: argparse.ArgumentParser, jobs_default: int,
+                          tasks: str) -> None:
+    """The execution backend's options (``pinquad.core.execution``), the same on every
+    command that runs many tasks: ``--jobs`` for the local process pool, or ``--scheduler``
+    / ``--cluster`` for a Dask cluster. ``tasks`` names what is run in parallel."""
+    parser.add_argument("--jobs", type=positive_int, default=jobs_default,
+                        help=f"worker processes of the local process pool for the {tasks} "
+                             "(1: in this process)")
+    dask = parser.add_mutually_exclusive_group()
+    dask.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                      help=f"run the {tasks} on an existing Dask cluster whose scheduler is at "
+                           "ADDRESS (tcp://HOST:PORT; its workers must see the same files), "
+                           "instead of the process pool; the same tasks and seeds, the same "
+                           f"numbers (needs {INSTALL_HINT})")
+    dask.add_argument("--cluster", type=cluster_arg, metavar="local:N", default=None,
+                      help=f"run the {tasks} on a local Dask cluster of N single-threaded "
+                           "worker processes started for this run, instead of the process "
+                           f"pool; the same numbers (needs {INSTALL_HINT})")
+
+
+def backend_from_args(args: argparse.Namespace) -> Backend:
+    """The Backend that ``add_backend_arguments``' options name."""
+    return Backend(jobs=args.jobs, scheduler=args.scheduler, cluster_workers=args.cluster)

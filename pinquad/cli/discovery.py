@@ -14,7 +14,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from pinquad.cli.common import output_problem
+from pinquad.cli.common import add_backend_arguments, backend_from_args, output_problem
+from pinquad.core.execution import BackendError, open_executor
 from pinquad.experiments import discovery_mc_flightgen as fgmc
 from pinquad.experiments.discovery_mc import (
     CONDITIONS,
@@ -47,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--conditions", nargs="*", default=None,
                    help=f"conditions (pinquad: {', '.join(CONDITIONS)}; flightgen: "
                         f"{', '.join(fgmc.FG_CONDITIONS)}; default all)")
-    p.add_argument("--jobs", type=int, default=1, help="worker processes")
+    add_backend_arguments(p, 1, "simulated flights")
     p.add_argument("--laps", type=int, default=1,
                    help="times round the route per flight (about 20 s a lap)")
     p.add_argument("--start-index", type=int, default=0,
@@ -76,22 +77,33 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: unknown condition(s) {', '.join(unknown)} for --generator "
               f"{args.generator}; choose from {', '.join(known)}", file=sys.stderr)
         return 2
-    if args.generator == "flightgen":
-        return run_flightgen(args)
+    try:
+        return run_flightgen(args) if args.generator == "flightgen" else run_pinquad(args)
+    except BackendError as exc:  # raised before any flight runs
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def run_pinquad(args: argparse.Namespace) -> int:
+    """The Monte Carlo on pinquad's own simulator: run, print the seeds and tables, write
+    discovery_mc.json / .md and cases.jsonl to ``--out``. Returns 0, or 2 on a bad --out;
+    raises BackendError when the backend cannot be had."""
+    backend = backend_from_args(args)
     out = args.out or new_run_dir("discovery-mc")
     if (code := output_problem(out, directory=True)) is not None:
         return code
-    out.mkdir(parents=True, exist_ok=True)
     jobs = [(c, case_seed(args.base_seed, c, i)) for c in args.conditions
             for i in range(args.start_index, args.start_index + args.seeds)]
     print(f"discovery Monte Carlo: {len(args.conditions)} condition(s) x {args.seeds} seeds, "
           f"base seed {args.base_seed} (seed = base*100000 + condition*1000 + i), {args.laps} "
-          f"lap(s) of the route, {args.jobs} worker(s)")
+          f"lap(s) of the route, {backend.describe()}")
     t0 = time.perf_counter()
     cases: list[CaseResult] = []
-    with tempfile.TemporaryDirectory(prefix="pinquad-dmc-") as tmp:
+    with (tempfile.TemporaryDirectory(prefix="pinquad-dmc-") as tmp,
+          open_executor(backend, len(jobs)) as executor):
+        out.mkdir(parents=True, exist_ok=True)  # once the backend is had: nothing written before
         work = [CaseJob(c, s, tmp, args.laps) for c, s in jobs]
-        for res in tqdm(run_cases(work, args.jobs), total=len(work), unit="flight",
+        for res in tqdm(run_cases(work, executor), total=len(work), unit="flight",
                         file=sys.stderr):
             cases.append(res)
             append_case(out, res)
@@ -116,24 +128,27 @@ def main(argv: list[str] | None = None) -> int:
 
 def run_flightgen(args: argparse.Namespace) -> int:
     """``--generator flightgen``: run, print the seeds and tables, write
-    discovery_mc_flightgen.json / .md and cases.jsonl to ``--out``. Returns 0."""
+    discovery_mc_flightgen.json / .md and cases.jsonl to ``--out``. Returns 0, or 2 on a
+    bad --out; raises BackendError when the backend cannot be had."""
+    backend = backend_from_args(args)
     out = args.out or new_run_dir("discovery-mc-flightgen")
     if (code := output_problem(out, directory=True)) is not None:
         return code
-    out.mkdir(parents=True, exist_ok=True)
     print(f"flightgen discovery Monte Carlo: {len(args.conditions)} condition(s) x "
           f"{args.seeds} seeds x log rates {', '.join(map(str, args.log_rate))} Hz, base seed "
           f"{args.base_seed} (seed = base*100000 + condition*1000 + i, the same at every rate), "
-          f"{args.jobs} worker(s)")
+          f"{backend.describe()}")
     t0 = time.perf_counter()
     cases: list[fgmc.FlightgenCase] = []
     with tempfile.TemporaryDirectory(prefix="pinquad-fgmc-") as tmp:
         work = fgmc.plan(args.conditions, args.log_rate, args.seeds, args.base_seed,
                          args.start_index, tmp)
-        for res in tqdm(fgmc.run_cases(work, args.jobs), total=len(work), unit="flight",
-                        file=sys.stderr):
-            cases.append(res)
-            fgmc.append_case(out, res)
+        with open_executor(backend, len(work)) as executor:
+            out.mkdir(parents=True, exist_ok=True)  # once the backend is had
+            for res in tqdm(fgmc.run_cases(work, executor), total=len(work), unit="flight",
+                            file=sys.stderr):
+                cases.append(res)
+                fgmc.append_case(out, res)
     rows = fgmc.summarize(cases)
     seconds = time.perf_counter() - t0
     print()

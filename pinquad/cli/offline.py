@@ -31,8 +31,10 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.cli.batch import BATCH_EXIT_CODES, is_batch, run_batch
+from pinquad.cli.common import add_backend_arguments, backend_from_args
 from pinquad.cli.file_vehicle import run_file_vehicle
 from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
+from pinquad.core.execution import open_executor
 from pinquad.core.params import PAPER_SCENARIO
 from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.null import NullSettings
@@ -109,8 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "vehicle file's cycles: 0.2-45 Hz)")
     p.add_argument("--max-iterations", type=positive_int, default=100,
                    help="E-steps at most per EM run")
-    p.add_argument("--jobs", type=positive_int, default=os.cpu_count() or 1,
-                   help="worker processes for the cycles")
+    add_backend_arguments(p, os.cpu_count() or 1, "Monte Carlo cycles (or a batch's logs)")
     p.add_argument("--no-information", action="store_true",
                    help="skip standard errors and the Cramer-Rao bound (faster)")
     p.add_argument("--out", type=Path, help="output run directory (default: a fresh "
@@ -145,12 +146,14 @@ def run_simulation(args: argparse.Namespace) -> int:
                      msteps=msteps, max_iterations=args.max_iterations,
                      information=not args.no_information, keep_log=(i == 0))
             for s in sensors for i in range(args.cycles)]
+    backend = backend_from_args(args)
     writer = RunWriter(args.out or new_run_dir("offline"))
     t0 = time.perf_counter()
     print(f"pinquad offline: {len(sensors)} sensor(s) x {args.cycles} cycles, seeds from base "
-          f"{args.seed}, E-step {args.estep}, M-step(s) {', '.join(msteps)}, {args.jobs} worker(s)")
-    with writer:
-        results = run_cycles(jobs, args.jobs)
+          f"{args.seed}, E-step {args.estep}, M-step(s) {', '.join(msteps)}, "
+          f"{backend.describe()}")
+    with open_executor(backend, len(jobs)) as executor, writer:
+        results = run_cycles(jobs, executor)
         elapsed = time.perf_counter() - t0
         summary = summarize(results)
         tables = offline_tables(summary)
@@ -250,7 +253,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         if args.log is not None and is_batch(args.log):
-            return run_batch(args, run_log, argv=sys.argv[1:] if argv is None else argv)
+            return run_batch(args, run_log, backend_from_args(args),
+                             argv=sys.argv[1:] if argv is None else argv)
         if args.log is not None:
             args.log = args.log[0]
             return run_log(args)

@@ -9,15 +9,15 @@ import math
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from pinquad.cli.common import memory_arg, memory_label
+from pinquad.cli.common import add_backend_arguments, backend_from_args, memory_arg, memory_label
 from pinquad.cli.help import HelpFormatter, positive_int
 from pinquad.core import paper_results as paper
+from pinquad.core.execution import BackendError, open_executor
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.experiments.online import newest_offline_report, offline_ranges, run_online_cycle
 from pinquad.experiments.online_replay import stream_em
@@ -42,8 +42,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="observation source(s) (default: A, B and C)")
     p.add_argument("--cycles", type=positive_int, default=20, help="seeded cycles per sensor")
     p.add_argument("--seed", type=int, default=0, help="base seed")
-    p.add_argument("--jobs", type=positive_int, default=os.cpu_count() or 1,
-                   help="worker processes")
+    add_backend_arguments(p, os.cpu_count() or 1, "closed-loop cycles")
     p.add_argument("--out", type=Path, help="output run directory (default runs/online-<time>)")
     p.add_argument("--log", type=Path, help="replay a recorded log through the online "
                    "estimator as a stream (no controller feedback)")
@@ -58,6 +57,16 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.log is not None:
         return replay(args)
+    try:
+        return run_experiment(args)
+    except BackendError as exc:  # raised before any cycle runs or anything is written
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def run_experiment(args: argparse.Namespace) -> int:
+    """The closed-loop online experiment (module docstring) on the backend the options
+    name; writes its run directory. Raises BackendError when the backend cannot be had."""
     offline_path = args.offline_report or newest_offline_report()
     offline = None
     if offline_path is not None:
@@ -74,11 +83,13 @@ def main(argv: list[str] | None = None) -> int:
     except OutputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    backend = backend_from_args(args)
+    print(f"online experiment: {len(jobs)} closed-loop cycles, {backend.describe()}",
+          file=sys.stderr)
     t0 = time.perf_counter()
-    with writer:
-        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-            results = list(tqdm(pool.map(run_online_cycle, jobs), total=len(jobs),
-                                desc="online cycles", file=sys.stderr))
+    with open_executor(backend, len(jobs)) as pool, writer:
+        results = list(tqdm(pool.map(run_online_cycle, jobs), total=len(jobs),
+                            desc="online cycles", file=sys.stderr))
         elapsed = time.perf_counter() - t0
         truth = np.array([PAPER_VEHICLE.mass, *PAPER_VEHICLE.inertia_diag])
         text, stats = online_tables(results, truth, paper, offline)

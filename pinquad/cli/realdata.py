@@ -17,7 +17,9 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
+from pinquad.cli.common import add_backend_arguments, backend_from_args
 from pinquad.cli.help import non_negative_int
+from pinquad.core.execution import open_executor
 from pinquad.core.vehicle_file import load_vehicle
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.recorded import measured_effects
@@ -58,8 +60,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "or a directory of flight logs (default: $PINQUAD_CRAZYFLIE_DATA, "
                              "else ../shared/data/crazyflie next to the repository, else the "
                              "copy `python -m pinquad.data fetch crazyflie` downloads)")
-    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
-                        help="worker processes")
+    add_backend_arguments(parser, min(2, os.cpu_count() or 1), "logs")
     parser.add_argument("--max-iterations", type=int, default=150, help="E-steps per log")
     parser.add_argument("--no-information", action="store_true",
                         help="skip the observed information (jackknife errors only)")
@@ -96,7 +97,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     flights = flights_dir(args.data) if shipped or args.data is None else args.data
-    logs = sorted(p for p in flights.iterdir() if p.is_file() and (
+    # absolute paths: a Dask worker need not share this process's working directory
+    logs = sorted(p.absolute() for p in flights.iterdir() if p.is_file() and (
         p.name.startswith("jana") if shipped else is_flight_log(p))) if flights.is_dir() else []
     all_logs = list(logs)
     if args.only:
@@ -111,7 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # pinquad/data/crazyflie21.toml); kf of the shipped one from the data's thrust stand
         options = options_for_vehicle(spec, RealDataOptions(
             channels=tuple(c.strip() for c in args.channels.split(",")), faults=args.faults))
-        stand = stand_dir(args.data)
+        stand = stand_dir(args.data).absolute()
         kf = thrust_coefficient(stand) if shipped else vehicle_thrust_coefficient(spec)
     except (LogFormatError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -120,7 +122,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     mode = args.rotor_inertia
     print(f"pinquad real data: {len(logs)} logs from {flights}, channels {options.channels}, "
           f"faults {options.faults}, torque band {args.band[0]:g}-{args.band[1]:g} Hz, "
-          f"rotor inertia {mode}, {args.jobs} worker(s); {kf.note}", file=sys.stderr)
+          f"rotor inertia {mode}, {backend_from_args(args).describe()}; {kf.note}",
+          file=sys.stderr)
     rotor, pass1 = None, ""
     try:
         null = NullSettings(args.null_replicates)
@@ -128,47 +131,54 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: --null-replicates: {exc}", file=sys.stderr)
         return 2
     effects = None if args.no_discover else partial(measured_effects, null=null)
+    pool: list[Path] = []
+    if mode == "pooled":
+        pool_names = set(args.pool if args.pool is not None else
+                         POOL_FLIGHTS if shipped else [p.name for p in all_logs])
+        pool = [p for p in all_logs if p.name in pool_names]
+        if len(pool) < 2:
+            print(f"error: --pool {' '.join(sorted(pool_names))}: fewer than two of these logs "
+                  f"in {flights}; expected at least two to pool J_r over", file=sys.stderr)
+            return 2
     try:
-        if mode == "pooled":
-            pool_names = set(args.pool if args.pool is not None else
-                             POOL_FLIGHTS if shipped else [p.name for p in all_logs])
-            pool = [p for p in all_logs if p.name in pool_names]
-            if len(pool) < 2:
-                print(f"error: --pool {' '.join(sorted(pool_names))}: fewer than two of these logs in "
-                      f"{flights}; expected at least two to pool J_r over", file=sys.stderr)
-                return 2
-            print(f"pass 1: J_r fitted per flight on the {len(pool)} pool logs "
-                  f"({', '.join(p.name for p in pool)}) to pool it", file=sys.stderr)
-            first = run_jobs([TableJob(p, options, args.max_iterations, False, tuple(args.band),
-                                       stand, keep_band_stats=True, kf=kf, vehicle=vehicle)
-                              for p in pool], args.jobs)
-            bad = [(p.name, r) for p, r in zip(pool, first, strict=True) if isinstance(r, str)]
-            if bad:
-                print("error: pool log not identified: " + "; ".join(f"{n}: {w}" for n, w in bad),
-                      file=sys.stderr)
-                return 2
-            rotor = pooled_rotor_inertia({r.name: r.band_stats for r in first})
-            pass1 = (f"; pass 1 (J_r per flight on the pool logs, then pooled) "
-                     f"{time.perf_counter() - t0:.0f} s")
-            print(rotor.describe(), file=sys.stderr)
-            jobs = []
-            for p in logs:
-                jr, how = rotor.for_log(p.name)
-                src = how if how == "leave-one-out" else "pooled on " + ", ".join(rotor.logs)
-                jobs.append(TableJob(p, replace(options, rotor_inertia=jr), args.max_iterations,
-                                     not args.no_information, tuple(args.band), stand,
-                                     fit_rotor_inertia=False, rotor_source=src,
-                                     effects=effects, kf=kf, vehicle=vehicle))
-        else:
-            fixed = 0.0 if isinstance(mode, str) else mode
-            src = {"per-flight": "fitted on this log", "none": ""}.get(mode, "given") \
-                if isinstance(mode, str) else "given"
-            jobs = [TableJob(p, replace(options, rotor_inertia=fixed), args.max_iterations,
-                             not args.no_information, tuple(args.band), stand,
-                             fit_rotor_inertia=mode == "per-flight", rotor_source=src,
-                             effects=effects, kf=kf, vehicle=vehicle)
-                    for p in logs]
-        results = run_jobs(jobs, args.jobs)
+        # the backend is had (or refused: BackendError, exit 2) before any log is run
+        with open_executor(backend_from_args(args), max(len(logs), len(pool))) as executor:
+            if mode == "pooled":
+                print(f"pass 1: J_r fitted per flight on the {len(pool)} pool logs "
+                      f"({', '.join(p.name for p in pool)}) to pool it", file=sys.stderr)
+                first = run_jobs([TableJob(p, options, args.max_iterations, False,
+                                           tuple(args.band), stand, keep_band_stats=True, kf=kf,
+                                           vehicle=vehicle)
+                                  for p in pool], executor)
+                bad = [(p.name, r) for p, r in zip(pool, first, strict=True)
+                       if isinstance(r, str)]
+                if bad:
+                    print("error: pool log not identified: "
+                          + "; ".join(f"{n}: {w}" for n, w in bad), file=sys.stderr)
+                    return 2
+                rotor = pooled_rotor_inertia({r.name: r.band_stats for r in first})
+                pass1 = (f"; pass 1 (J_r per flight on the pool logs, then pooled) "
+                         f"{time.perf_counter() - t0:.0f} s")
+                print(rotor.describe(), file=sys.stderr)
+                jobs = []
+                for p in logs:
+                    jr, how = rotor.for_log(p.name)
+                    src = how if how == "leave-one-out" else "pooled on " + ", ".join(rotor.logs)
+                    jobs.append(TableJob(p, replace(options, rotor_inertia=jr),
+                                         args.max_iterations, not args.no_information,
+                                         tuple(args.band), stand, fit_rotor_inertia=False,
+                                         rotor_source=src, effects=effects, kf=kf,
+                                         vehicle=vehicle))
+            else:
+                fixed = 0.0 if isinstance(mode, str) else mode
+                src = {"per-flight": "fitted on this log", "none": ""}.get(mode, "given") \
+                    if isinstance(mode, str) else "given"
+                jobs = [TableJob(p, replace(options, rotor_inertia=fixed), args.max_iterations,
+                                 not args.no_information, tuple(args.band), stand,
+                                 fit_rotor_inertia=mode == "per-flight", rotor_source=src,
+                                 effects=effects, kf=kf, vehicle=vehicle)
+                        for p in logs]
+            results = run_jobs(jobs, executor)
     except (LogFormatError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -35,7 +35,7 @@ import json
 import math
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TypeVar
@@ -218,20 +218,16 @@ def run_job(job: CaseJob) -> CaseResult:
     return run_case(job.condition, job.seed, Path(job.workdir), job.laps)
 
 
-def in_order(run: Callable[[J], R], work: Sequence[J], jobs: int = 1) -> Iterator[R]:
-    """``run(job)`` of each job in the order of ``work``, as it finishes; in ``jobs``
-    worker processes when more than one (``run`` and the jobs picklable)."""
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs) as pool:
-            yield from pool.map(run, work)
-    else:
-        for job in work:
-            yield run(job)
+def in_order(run: Callable[[J], R], work: Sequence[J], executor: Executor) -> Iterator[R]:
+    """``run(job)`` of each job, yielded in the order of ``work`` (not of finishing), run
+    by ``executor`` (``pinquad.core.execution``: process pool, this process or a Dask
+    cluster; ``run`` and the jobs picklable)."""
+    return executor.map(run, work)
 
 
-def run_cases(work: Sequence[CaseJob], jobs: int = 1) -> Iterator[CaseResult]:
+def run_cases(work: Sequence[CaseJob], executor: Executor) -> Iterator[CaseResult]:
     """Each job's ``CaseResult`` in the order of ``work`` (``in_order``)."""
-    return in_order(run_job, work, jobs)
+    return in_order(run_job, work, executor)
 
 
 def summarize(cases: list[CaseResult]) -> dict:

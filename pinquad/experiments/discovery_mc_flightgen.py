@@ -27,6 +27,7 @@ import json
 import math
 import time
 from collections.abc import Iterator, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -188,9 +189,9 @@ def plan(conditions: Sequence[str], rates: Sequence[int], seeds: int, base_seed:
             for c in conditions for i in range(start_index, start_index + seeds)]
 
 
-def run_cases(work: Sequence[FlightgenJob], jobs: int = 1) -> Iterator[FlightgenCase]:
-    """Each job's case in the order of ``work``; in ``jobs`` worker processes if > 1."""
-    return in_order(run_job, work, jobs)
+def run_cases(work: Sequence[FlightgenJob], executor: Executor) -> Iterator[FlightgenCase]:
+    """Each job's case in the order of ``work``, run by ``executor`` (``in_order``)."""
+    return in_order(run_job, work, executor)
 
 
 def _median_max(values: list[float]) -> tuple[float, float]:

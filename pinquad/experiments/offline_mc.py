@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -98,21 +98,15 @@ def run_cycle(job: CycleJob) -> CycleResult:
     )
 
 
-def run_cycles(jobs: Sequence[CycleJob], workers: int = 1, progress: bool = True
+def run_cycles(jobs: Sequence[CycleJob], executor: Executor, progress: bool = True
                ) -> list[CycleResult]:
-    """Every job's cycle, in job order, on ``workers`` processes (1: in this process), with
-    a progress bar on stderr unless ``progress`` is False."""
-    bar = tqdm(total=len(jobs), desc="cycles", unit="cycle", file=sys.stderr,
-               disable=not progress)
+    """Every job's cycle, in job order, run by ``executor`` (``pinquad.core.execution``:
+    the process pool, this process or a Dask cluster; the same numbers on each), with a
+    progress bar on stderr unless ``progress`` is False."""
     results: list[CycleResult] = []
-    with bar:
-        if workers > 1:
-            with ProcessPoolExecutor(max_workers=workers) as pool:
-                for res in pool.map(run_cycle, jobs):
-                    results.append(res)
-                    bar.update()
-        else:
-            for job in jobs:
-                results.append(run_cycle(job))
-                bar.update()
+    with tqdm(total=len(jobs), desc="cycles", unit="cycle", file=sys.stderr,
+              disable=not progress) as bar:
+        for res in executor.map(run_cycle, jobs):
+            results.append(res)
+            bar.update()
     return results

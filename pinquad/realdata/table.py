@@ -4,7 +4,7 @@ loaded and identified per job, in worker processes."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -81,13 +81,10 @@ def real_verdict(ident: RealIdentification, obs: Observations, mean: Array,
                  vehicle_range(vehicle))
 
 
-def run_jobs(jobs: Sequence[TableJob], workers: int) -> list[RealIdentification | str]:
-    """run_table_job over ``jobs`` in ``workers`` processes (results in job order)."""
-    if workers > 1 and len(jobs) > 1:
-        # Longest logs first so the pool finishes together.
-        order = sorted(range(len(jobs)), key=lambda i: -jobs[i].path.stat().st_size)
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            done = dict(zip(order, pool.map(run_table_job, [jobs[i] for i in order]),
-                            strict=True))
-        return [done[i] for i in range(len(jobs))]
-    return [run_table_job(j) for j in jobs]
+def run_jobs(jobs: Sequence[TableJob], executor: Executor) -> list[RealIdentification | str]:
+    """run_table_job over ``jobs`` run by ``executor`` (``pinquad.core.execution``: process
+    pool, this process or a Dask cluster), the results in job order."""
+    # Longest logs first so the workers finish together; the results are keyed by job.
+    order = sorted(range(len(jobs)), key=lambda i: -jobs[i].path.stat().st_size)
+    done = dict(zip(order, executor.map(run_table_job, [jobs[i] for i in order]), strict=True))
+    return [done[i] for i in range(len(jobs))]
