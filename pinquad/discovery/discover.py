@@ -188,11 +188,17 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
     pi_tr = np.r_[th_tr.mass, np.diag(th_tr.inertia)]
     after = heldout_rms(res_tr, pi_tr, coeffs_tr, test, window)
     if cfg.full_refit:
-        # warm start: the training-block refit's parameters already carry the effects
-        # (restart_em guards against a base fit's noise inflated by a missing effect),
-        # so EM from them reaches the all-block optimum in a few E-steps, not ~100
+        # warm start from the training-block refit, whose parameters already carry the
+        # effects (restart_em guards against a base fit's noise inflated by a missing
+        # effect). From there the mass and inertia move by < 1e-5 (relative) over an EM
+        # pass that still takes ~80 E-steps for its log-likelihood's creep of a few
+        # nats in the noise levels; the joint refinement alone (one E-step per update of
+        # coefficients and parameters, until the coefficients settle) reaches the same
+        # estimates within a small fraction of their standard errors (docs/benchmark.md,
+        # "Discovery in a minute"). A gyro offset has no joint refinement: one EM pass.
+        passes = 1 if "gyro_bias" in selected or not cfg.joint_iterations else 0
         th_f, post_f, coeffs_f = refit(obs, th_tr, post_tr, selected, smoother,
-                                       replace(cfg, refit_passes=1, restart_em=False),
+                                       replace(cfg, refit_passes=passes, restart_em=False),
                                        gyro_bias_used=coeffs_tr.get("gyro_bias"))
         all_blocks = np.ones(res0.n_blocks, dtype=bool)
     else:
