@@ -26,6 +26,7 @@ import multiprocessing
 import os
 import sys
 import time
+from concurrent.futures import Executor
 from dataclasses import replace
 from pathlib import Path
 
@@ -44,7 +45,7 @@ from pinquad.experiments.recorded import (
     run_discovery,
     worker_pool,
 )
-from pinquad.io.logs import LogFormatError
+from pinquad.io.logs import FlightLog, LogFormatError
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.report.discovery import draw_discovery_figures
@@ -200,8 +201,9 @@ def run_log(args: argparse.Namespace) -> int:
         return _identify_and_report(args, log, options, null, writer, pool, t0)
 
 
-def _identify_and_report(args: argparse.Namespace, log, options: LogOptions,
-                         null: NullSettings, writer: RunWriter, pool, t0: float) -> int:
+def _identify_and_report(args: argparse.Namespace, log: FlightLog, options: LogOptions,
+                         null: NullSettings, writer: RunWriter, pool: Executor | None,
+                         t0: float) -> int:
     """``run_log`` after the log is read: identification, discovery (``pool``: the
     worker processes of both, or None), the run directory."""
     try:
