@@ -24,7 +24,8 @@ DEFERRED = ("gtsam", "estimators.factor_graph", "viser", "imageio", "viz", "jax"
 # does not import the simulator (seconds and ~100 MB), each says so where it defers it.
 DEFERRED_IN = {"pinquad/experiments/bench_cases.py": ("pinquad.sim.simulator",),
                "pinquad/experiments/bench_workers.py": ("pinquad.sim.simulator",
-                                                        "pinquad.experiments.online")}
+                                                        "pinquad.experiments.online",
+                                                        "pinquad.experiments.bench_discovery")}
 
 
 def _sources() -> Iterator[Path]:

@@ -22,9 +22,11 @@ Exit codes: 0 success; 2 bad input (nothing written); 3 headline not trusted (wr
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 import sys
 import time
+from concurrent.futures import Executor
 from dataclasses import replace
 from pathlib import Path
 
@@ -45,8 +47,9 @@ from pinquad.experiments.recorded import (
     discovery_section,
     identify_log,
     run_discovery,
+    worker_pool,
 )
-from pinquad.io.logs import LogFormatError
+from pinquad.io.logs import FlightLog, LogFormatError
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.report.discovery import draw_discovery_figures
@@ -111,7 +114,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "vehicle file's cycles: 0.2-45 Hz)")
     p.add_argument("--max-iterations", type=positive_int, default=100,
                    help="E-steps at most per EM run")
-    add_backend_arguments(p, os.cpu_count() or 1, "Monte Carlo cycles (or a batch's logs)")
+    add_backend_arguments(p, os.cpu_count() or 1,
+                          "Monte Carlo cycles or a batch's logs; with one --log, --jobs also "
+                          "runs the log's EM runs beside the reported one, the null "
+                          "calibration's shadow-flight scoring and the refit beside them, the "
+                          "same answer")
     p.add_argument("--no-information", action="store_true",
                    help="skip standard errors and the Cramer-Rao bound (faster)")
     p.add_argument("--out", type=Path, help="output run directory (default: a fresh "
@@ -201,8 +208,19 @@ def run_log(args: argparse.Namespace) -> int:
     if args.vehicle is not None:
         log = with_vehicle(log, args.vehicle, Path.cwd(), "--vehicle")
         print(f"vehicle: {log.meta.vehicle}")
+    # a log of a batch runs in a worker process already: no pool inside it
+    jobs = args.jobs if multiprocessing.parent_process() is None else 1
+    with worker_pool(jobs) as pool:
+        return _identify_and_report(args, log, options, null, writer, pool, t0)
+
+
+def _identify_and_report(args: argparse.Namespace, log: FlightLog, options: LogOptions,
+                         null: NullSettings, writer: RunWriter, pool: Executor | None,
+                         t0: float) -> int:
+    """``run_log`` after the log is read: identification, discovery (``pool``: the
+    worker processes of both, or None), the run directory."""
     try:
-        result = identify_log(log, options)
+        result = identify_log(log, options, pool)
     except np.linalg.LinAlgError as exc:
         raise ValueError(f"{args.log}: EM failed numerically ({exc}); the log's actuation and "
                          "measurements do not fit a rigid-body model from the initial "
@@ -224,7 +242,7 @@ def run_log(args: argparse.Namespace) -> int:
             print("\neffect discovery: not run (it works on the diagonal model: run "
                   "--mstep regressor for it)")
         elif not args.no_discover:
-            outcome = run_discovery(result, null)
+            outcome = run_discovery(result, null, pool)
             if outcome.result is not None:
                 outcome = replace(outcome, result=draw_discovery_figures(
                     outcome.result, writer.path("figures")))

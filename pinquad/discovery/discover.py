@@ -51,21 +51,32 @@ result types); this module runs the loop. Figures and report text are drawn by
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.discovery.evidence import effect_evidence
 from pinquad.discovery.refit import refit
-from pinquad.discovery.residuals import compute_residuals, heldout_rms, window_steps
+from pinquad.discovery.residuals import (
+    Residuals,
+    compute_residuals,
+    heldout_rms,
+    window_steps,
+)
 from pinquad.discovery.result import (
     DEFAULT_CONFIG,
     CandidateScore,
     DiscoveryConfig,
     DiscoveryResult,
 )
-from pinquad.discovery.selection import estimate_coefficients, jackknife, score_candidate
+from pinquad.discovery.selection import (
+    base_fit,
+    estimate_coefficients,
+    jackknife,
+    score_candidate,
+)
 from pinquad.identification.identify import get_smoother
 from pinquad.models.ssm import Observations, Theta
 
@@ -81,17 +92,24 @@ def base_heldout_rms(obs: Observations, theta: Theta, posterior: Posterior,
     return heldout_rms(res, np.r_[theta.mass, np.diag(theta.inertia)], {}, test, window)
 
 
-def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=None,
-             cfg: DiscoveryConfig = DEFAULT_CONFIG) -> DiscoveryResult:
-    """Find the significant unmodelled effects of a base-model EM fit (module docstring).
+@dataclass(frozen=True)
+class Selection:
+    """What the selection found on a base fit, before any refit: the selected effects
+    (in order), every candidate's score, the held-out RMS per axis of the base model
+    ("before"), the base posterior's residuals res0 and the training blocks (B,) bool."""
 
-    obs: the log's observations; theta / posterior: base EM result on them; smoother:
-    the E-step for the refit (default ``get_smoother("rts")``). Draws nothing: the
-    result's ``evidence`` holds the data of one figure per selected effect
-    (``pinquad.report.discovery.draw_discovery_figures`` draws them).
-    """
-    if smoother is None:
-        smoother = get_smoother("rts")
+    selected: tuple[str, ...]
+    scores: tuple[CandidateScore, ...]
+    before: dict[str, float]
+    res0: Residuals
+    train: NDArray[np.bool_]
+
+
+def select_effects(obs: Observations, theta: Theta, posterior: Posterior,
+                   cfg: DiscoveryConfig = DEFAULT_CONFIG) -> Selection:
+    """The selection of ``discover`` (module docstring) on the base posterior alone: no
+    E-step, so it costs a fraction of the refit that ``refit_selection`` runs on its
+    result (the null calibration needs only this)."""
     res0 = compute_residuals(obs, posterior, theta.gravity, cfg.block_seconds)
     train = np.arange(res0.n_blocks) % 2 == 0
     test = ~train
@@ -101,14 +119,46 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
     selected: list[str] = []
     scores: list[CandidateScore] = []
     for rnd in range(cfg.max_effects):
-        round_scores = [score_candidate(res0, selected, c, pi0, rnd, cfg, train)
-                        for c in cfg.candidates if c not in selected]
+        todo = [c for c in cfg.candidates if c not in selected]
+        base = (base_fit(res0, selected, pi0, cfg, train)
+                if any(c != "gyro_bias" for c in todo) else None)
+        round_scores = [score_candidate(res0, selected, c, pi0, rnd, cfg, train, base)
+                        for c in todo]
         passing = [s for s in round_scores if s.passed]
         best = max(passing, key=lambda s: s.gain) if passing else None
         scores.extend(replace(s, passed=(s is best)) for s in round_scores)
         if best is None:
             break
         selected.append(best.effect)
+    return Selection(tuple(selected), tuple(scores), before, res0, train)
+
+
+def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=None,
+             cfg: DiscoveryConfig = DEFAULT_CONFIG) -> DiscoveryResult:
+    """Find the significant unmodelled effects of a base-model EM fit (module docstring).
+
+    obs: the log's observations; theta / posterior: base EM result on them; smoother:
+    the E-step for the refit (default ``get_smoother("rts")``). Draws nothing: the
+    result's ``evidence`` holds the data of one figure per selected effect
+    (``pinquad.report.discovery.draw_discovery_figures`` draws them). The same as
+    ``refit_selection`` of ``select_effects``.
+    """
+    return refit_selection(obs, theta, posterior, select_effects(obs, theta, posterior, cfg),
+                           smoother, cfg)
+
+
+def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: Selection,
+                    smoother=None, cfg: DiscoveryConfig = DEFAULT_CONFIG) -> DiscoveryResult:
+    """The rest of ``discover`` after ``select_effects`` gave ``sel`` (on the same base
+    fit and ``cfg``): the refit with the selected effects, the held-out RMS after it, the
+    coefficients' standard errors and the figures' data."""
+    if smoother is None:
+        smoother = get_smoother("rts")
+    res0, train = sel.res0, sel.train
+    test = ~train
+    pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
+    window = window_steps(cfg, obs.dt)
+    before, selected, scores = sel.before, list(sel.selected), sel.scores
     validation = (f"{cfg.block_seconds:g}-s blocks of the flight alternate: even blocks train "
                   f"(selection fits, refit M-step), odd blocks are held out (never in a refit "
                   f"M-step); RMS per axis of {cfg.window_seconds:g}-s means of the residual on the "
@@ -138,8 +188,17 @@ def discover(obs: Observations, theta: Theta, posterior: Posterior, smoother=Non
     pi_tr = np.r_[th_tr.mass, np.diag(th_tr.inertia)]
     after = heldout_rms(res_tr, pi_tr, coeffs_tr, test, window)
     if cfg.full_refit:
+        # warm start from the training-block refit, whose parameters already carry the
+        # effects (restart_em guards against a base fit's noise inflated by a missing
+        # effect). From there the mass and inertia move by < 1e-5 (relative) over an EM
+        # pass that still takes ~80 E-steps for its log-likelihood's creep of a few
+        # nats in the noise levels; the joint refinement alone (one E-step per update of
+        # coefficients and parameters, until the coefficients settle) reaches the same
+        # estimates within a small fraction of their standard errors (docs/benchmark.md,
+        # "Discovery in a minute"). A gyro offset has no joint refinement: one EM pass.
+        passes = 1 if "gyro_bias" in selected or not cfg.joint_iterations else 0
         th_f, post_f, coeffs_f = refit(obs, th_tr, post_tr, selected, smoother,
-                                       replace(cfg, refit_passes=1),
+                                       replace(cfg, refit_passes=passes, restart_em=False),
                                        gyro_bias_used=coeffs_tr.get("gyro_bias"))
         all_blocks = np.ones(res0.n_blocks, dtype=bool)
     else:

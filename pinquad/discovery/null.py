@@ -28,15 +28,17 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.discovery.discover import Selection
 from pinquad.discovery.residuals import compute_residuals
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
-from pinquad.discovery.selection import score_candidate
+from pinquad.discovery.selection import base_fit, score_candidate
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.sim.shadow import ShadowSettings, shadow_flight
@@ -112,39 +114,69 @@ class NullCalibration:
         }
 
 
-def first_round_gains(result: DiscoveryResult) -> dict[str, float]:
+def first_round_gains(result: DiscoveryResult | Selection) -> dict[str, float]:
     """effect -> its first-round held-out gain (against the base model alone) in
-    ``result``'s candidate scores, for the selected effects."""
+    ``result``'s candidate scores (a discovery's or its selection's), for the selected
+    effects."""
     return {s.effect: s.gain for s in result.scores
             if s.round == 0 and s.effect in result.selected}
 
 
+@dataclass(frozen=True)
+class ShadowScoring:
+    """One shadow flight to score (picklable for a worker process): its observations,
+    the base fit ``theta`` it was flown with, the effects to score and the settings."""
+
+    obs: Observations
+    theta: Theta
+    effects: tuple[str, ...]
+    cfg: DiscoveryConfig
+
+
+def score_shadow(job: ShadowScoring) -> tuple[list[float], list[bool]]:
+    """Smooth a shadow flight with the base model and score each effect as the
+    selection's first round does: (gains, passed) in the order of ``job.effects``."""
+    theta, cfg = job.theta, job.cfg
+    post = smooth_quad(QuadSSM(job.obs, theta), job.obs.ys)
+    res = compute_residuals(job.obs, post, theta.gravity, cfg.block_seconds)
+    train = np.arange(res.n_blocks) % 2 == 0
+    pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
+    base = (base_fit(res, [], pi0, cfg, train) if any(e != "gyro_bias" for e in job.effects)
+            else None)
+    scores = [score_candidate(res, [], e, pi0, 0, cfg, train, base) for e in job.effects]
+    return [s.gain for s in scores], [bool(s.passed) for s in scores]
+
+
 def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: dict[str, float],
               cfg: DiscoveryConfig, settings: NullSettings = NullSettings(),
-              actuation: str = "held") -> NullCalibration:
+              actuation: str = "held", executor: Executor | None = None) -> NullCalibration:
     """Calibrate effects against shadow flights of the base fit (``theta``, ``posterior``:
     the base EM result on ``obs``; module docstring). observed: effect -> its first-round
     held-out gain on the log (``first_round_gains``); actuation: the log's, ``held`` or
-    ``sampled`` (``LogMeta.actuation``): the shadow flights are logged the same way."""
+    ``sampled`` (``LogMeta.actuation``): the shadow flights are logged the same way;
+    executor: where the shadow flights are smoothed and scored (``score_shadow``; None:
+    here, one after another). The flights themselves are flown here, in order, from one
+    Generator, so the answer does not depend on the executor."""
     start = time.perf_counter()
     observed = dict(observed)
     effects = list(observed)
     rng = np.random.default_rng(settings.seed)
     gains: dict[str, list[float]] = {e: [] for e in effects}
     passes = dict.fromkeys(effects, 0)
-    pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
     sq_dist = []
+    pending = []
     for _ in range(settings.replicates):
         shadow = shadow_flight(obs, theta, posterior.mean, rng, settings.shadow, actuation)
         sq_dist.append(np.mean(np.sum((shadow.states[:, 0:3] - posterior.mean[:, 0:3]) ** 2,
                                       axis=1)))
-        post = smooth_quad(QuadSSM(shadow.obs, theta), shadow.obs.ys)
-        res = compute_residuals(shadow.obs, post, theta.gravity, cfg.block_seconds)
-        train = np.arange(res.n_blocks) % 2 == 0
-        for e in effects:
-            score = score_candidate(res, [], e, pi0, 0, cfg, train)
-            gains[e].append(score.gain)
-            passes[e] += int(score.passed)
+        job = ShadowScoring(shadow.obs, theta, tuple(effects), cfg)
+        pending.append(executor.submit(score_shadow, job) if executor is not None
+                       else score_shadow(job))
+    for item in pending:
+        shadow_gains, shadow_passed = item.result() if executor is not None else item
+        for e, g, ok in zip(effects, shadow_gains, shadow_passed, strict=True):
+            gains[e].append(g)
+            passes[e] += int(ok)
     null_gains = {e: np.asarray(v, dtype=float) for e, v in gains.items()}
     # a shadow flight whose gain could not be scored (NaN) counts against the effect
     p_value = {e: float((1 + np.sum(~(null_gains[e] < observed[e]))) / (1 + settings.replicates))

@@ -7,7 +7,7 @@ axis of window means. The method is in ``pinquad.discovery.discover``'s docstrin
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,7 +18,7 @@ from pinquad.discovery.library import TransitionData, lag_wrench, wrench_feature
 from pinquad.discovery.result import ATT_AXES, AXES, GYRO_AXES, DiscoveryConfig
 from pinquad.models.ssm import Observations
 from pinquad.mstep.stats import transition_mask
-from pinquad.mstep.updates import regressor_stats
+from pinquad.mstep.updates import covariance_terms, regressor_stats
 
 Array = NDArray[np.float64]
 
@@ -68,15 +68,8 @@ def compute_residuals(obs: Observations, post: Posterior, gravity: float, block_
     stats = regressor_stats(post, obs, gravity)
     idx = np.flatnonzero(transition_mask(obs))
     block = steps_block[idx]
-    corr = np.zeros((n_blocks, 6, 4, 4))
-    base_ex = obs.exclude if obs.exclude.size else np.zeros(obs.n, dtype=bool)
-    for b in range(n_blocks):
-        sel = block == b
-        if not sel.any():
-            continue
-        ex = base_ex.copy() | (steps_block != b)
-        sb = regressor_stats(post, replace(obs, exclude=ex), gravity)
-        corr[b] = sb.a - np.einsum("kap,kaq->apq", stats.y[sel], stats.y[sel])
+    # the covariance part of E[Y^T Y], summed per block from the per-transition terms
+    corr = group_sums(covariance_terms(post, obs, gravity), block, n_blocks)
     data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
                           index=idx, dt=obs.dt)
     gyro_res = np.full((obs.n, 3), np.nan)
@@ -136,6 +129,40 @@ def effect_columns(res: Residuals, effects: Sequence[str], lag: float | None
     return phi, fixed
 
 
+def _groups(labels: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                                   NDArray[np.int64]]:
+    """(order, first, label): the rows in stable label order, the start of each run of one
+    label in that order, and that label (labels (K,), e.g. blocks, sorted or not)."""
+    order = np.argsort(labels, kind="stable")
+    sorted_labels = labels[order]
+    first = np.flatnonzero(np.r_[True, sorted_labels[1:] != sorted_labels[:-1]]) \
+        if labels.size else np.zeros(0, dtype=np.int64)
+    return order, first, sorted_labels[first]
+
+
+def group_sums(values: Array, labels: NDArray[np.int64], n_groups: int) -> Array:
+    """(n_groups, ...) sums of ``values`` (K, ...) over the rows of each label (K,) in
+    0..n_groups-1 (zero where a label has no row); ``np.add.at`` at a fraction of its cost."""
+    out = np.zeros((n_groups, *values.shape[1:]))
+    order, first, label = _groups(labels)
+    if first.size:
+        out[label] = np.add.reduceat(values[order], first, axis=0)
+    return out
+
+
+def _gram_sums(z: Array, labels: NDArray[np.int64], n_groups: int) -> Array:
+    """(n_groups, 6, q, q): sum over the rows of each label of z_k^T z_k per wrench row,
+    z (K, 6, q)."""
+    out = np.zeros((n_groups, z.shape[1], z.shape[2], z.shape[2]))
+    order, first, label = _groups(labels)
+    bounds = np.r_[first, labels.size]
+    zs = z[order]
+    for b, lo, hi in zip(label, bounds[:-1], bounds[1:], strict=True):
+        part = zs[lo:hi].transpose(1, 2, 0)              # (6, q, rows)
+        out[b] = part @ part.transpose(0, 2, 1)
+    return out
+
+
 def block_grams(res: Residuals, phi: Array, fixed: Array, window: int = 0) -> Array:
     """Per-block expected Gram matrices G (B, 6, q, q), q = 4 + p + 1, of
     z = [Y, -Phi, -(tau + fixed)] so that rho - Phi c = z [pi, c, 1].
@@ -143,17 +170,12 @@ def block_grams(res: Residuals, phi: Array, fixed: Array, window: int = 0) -> Ar
     window > 0: Gram matrices of the means of z over ``window`` consecutive steps (the
     low-frequency part the selection gain is measured on; no covariance correction)."""
     z = np.concatenate([res.y, -phi, -(res.tau + fixed)[:, :, None]], axis=2)
-    q = z.shape[2]
-    g = np.zeros((res.n_blocks, 6, q, q))
     if window > 0:
         key = res.block * 1_000_000 + res.idx // window
         uniq, inv = np.unique(key, return_inverse=True)
-        zs = np.zeros((uniq.size, 6, q))
-        np.add.at(zs, inv, z)
-        zs /= np.bincount(inv)[:, None, None]
-        np.add.at(g, uniq // 1_000_000, np.einsum("kaq,kar->kaqr", zs, zs))
-        return g
-    np.add.at(g, res.block, np.einsum("kaq,kar->kaqr", z, z))
+        zs = group_sums(z, inv, uniq.size) / np.bincount(inv)[:, None, None]
+        return _gram_sums(zs, uniq // 1_000_000, res.n_blocks)
+    g = _gram_sums(z, res.block, res.n_blocks)
     g[:, :, 0:4, 0:4] += res.corr
     return g
 

@@ -194,9 +194,19 @@ def gyro_fit(res: Residuals, train_steps: NDArray[np.bool_]) -> tuple[Array, Arr
     return bias, sse0, sse1
 
 
+def base_fit(res: Residuals, current: Sequence[str], pi0: Array, cfg: DiscoveryConfig,
+             train: NDArray[np.bool_]) -> ModelFit:
+    """The fit of the effects ``current`` alone that ``score_candidate`` compares each
+    candidate with (the same for every candidate of a round: fit it once)."""
+    return fit_model(res, current, train, pi0, window_steps(cfg, res.data.dt),
+                     sampling=cfg.sampling_nuisance)
+
+
 def score_candidate(res: Residuals, current: Sequence[str], cand: str, pi0: Array, rnd: int,
-                    cfg: DiscoveryConfig, train: NDArray[np.bool_]) -> CandidateScore:
-    """Test adding ``cand`` to the effects ``current`` (module docstring)."""
+                    cfg: DiscoveryConfig, train: NDArray[np.bool_],
+                    base: ModelFit | None = None) -> CandidateScore:
+    """Test adding ``cand`` to the effects ``current`` (module docstring); base: their
+    ``base_fit`` when already computed (else fitted here)."""
     if cand == "gyro_bias":
         train_steps = train[res.gyro_block]
         bias, sse0, sse1 = gyro_fit(res, train_steps)
@@ -220,7 +230,8 @@ def score_candidate(res: Residuals, current: Sequence[str], cand: str, pi0: Arra
         passed = gain >= cfg.min_heldout_gain and d_bic > 0 and ll1 > ll0
         return CandidateScore(cand, rnd, gain, float(ll1 - ll0), d_bic, tuple(bias), passed)
     window = window_steps(cfg, res.data.dt)
-    base = fit_model(res, current, train, pi0, window, sampling=cfg.sampling_nuisance)
+    if base is None:
+        base = base_fit(res, current, pi0, cfg, train)
     ext = fit_model(res, [*current, cand], train, pi0, window, sampling=cfg.sampling_nuisance)
     rows = list(SPECS[cand].rows)
     w = 1.0 / base.train_var_window[rows]
@@ -247,26 +258,38 @@ def estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effe
     base posterior, which bent the states to absorb the missing effect, a free nuisance
     took 20 % of a held-input drag flight's drag coefficient, at the refit's 2 %)."""
     res = compute_residuals(obs, post, theta.gravity, cfg.block_seconds)
+    coeffs, mf = coefficients_at(res, theta, effects, train, hold_inertia, sampling)
+    return coeffs, res, mf
+
+
+def coefficients_at(res: Residuals, theta: Theta, effects: Sequence[str],
+                    train: NDArray[np.bool_], hold_inertia: bool = False,
+                    sampling: tuple[int, ...] = ()) -> tuple[dict[str, Array], ModelFit]:
+    """``estimate_coefficients`` on residuals already computed at the posterior (the
+    coefficients by effect and the model fit): the block jackknife refits them on
+    other training blocks of the same residuals."""
     train = train[: res.n_blocks]
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
     mf = fit_model(res, effects, train, pi0, hold_inertia=hold_inertia, sampling=sampling)
     coeffs = dict(mf.coefficients)
     if "gyro_bias" in effects:
         coeffs["gyro_bias"] = gyro_fit(res, train[res.gyro_block])[0]
-    return coeffs, res, mf
+    return coeffs, mf
 
 
 def jackknife(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],
                cfg: DiscoveryConfig, train: NDArray[np.bool_], hold_inertia: bool = False,
                sampling: tuple[int, ...] = ()) -> dict[str, Array]:
     """Block-jackknife standard errors of the coefficients (robust to the residuals'
-    serial correlation within a block)."""
+    serial correlation within a block). The residuals at ``post`` do not depend on the
+    blocks left out: they are computed once and each draw refits on its blocks."""
+    res = compute_residuals(obs, post, theta.gravity, cfg.block_seconds)
     blocks = np.flatnonzero(train)
     draws: dict[str, list[Array]] = {e: [] for e in effects}
     for b in blocks:
         t = train.copy()
         t[b] = False
-        c, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, t, hold_inertia, sampling)
+        c, _ = coefficients_at(res, theta, effects, t, hold_inertia, sampling)
         for e in effects:
             draws[e].append(c[e])
     nb = blocks.size

@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from estimators.ekf import run_filter
 from estimators.protocol import Posterior, StateSpaceModel
 from estimators.rts import smooth as generic_smooth
+from pinquad.core.conventions import wrap_angle
 from pinquad.estep import passes
 from pinquad.estep.agreement import agrees_cached
 from pinquad.estep.passes import FilterArrays, PosteriorArrays, backward_into, forward_into
@@ -50,8 +51,8 @@ from pinquad.models.kernel import KINEMATIC, STATE_DIM, KernelDescription, kerne
 
 Array = NDArray[np.float64]
 
-__all__ = ["Prepared", "filter_arrays", "loglik_quad", "posterior_arrays", "prepare",
-           "smooth_quad"]
+__all__ = ["Innovations", "Prepared", "filter_arrays", "innovations_quad", "loglik_quad",
+           "posterior_arrays", "prepare", "smooth_quad"]
 
 
 class Prepared(NamedTuple):
@@ -139,6 +140,35 @@ def loglik_quad(model: StateSpaceModel, ys: Array) -> float:
         if bad < 0:
             return float(loglik)
     return float(run_filter(model, ys).loglik)
+
+
+class Innovations(NamedTuple):
+    """The EKF's one-step-ahead innovations: nu (N, m) = y_k - H m_k|k-1 (Euler rows
+    wrapped; NaN where y_k is not observed) and their covariances s (N, m, m) =
+    H P_k|k-1 H^T + R (the full matrix, whichever rows are observed)."""
+
+    nu: Array
+    s: Array
+
+
+def innovations_quad(model: StateSpaceModel, ys: Array) -> Innovations | None:
+    """The innovations of the compiled forward pass (the EKF of ``smooth_quad``, equal to
+    the generic ``estimators.ekf`` filter's up to rounding), or None when the kernels do
+    not cover the model or an innovation covariance stopped being positive definite
+    (the caller then runs the generic filter)."""
+    prep = prepare(model, ys)
+    if prep is None:
+        return None
+    work = passes.filter_arrays(prep.ys.shape[0])
+    _, bad = forward_into(prep.desc, prep.x0, prep.p0, prep.ys, True, work)
+    if bad >= 0:
+        return None
+    rows = prep.desc.state_of_row
+    nu = prep.ys - work.p_mean[:, rows]
+    angles = np.asarray(prep.desc.is_angle, dtype=bool)
+    nu[:, angles] = wrap_angle(nu[:, angles])
+    s = work.p_cov[:, rows][:, :, rows] + np.diag(prep.desc.meas_var)
+    return Innovations(nu, s)
 
 
 def smooth_quad(model: StateSpaceModel, ys: Array, gate_sigma: float | None = None, *,

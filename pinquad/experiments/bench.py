@@ -25,6 +25,10 @@ process on the same inputs:
 * One offline EM (regressor M-step, paper's initial guess, at most 100 E-steps) on a
   60 s simulated flight, and ``python -m pinquad.offline`` with its defaults end to end
   as a subprocess (skipped with ``--quick``).
+* ``python -m pinquad.offline --log`` on a 60 s, 500 Hz simulated log with drag
+  (``pinquad.experiments.bench_discovery``): base EM, discovery with its null
+  calibration, verdicts, end to end, once (``log_discovery_60s_s``; the figure of the
+  code before issue 23's speed-up beside it).
 * The online update latency on an 800-sample window, p50 and p99, from
   ``pinquad.experiments.online.measure_update_latency`` (``not available`` if that is missing).
 * ``--profile``: where our E-step's time goes (wrapper checks vs compiled loops).
@@ -68,10 +72,22 @@ LARGE_N = 100_000
 """From this length [steps] on, ``repeats_large`` runs per figure."""
 PEERS = ("generic", "filterpy", "pykalman", "dynamax", "gtsam")
 """The E-step peers compared with ours."""
-SECTIONS = ("estep", "memory", "em", "online", "offline")
+SECTIONS = ("estep", "memory", "em", "online", "offline", "discovery")
 """The benchmark's sections, in the order they run."""
 EM_SECONDS = 60.0
 """Length [s] of the simulated flight of the offline EM timing."""
+DISCOVERY_BEFORE = {
+    "s": 440.4,
+    "cpu_s": 230.5,
+    "commit": "a05de1b",
+    "date": "2026-11-25",
+    "load_average": [4.7, 10.2],
+    "note": "python -m pinquad.offline --log on this log, the code before issue 23's "
+            "speed-up (a worktree of main at the commit), numba caches warm, no profiler; "
+            "the machine was shared (load average at start and end; cpu_s: user + sys)",
+}
+"""``log_discovery_60s_s`` of the code before issue 23's speed-up: ``python -m pinquad.offline
+--log`` on the discovery log of ``bench_discovery``, measured once (minutes)."""
 
 
 # --------------------------------------------------------------------------- helpers

@@ -19,6 +19,7 @@ from typing import Any
 
 from pinquad.experiments.bench import (
     DEFAULT_N,
+    DISCOVERY_BEFORE,
     LARGE_N,
     PEERS,
     SECTIONS,
@@ -197,7 +198,7 @@ def run_benchmark(options: BenchOptions, command: str) -> dict:
                                "before it; python_peak_mb = tracemalloc peak of the call "
                                "(NumPy and numba arrays; not XLA or GTSAM C++ memory)"},
         "estep": None, "online_update_ms": {"p50": None, "p99": None},
-        "offline_em_60s_s": None, "offline_default_s": None,
+        "offline_em_60s_s": None, "offline_default_s": None, "log_discovery_60s_s": None,
     }
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="pinquad-bench-") as tmp:
@@ -235,6 +236,14 @@ def run_benchmark(options: BenchOptions, command: str) -> dict:
             off = run_offline_default(workdir, timeout=3 * 3600)
             res["offline_default"] = off
             res["offline_default_s"] = off["s"]
+        if "discovery" in sections:
+            log("python -m pinquad.offline --log on a 60 s, 500 Hz log with drag, one run")
+            disc = run_worker("discovery", {"workdir": str(workdir), "timeout": 3600.0},
+                              timeout=3700)
+            disc["before"] = DISCOVERY_BEFORE
+            res["log_discovery_60s"] = disc
+            res["log_discovery_60s_s"] = disc.get("s")
+            res["log_discovery_60s_before_s"] = DISCOVERY_BEFORE["s"]
     res["total_s"] = time.perf_counter() - t_start
     res["machine"]["loadavg_at_end"] = list(os.getloadavg())
     return res

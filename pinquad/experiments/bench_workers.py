@@ -2,8 +2,9 @@
 JSON`` runs one of these in a fresh process (:func:`pinquad.experiments.bench.run_worker`)
 and prints its result as one tagged JSON line (:func:`worker_main`). The kinds:
 ``estep`` (ours and one peer timed alternately), ``memory`` (one call's peak memory),
-``em`` (offline EM on a 60 s flight), ``online`` (the online update's latency) and
-``offline`` (the offline command end to end); see :mod:`pinquad.experiments.bench`.
+``em`` (offline EM on a 60 s flight), ``online`` (the online update's latency),
+``offline`` (the offline command end to end) and ``discovery`` (``offline --log`` on a
+60 s, 500 Hz log with one effect: ``bench_discovery``); see :mod:`pinquad.experiments.bench`.
 """
 
 from __future__ import annotations
@@ -172,10 +173,21 @@ def _worker_offline(spec: dict) -> dict:
     return out
 
 
+def _worker_discovery(spec: dict) -> dict:
+    """``python -m pinquad.offline --log`` on the 60 s, 500 Hz discovery log
+    (``pinquad.experiments.bench_discovery``), once."""
+    # deferred on purpose: only this worker flies a log (flightgen) and needs the
+    # discovery pipeline's modules; the other workers would pay for them in time and memory
+    from pinquad.experiments.bench_discovery import time_log_discovery
+
+    return time_log_discovery(Path(spec["workdir"]), float(spec["timeout"]), spec.get("jobs"))
+
+
 def _workers() -> dict[str, Callable[[dict], dict]]:
     """The worker functions by kind (``--worker KIND``)."""
     return {"estep": _worker_estep, "memory": _worker_memory, "em": _worker_em,
-            "online": _worker_online, "offline": _worker_offline}
+            "online": _worker_online, "offline": _worker_offline,
+            "discovery": _worker_discovery}
 
 
 def worker_main(kind: str, spec_json: str) -> int:

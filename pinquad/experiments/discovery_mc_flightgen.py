@@ -71,12 +71,16 @@ def flightgen_effects(condition: str) -> Effects:
     return Effects(**{condition: arg})
 
 
-def flight_spec(condition: str, seed: int, index: int, log_rate: int) -> FlightSpec:
-    """Flight ``index`` of a condition: durations cycle 30, 40, 20 s; every other flight
-    is aggressive (6 m/s^2 peak reference acceleration, else 1.5); trajectories
-    alternate sums of sines and minimum-snap splines in pairs; the hover point puts the
-    reference's lowest point at ``LOWEST_PASS``; no floor."""
-    duration, dt = (30.0, 40.0, 20.0)[index % 3], 0.0005
+def flight_spec(condition: str, seed: int, index: int, log_rate: int,
+                duration: float | None = None) -> FlightSpec:
+    """Flight ``index`` of a condition: durations cycle 30, 40, 20 s (``duration`` [s]
+    instead, when given: the benchmark's 60 s log); every other flight is aggressive
+    (6 m/s^2 peak reference acceleration, else 1.5); trajectories alternate sums of sines
+    and minimum-snap splines in pairs; the hover point puts the reference's lowest point
+    at ``LOWEST_PASS``; no floor."""
+    dt = 0.0005
+    if duration is None:
+        duration = (30.0, 40.0, 20.0)[index % 3]
     kind, aggressive = ("sines", "minsnap")[(index // 2) % 2], index % 2 == 0
     # the reference's excursion is the first thing flightgen.generate draws from the
     # seed's generator, so a fresh generator of the same seed reproduces it

@@ -23,6 +23,8 @@ others: the paper's m0 = 0.001 kg, I0 = diag(1e-4, 2e-4, 1e-4) kg m^2).
 from __future__ import annotations
 
 import math
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -31,7 +33,7 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
-from pinquad.discovery.discover import discover
+from pinquad.discovery.discover import Selection, refit_selection, select_effects
 from pinquad.discovery.null import (
     NullCalibration,
     NullSettings,
@@ -333,64 +335,83 @@ def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity
         sensor=sensor, e_steps=res.e_steps, posterior=res.posterior, observations=obs, full=res)
 
 
-def _with_applied_wrench(log: FlightLog, options: LogOptions) -> LogResult:
+def fit_run(obs: Observations, sensor: str, mstep: str, mass0: float, inertia0: Array,
+            gravity: float, options: LogOptions) -> Identification:
+    """One run of a log with thrust and torque columns: EM with ``mstep`` on the
+    observations of ``sensor`` from the guess (mass0 [kg], inertia0 (3, 3) [kg m^2])."""
+    if mstep == "full":
+        return _full(obs, sensor, mass0, inertia0, gravity, options)
+    ident, post = identify(obs, mass0, inertia0, gravity, options.estep, mstep,
+                           options.max_iterations, options.information)
+    return replace(ident, sensor=sensor, posterior=post, observations=obs)
+
+
+def _with_applied_wrench(log: FlightLog, options: LogOptions,
+                         executor: Executor | None = None) -> LogResult:
     mass0, inertia0, guess = initial_guess(log)
     sensors = list(options.sensors) or [default_sensor(log)]
-    runs: list[Identification] = []
-    first = None
+    gravity = log.meta.gravity
     # floor contact: the log's flags, else found from the data (models.contact)
     contact = floor_contact(log, mass0)
-    for sensor in sensors:
-        obs = observations(log, sensor, contact)
-        for mstep in options.msteps:
-            if mstep == "full":
-                run = _full(obs, sensor, mass0, inertia0, log.meta.gravity, options)
-            else:
-                ident, post = identify(obs, mass0, inertia0, log.meta.gravity, options.estep,
-                                       mstep, options.max_iterations, options.information)
-                run = replace(ident, sensor=sensor, posterior=post, observations=obs)
-            runs.append(run)
-            if first is None:
-                first = (obs, run)
-    assert first is not None
-    obs, run = first
+    seen = {sensor: observations(log, sensor, contact) for sensor in sensors}
+    tasks = [(sensor, mstep) for sensor in sensors for mstep in options.msteps]
+    obs = seen[sensors[0]]
+    first_mstep = options.msteps[0]
+    # every run and the input alternative are EM runs of their own: with an executor,
+    # all but the reported run go to its workers while this process fits that one
+    later, alternative_job = [], None
+    if executor is not None:
+        later = [executor.submit(fit_run, seen[s], s, m, mass0, inertia0, gravity, options)
+                 for s, m in tasks[1:]]
+        alternative_job = executor.submit(input_alternative, log, obs, first_mstep, mass0,
+                                          inertia0, options)
+    run = fit_run(obs, sensors[0], first_mstep, mass0, inertia0, gravity, options)
+    if executor is not None:
+        runs = [run, *(f.result() for f in later)]
+        alternative = alternative_job.result() if alternative_job is not None else None
+    else:
+        runs = [run, *(fit_run(seen[s], s, m, mass0, inertia0, gravity, options)
+                       for s, m in tasks[1:])]
+        alternative = input_alternative(log, obs, first_mstep, mass0, inertia0, options)
     n_ex = int(obs.exclude[: obs.n - 1].sum())
     excluded = (f"{contact.transitions()} transitions: {contact.describe()}",
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
-    alternative = input_alternative(log, obs, run, mass0, inertia0, options)
     return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
                      tuple(log.meta.notes), "simulated", contents=log_contents(log),
                      input_alternative=alternative)
 
 
-def input_alternative(log: FlightLog, obs: Observations, run: Identification, mass0: float,
+def input_alternative(log: FlightLog, obs: Observations, mstep: str, mass0: float,
                       inertia0: Array, options: LogOptions) -> Array | None:
     """For a log whose actuation is taken as sampled without its sidecar saying so
     (``LogMeta.actuation``, ``actuation_declared``): [m (kg), I_xx, I_yy,
-    I_zz (kg m^2)] from the run's EM (its M-step, no standard errors) with each logged row
-    held over its interval instead of the interval's mean (``interval_inputs``), the
-    reading the log cannot rule out; the verdict compares it with the run's
-    (``VerdictEvidence.input_alternative``). None for held logs and the ten-parameter
-    M-step."""
+    I_zz (kg m^2)] from EM with the reported run's M-step ``mstep`` (no standard errors)
+    with each logged row held over its interval instead of the interval's mean
+    (``interval_inputs``), the reading the log cannot rule out; the verdict compares it
+    with the run's (``VerdictEvidence.input_alternative``). None for held logs and the
+    ten-parameter M-step."""
     meta = log.meta
-    if meta.actuation != "sampled" or meta.actuation_declared or run.mstep == "full":
+    if meta.actuation != "sampled" or meta.actuation_declared or mstep == "full":
         return None
     held = replace(obs, inputs=interval_inputs(np.column_stack([log.thrust, log.torque]), "held"))
-    alt, _ = identify(held, mass0, inertia0, log.meta.gravity, options.estep, run.mstep,
+    alt, _ = identify(held, mass0, inertia0, log.meta.gravity, options.estep, mstep,
                       options.max_iterations, False)
     return np.r_[alt.mass, np.diag(alt.inertia)]
 
 
-def identify_log(log: FlightLog, options: LogOptions | None = None) -> LogResult:
+def identify_log(log: FlightLog, options: LogOptions | None = None,
+                 executor: Executor | None = None) -> LogResult:
     """Identify the vehicle of a recorded log (module docstring). Raises
     ``pinquad.io.sanity.ImplausibleLogError`` when its columns contradict physics (wrong
     units, impossible values), ValueError (with the log named) when the log cannot be
-    identified as asked; numpy's LinAlgError when EM fails numerically."""
+    identified as asked; numpy's LinAlgError when EM fails numerically. executor
+    (``worker_pool``): a log with thrust and torque columns fits its runs beyond the
+    reported one, and the input alternative, in its workers (the same answer)."""
     options = options or LogOptions()
     check_log(log)  # units and impossible values, before any EM (pinquad.io.sanity)
     kind = log_kind(log)
     if kind == "simulated":
-        return _with_applied_wrench(log, options)
+        return _with_applied_wrench(log, options, executor)
     return _measured(log, options, kind)
 
 
@@ -422,15 +443,26 @@ class DiscoveryOutcome:
     null: NullCalibration | None = None
 
 
-def run_discovery(result: LogResult, null: NullSettings | None = None) -> DiscoveryOutcome:
+def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:
+    """``jobs`` worker processes for one log's identification and discovery
+    (``identify_log``, ``run_discovery``), as a context manager; None (no pool: all in
+    this process) for jobs <= 1."""
+    return ProcessPoolExecutor(jobs) if jobs > 1 else nullcontext()
+
+
+def run_discovery(result: LogResult, null: NullSettings | None = None,
+                  executor: Executor | None = None) -> DiscoveryOutcome:
     """Effect discovery on the reported run (``discover_calibrated``) with the settings
-    for the log's kind (``DISCOVERY_SETTINGS``); default ``NullSettings()``."""
+    for the log's kind (``DISCOVERY_SETTINGS``); default ``NullSettings()``; executor
+    (``worker_pool``): where the null calibration's shadow flights are scored and the
+    refit runs beside them (None: all in this process; the answer is the same)."""
     try:
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
     actuation = input_reading(result.kind, result.log)
-    return discover_calibrated(start, discovery_config(result.kind, actuation), null, actuation)
+    return discover_calibrated(start, discovery_config(result.kind, actuation), null, actuation,
+                               executor)
 
 
 def input_reading(kind: str, log: FlightLog) -> str:
@@ -442,32 +474,44 @@ def input_reading(kind: str, log: FlightLog) -> str:
 
 
 def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
-                        null: NullSettings | None = None, actuation: str = "held"
-                        ) -> DiscoveryOutcome:
+                        null: NullSettings | None = None, actuation: str = "held",
+                        executor: Executor | None = None) -> DiscoveryOutcome:
     """Effect discovery (``pinquad.discovery.discover``) from ``start`` with its selection
     calibrated against the null (``pinquad.discovery.null``; default ``NullSettings()``):
     an effect whose evidence does not beat the shadow flights of the base fit is dropped
-    from the candidates and discovery reruns without it, until every selected effect has
-    beaten the null; actuation: the log's (``LogMeta.actuation``), how the shadow flights
-    are logged. A numerical failure is reported in the outcome, not raised."""
+    from the candidates and the selection reruns without it, until every selected effect
+    has beaten the null; only then is the final selection refitted (``refit_selection``).
+    actuation: the log's (``LogMeta.actuation``), how the shadow flights are logged.
+    executor: worker processes that score the shadow flights and, beside them, refit the
+    selection in advance (used when the null keeps it; otherwise the refit is redone on
+    the final selection); None: everything here, in turn. A numerical failure is reported
+    in the outcome, not raised."""
     null = NullSettings() if null is None else null
     calibrations: list[NullCalibration] = []
+    obs, theta, post = start.obs, start.theta, start.posterior
     try:
-        found = discover(start.obs, start.theta, start.posterior, cfg=cfg)
-        while found.selected and null.replicates:
+        sel = select_effects(obs, theta, post, cfg)
+        ahead: tuple[Selection, Future] | None = None
+        while sel.selected and null.replicates:
             done = {e for c in calibrations for e in c.observed}
-            fresh = [e for e in found.selected if e not in done]
+            fresh = [e for e in sel.selected if e not in done]
             if not fresh:
                 break
-            gains = first_round_gains(found)
-            cal = calibrate(start.obs, start.theta, start.posterior,
-                            {e: gains[e] for e in fresh}, cfg, null, actuation)
+            if executor is not None:
+                ahead = (sel, executor.submit(refit_selection, obs, theta, post, sel, None, cfg))
+            gains = first_round_gains(sel)
+            cal = calibrate(obs, theta, post, {e: gains[e] for e in fresh}, cfg, null,
+                            actuation, executor)
             calibrations.append(cal)
             if not cal.rejected:
                 break
             rejected = {e for c in calibrations for e in c.rejected}
             cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in rejected))
-            found = discover(start.obs, start.theta, start.posterior, cfg=cfg)
+            sel = select_effects(obs, theta, post, cfg)
+        if ahead is not None and ahead[0] is sel:
+            found = ahead[1].result()
+        else:
+            found = refit_selection(obs, theta, post, sel, None, cfg)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return DiscoveryOutcome(None, f"discovery failed numerically: {exc}")
     return DiscoveryOutcome(found, null=combine(calibrations) if calibrations else None)

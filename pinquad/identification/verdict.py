@@ -41,6 +41,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from estimators.ekf import predict, update
 from pinquad.core.params import VEHICLES
+from pinquad.estep.fast_smoother import Innovations, innovations_quad
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.stats import transition_mask
 
@@ -433,6 +434,9 @@ def innovation_consistency(obs: Observations, theta: Theta, model=None) -> dict[
     innovations are as large as the model predicts. model: the state-space model (default
     ``QuadSSM(obs, theta)``)."""
     model = model if model is not None else QuadSSM(obs, theta)
+    fast = innovations_quad(model, obs.ys)
+    if fast is not None:
+        return _mean_nis(fast, obs.channels)
     mean, cov = model.initial()
     mean, cov = np.array(mean, dtype=float), np.array(cov, dtype=float)
     blocks = {c: np.arange(3 * i, 3 * i + 3) for i, c in enumerate(obs.channels)}
@@ -456,6 +460,29 @@ def innovation_consistency(obs: Observations, theta: Theta, model=None) -> dict[
         if k + 1 < obs.n:
             mean, cov, _ = predict(model, k, mean, cov)
     return {c: sums[c] / counts[c] for c in blocks if counts[c]}
+
+
+def _mean_nis(inn: Innovations, channels: Sequence[str]) -> dict[str, float]:
+    """``innovation_consistency`` from the innovations of the whole pass at once: per
+    channel, the samples grouped by which of its rows were observed."""
+    out = {}
+    for i, c in enumerate(channels):
+        rows = np.arange(3 * i, 3 * i + 3)
+        nu = inn.nu[:, rows]
+        seen = ~np.isnan(nu)
+        total, count = 0.0, 0
+        for pattern in np.unique(seen, axis=0):
+            if not pattern.any():
+                continue
+            steps = np.all(seen == pattern, axis=1)
+            r = rows[pattern]
+            v = inn.nu[np.ix_(steps, r)]
+            s_blk = inn.s[steps][:, r][:, :, r]
+            total += float(np.sum(v * np.linalg.solve(s_blk, v[:, :, None])[:, :, 0]))
+            count += int(steps.sum()) * r.size
+        if count:
+            out[c] = total / count
+    return out
 
 
 def data_evidence(obs: Observations, theta: Theta, mean: Array,

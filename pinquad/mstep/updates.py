@@ -123,16 +123,12 @@ def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float
     return d_force, d
 
 
-def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> RegressorStats:
-    """Expected sufficient statistics of the wrench residuals over used transitions."""
-    use = transition_mask(obs)
-    idx = np.flatnonzero(use)
+def _expectation_parts(post: Posterior, idx: NDArray[np.int64], dt: float, gravity: float
+                       ) -> tuple[Array, Array, Array, Array]:
+    """The regressor's state derivatives and the smoothed joint covariances they meet, per
+    used transition idx (K,): d_force (K, 3, 9), sig_f (K, 9, 9) of (Theta_k, v_k,
+    v_{k+1}); d_torque (K, 3, 3, 6), sig_w (K, 6, 6) of (omega_k, omega_{k+1})."""
     x_now, x_next = post.mean[idx], post.mean[idx + 1]
-    dt = obs.dt
-    y = body_regressor(x_now, x_next, dt, gravity)
-    tau = np.zeros((idx.size, 6))
-    tau[:, 2] = obs.inputs[idx, 0]
-    tau[:, 3:6] = obs.inputs[idx, 1:4]
     d_force, d_torque = _regressor_jacobian(x_now, x_next, dt, gravity)
     p_now, p_next, cross = post.cov[idx], post.cov[idx + 1], post.cross_cov[idx]
     # Covariance of (Theta_k, v_k, v_{k+1}) and of (omega_k, omega_{k+1});
@@ -151,6 +147,20 @@ def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> Regre
     sig_w[:, 3:6, 0:3] = cross[:, 9:12, 9:12]
     sig_w[:, 0:3, 3:6] = np.transpose(cross[:, 9:12, 9:12], (0, 2, 1))
     sig_w[:, 3:6, 3:6] = p_next[:, 9:12, 9:12]
+    return d_force, sig_f, d_torque, sig_w
+
+
+def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> RegressorStats:
+    """Expected sufficient statistics of the wrench residuals over used transitions."""
+    use = transition_mask(obs)
+    idx = np.flatnonzero(use)
+    x_now, x_next = post.mean[idx], post.mean[idx + 1]
+    dt = obs.dt
+    y = body_regressor(x_now, x_next, dt, gravity)
+    tau = np.zeros((idx.size, 6))
+    tau[:, 2] = obs.inputs[idx, 0]
+    tau[:, 3:6] = obs.inputs[idx, 1:4]
+    d_force, sig_f, d_torque, sig_w = _expectation_parts(post, idx, dt, gravity)
     a = np.einsum("kaq,kap->apq", y, y)
     a[0:3, 0, 0] += np.einsum("kai,kij,kaj->a", d_force, sig_f, d_force, optimize=True)
     a[3:6, 1:4, 1:4] += np.einsum("kpai,kij,kqaj->apq", d_torque, sig_w, d_torque,
@@ -158,6 +168,20 @@ def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> Regre
     b = np.einsum("kap,ka->ap", y, tau)
     c = np.einsum("ka,ka->a", tau, tau)
     return RegressorStats(y, tau, a, b, c, int(idx.size))
+
+
+def covariance_terms(post: Posterior, obs: Observations, gravity: float) -> Array:
+    """(K, 6, 4, 4) the posterior-covariance part of E[Y_k^T Y_k] per row of each used
+    transition k (``transition_mask``): d_j Sigma_k d_j^T of ``regressor_stats``, not
+    summed, so that sums over any set of transitions (discovery's blocks) need no second
+    pass. ``regressor_stats(...).a`` = sum_k (Y_k^T Y_k + covariance_terms_k)."""
+    idx = np.flatnonzero(transition_mask(obs))
+    d_force, sig_f, d_torque, sig_w = _expectation_parts(post, idx, obs.dt, gravity)
+    out = np.zeros((idx.size, 6, 4, 4))
+    out[:, 0:3, 0, 0] = np.einsum("kai,kij,kaj->ka", d_force, sig_f, d_force, optimize=True)
+    out[:, 3:6, 1:4, 1:4] = np.einsum("kpai,kij,kqaj->kapq", d_torque, sig_w, d_torque,
+                                      optimize=True)
+    return out
 
 
 def expected_quadratics(post: Posterior, obs: Observations, gravity: float):

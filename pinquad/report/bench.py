@@ -112,6 +112,18 @@ def format_report(res: dict) -> str:
         lines.append(f"python -m pinquad.offline (defaults, 1 run): "
                      f"{_fmt_s(res.get('offline_default_s'))} [{off.get('status')}]"
                      + (f" {off.get('note')}" if off.get("note") else ""))
+    disc = res.get("log_discovery_60s")
+    if disc is not None:
+        before = disc.get("before", {})
+        picked = "; ".join(e + " " + ", ".join(f"{c:.4g}" for c in v["coefficients"])
+                           for e, v in disc.get("selected", {}).items()) or "nothing"
+        load = disc.get("loadavg_before", [math.nan])[0]
+        lines.append(f"python -m pinquad.offline --log, 60 s at 500 Hz with drag (1 run): "
+                     f"{_fmt_s(res.get('log_discovery_60s_s'))} [{disc.get('status')}] "
+                     f"(load average {load:.1f}); selected {picked}; before the speed-up "
+                     f"{_fmt_s(before.get('s'))} (commit {before.get('commit')}, "
+                     f"{before.get('date')})"
+                     + (f" {disc.get('note')}" if disc.get("note") else ""))
     on = res.get("online")
     if on is not None:
         if on.get("available"):
