@@ -17,12 +17,18 @@ from pinquad.core.vehicle_file import load_vehicle
 from pinquad.experiments.recorded import LogOptions, measured_vehicle, over_max_thrust
 from pinquad.experiments.vehicle_file_mc import (
     FILE_VEHICLE_BAND,
+    fly_vehicle_file,
     short_scenario,
     vehicle_file_cycle,
 )
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.read import read_log, with_vehicle
-from pinquad.realdata.observations import RealDataOptions, options_for_vehicle
+from pinquad.realdata.observations import (
+    RealDataOptions,
+    build_observations,
+    options_for_vehicle,
+)
+from pinquad.realdata.raw import raw_flight
 from pinquad.sim.rotor_log import rotor_speeds
 from pinquad.vehicle.actuators import ActuatorModel
 from pinquad.vehicle.model import load_model
@@ -124,3 +130,20 @@ def test_a_file_vehicle_has_no_urdf_but_flies():
     model = load_model(veh)
     assert model.inertias[1].mass == pytest.approx(0.5)
     np.testing.assert_allclose(np.diag(model.inertias[1].inertia), [3.0e-3, 3.2e-3, 5.5e-3])
+
+
+def test_bins_without_a_trusted_input_are_resets_for_the_e_step():
+    """A simulated take-off asks some rotors for negative thrust (logged stopped, flagged
+    as implausible, input interpolated): those transitions are resets, so the E-step does
+    not fly the made-up torque (it put seed 3's I_zz +9.8 % instead of +3.7 %); every
+    transition with a logged input is not."""
+    spec = load_vehicle(str(QUAD.resolve()))
+    log, _ = fly_vehicle_file(spec, 3, short_scenario(0.3, 1))
+    base, kf = measured_vehicle(log)
+    real = build_observations(raw_flight(log), base, kf)
+    stopped = (log.rpm == 0.0).any(axis=1) & (np.median(log.rpm, axis=1) > base.flight_rpm)
+    assert stopped.sum() >= 3  # the take-off's stopped rotors
+    resets = real.obs.resets
+    assert resets.shape == (real.obs.n,)
+    np.testing.assert_array_equal(np.flatnonzero(resets), np.flatnonzero(stopped))
+    assert np.all(real.obs.exclude[resets])
