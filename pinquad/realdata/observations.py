@@ -22,8 +22,9 @@ logs that carry thrust and torques, ``models.contact``; widened by ``contact_mar
 seconds), implausible rotor readings
 (``faults.detect_actuation_faults``) unless repaired from the PWM commands, bins with no
 actuation sample (the input there is interpolated only so the E-step can pass over it;
-such a transition is also a reset, ``Observations.resets``: the smoother does not carry
-the flight dynamics across an input the log does not give).
+where every sample of the bin was flagged implausible and not rebuilt, the transition is
+also a reset, ``Observations.resets``: the smoother does not carry the flight dynamics
+across an input the log says was something else).
 """
 
 from __future__ import annotations
@@ -462,9 +463,11 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         exclusions.append(Exclusion("ground contact, take-off or landing: none (airborne "
                                     "throughout: the logs start and end in flight)", 0))
 
+    flagged = np.zeros(k, dtype=bool)
     if untrusted_rows.any():
         # A bin with any untrusted sample is skipped, even if trusted samples remain.
         ex = bin_mean(t_src, untrusted_rows.astype(float), grid, dt, k)[:, 0] > 0
+        flagged = ex
         exclusions.append(Exclusion(
             f"implausible rotor readings ({report.n_flagged} of {log.n} samples flagged by "
             "faults.detect_actuation_faults" + (", not repaired" if options.faults == "exclude"
@@ -480,12 +483,15 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     exclusions.append(Exclusion("no actuation sample in the 10 ms bin (log gaps) or "
                                 "non-finite rotor speed", int(ex[:n_tr].sum())))
     exclude |= nan_in
-    # The input of such a bin is interpolated only so the E-step can pass over it: it is
-    # not what acted (a rotor read as stopped in flight, a log gap), so the transition is
-    # a reset (ssm.RESET_VAR), as a touch-down is; carried through the flight dynamics, a
-    # made-up torque drags the smoothed rates away from the gyro and inflates its variance
-    # for the whole flight (a simulated 250 mm quad's take-off: I_zz +9.4 % instead of +1.1 %).
-    resets = nan_in.copy()
+    # A bin whose every actuation sample was flagged implausible and not rebuilt (a rotor
+    # read as stopped in flight) gets an interpolated input only so the E-step can pass
+    # over it: the log says the wrench there was something else, which it cannot give. The
+    # transition is a reset (ssm.RESET_VAR), as a touch-down is: carried through the
+    # flight dynamics, the made-up torque drags the smoothed rates away from the gyro and
+    # inflates its variance for the whole flight (a simulated 250 mm quad's take-off with
+    # stopped rotors: I_zz +9.4 % instead of +1.1 %). A log gap (no sample at all) keeps
+    # its interpolated input: between readings on either side it is a good one.
+    resets = nan_in & flagged
     if nan_in.all():
         raise ValueError(f"{source}: no usable actuation sample in the whole log "
                          f"({report.n_flagged} of {log.n} rotor readings implausible); "
