@@ -77,14 +77,15 @@ SECTIONS = ("estep", "memory", "em", "online", "offline", "discovery")
 EM_SECONDS = 60.0
 """Length [s] of the simulated flight of the offline EM timing."""
 DISCOVERY_BEFORE = {
-    "s": 440.4,
-    "cpu_s": 230.5,
+    "s": 225.4,
+    "cpu_s": 258.6,
     "commit": "a05de1b",
     "date": "2026-11-25",
-    "load_average": [4.7, 10.2],
+    "load_average": [1.3, 1.0],
     "note": "python -m pinquad.offline --log on this log, the code before issue 23's "
-            "speed-up (a worktree of main at the commit), numba caches warm, no profiler; "
-            "the machine was shared (load average at start and end; cpu_s: user + sys)",
+            "speed-up (a worktree of main at the commit), numba caches warm, no profiler, "
+            "nothing else running (load average at start and end; cpu_s: user + sys); "
+            "on the shared machine earlier the same run took 440.4 s at load 4.7-10.2",
 }
 """``log_discovery_60s_s`` of the code before issue 23's speed-up: ``python -m pinquad.offline
 --log`` on the discovery log of ``bench_discovery``, measured once (minutes)."""
