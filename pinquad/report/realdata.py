@@ -141,7 +141,10 @@ def format_table(results: Sequence[RealIdentification],
         lines += ["", rotor.describe()]
     masses = np.array([r.mass for r in results])
     rel = masses / ref_mass - 1.0
-    lines += ["", f"mass: mean {1e3 * masses.mean():.2f} g, spread (sd) {1e3 * masses.std(ddof=1):.2f} g "
+    # one log has no spread: its sd is not computed (ddof=1 over one value)
+    spread = (f"spread (sd) {1e3 * masses.std(ddof=1):.2f} g" if masses.size > 1
+              else "no spread (one log)")
+    lines += ["", f"mass: mean {1e3 * masses.mean():.2f} g, {spread} "
               f"over {masses.size} logs; |error| <= 1.5 % in {int(np.sum(np.abs(rel) <= 0.015))} "
               f"of {masses.size}; worst {100 * rel[np.argmax(np.abs(rel))]:+.2f} % "
               f"({results[int(np.argmax(np.abs(rel)))].name})"]
