@@ -22,7 +22,7 @@ import numpy as np
 from flightgen import CRAZYFLIE, generate, write_csv
 from pinquad.experiments.discovery_mc_flightgen import case_seed, flight_spec
 from pinquad.experiments.headline import run_verdict
-from pinquad.experiments.recorded import LogOptions, discovery_start, identify_log
+from pinquad.experiments.recorded import LogOptions, discovery_start, identify_log, input_reading
 from pinquad.identification.verdict import torque_excitation
 from pinquad.io.read import read_log
 
@@ -47,7 +47,8 @@ def main() -> None:
             verdict = run_verdict(result, run)
             err = 100 * (np.diag(run.inertia) / truth - 1)
             start = discovery_start(run)
-            ratio, _ = torque_excitation(start.obs, start.theta)
+            ratio, _ = torque_excitation(start.obs, start.theta,
+                                         actuation=input_reading(result.kind, result.log))
             kind = f"{'aggressive' if spec.aggressive else 'gentle'} {spec.trajectory}"
             words = ", ".join(verdict.get(n).verdict for n in ("I_xx", "I_yy", "I_zz"))
             print(f"| {args.rate} Hz | {i} | {kind} | {', '.join(f'{e:+.1f} %' for e in err)} | "

@@ -149,23 +149,28 @@ def test_torque_excitation_compares_sampled_torques_with_the_noise_in_the_same_b
     # rms sigma against sqrt(2 S 50 Hz) = sqrt(100 S)
     sigma = np.array([2e-6, 3e-6, 6e-6])
     tau = sigma * rng.standard_normal((20000, 3))
-    ratio, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity))
+    ratio, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity),
+                                     actuation="sampled")
     np.testing.assert_allclose(ratio, sigma / np.sqrt(100 * intensity), rtol=0.02)
     assert words == "0-50 Hz"
     # a 2 Hz sine logged at 500 Hz passes the 50 Hz low-pass whole: rms A / sqrt(2),
     # and the noise is still counted over 50 Hz, not the 250 Hz Nyquist band
     t = np.arange(25000) * 0.002
     amp = np.array([1e-5, 2e-5, 3e-5])
-    ratio, _ = torque_excitation(_excitation_obs(0.002, amp * np.sin(2 * np.pi * 2 * t)[:, None] + 1e-4),
-                                 _theta(intensity))
+    sine = amp * np.sin(2 * np.pi * 2 * t)[:, None] + 1e-4
+    ratio, _ = torque_excitation(_excitation_obs(0.002, sine), _theta(intensity),
+                                 actuation="sampled")
     np.testing.assert_allclose(ratio, amp / np.sqrt(2) / np.sqrt(100 * intensity), rtol=0.01)
     # not measured: a fixed noise model, or an M-step that reads one band only
-    fixed, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity, np.ones(12)))
+    fixed, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity, np.ones(12)),
+                                     actuation="sampled")
     assert np.isnan(fixed).all() and "fixed" in words
-    banded, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity), (3.0, 8.0))
+    banded, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity), (3.0, 8.0),
+                                      actuation="sampled")
     assert np.isnan(banded).all() and "3-8 Hz" in words
     # a held input (what acted over each row, no unrecorded answer to the noise): not measured
-    held, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity), None, "held")
+    held, words = torque_excitation(_excitation_obs(0.01, tau), _theta(intensity),
+                                    actuation="held")
     assert np.isnan(held).all() and "held" in words
 
 

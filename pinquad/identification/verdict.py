@@ -378,8 +378,8 @@ noise's bandwidth up to the Nyquist frequency would grow with the rate)."""
 
 
 def torque_excitation(obs: Observations, theta: Theta,
-                      band: tuple[float, float] | None = None,
-                      actuation: str = "sampled") -> tuple[Array, str]:
+                      band: tuple[float, float] | None = None, *,
+                      actuation: str) -> tuple[Array, str]:
     """How far the logged torques stand out from the process noise, per body axis (3,) [-],
     and the band it was measured on (in words).
 
@@ -495,7 +495,7 @@ def data_evidence(obs: Observations, theta: Theta, mean: Array,
     ten-parameter model's ``FullQuadSSM`` for a fit with a centre of mass)."""
     words = "all frequencies" if band is None else f"{band[0]:g}-{band[1]:g} Hz, the M-step's band"
     com = np.asarray(theta.com, dtype=float)
-    excitation, excitation_words = torque_excitation(obs, theta, band, actuation)
+    excitation, excitation_words = torque_excitation(obs, theta, band, actuation=actuation)
     return VerdictEvidence(torque_share(obs, mean, theta.inertia, band, com if com.any() else None),
                            words, innovation_consistency(obs, theta, model),
                            torque_excitation=excitation, excitation_band=excitation_words)
