@@ -23,7 +23,7 @@ others: the paper's m0 = 0.001 kg, I0 = diag(1e-4, 2e-4, 1e-4) kg m^2).
 from __future__ import annotations
 
 import math
-from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from concurrent.futures import Executor, Future
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.core.execution import Backend, open_executor
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.discovery.discover import Selection, refit_selection, select_effects
 from pinquad.discovery.null import (
@@ -445,9 +446,10 @@ class DiscoveryOutcome:
 
 def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:
     """``jobs`` worker processes for one log's identification and discovery
-    (``identify_log``, ``run_discovery``), as a context manager; None (no pool: all in
-    this process) for jobs <= 1."""
-    return ProcessPoolExecutor(jobs) if jobs > 1 else nullcontext()
+    (``identify_log``, ``run_discovery``), as a context manager: the process pool of
+    ``core.execution`` (one BLAS thread per task, as on every backend); None (no pool:
+    all in this process) for jobs <= 1."""
+    return open_executor(Backend(jobs=jobs)) if jobs > 1 else nullcontext()
 
 
 def run_discovery(result: LogResult, null: NullSettings | None = None,
