@@ -45,9 +45,9 @@ from pinquad.models.contact import ContactSettings, detect_floor_contact
 from pinquad.models.ssm import Observations
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.faults import (
-    PARTNER,
     ActuationFaultReport,
     detect_actuation_faults,
+    diagonal_partners,
     reconstruct_rpm,
 )
 from pinquad.realdata.raw import PoseSamples, RawFlight, raw_from_sdflight, raw_from_simulated
@@ -144,8 +144,9 @@ def options_for_vehicle(spec: VehicleSpec, base: RealDataOptions | None = None
     its ``[faults]``, else derived from it: flight_rpm half the hover speed of the
     reference (else body) mass, omega_h = sqrt(m g / (n kf)); max_rpm the speed of
     ``max_thrust``, sqrt(max_thrust / kf) (no limit without one); without
-    ``repair_rel_se`` (or with other than four rotors) no PWM repair: implausible rows are
-    excluded. Raises ValueError if the file has no [actuators] table."""
+    ``repair_rel_se`` no PWM repair: implausible rows are excluded (the repair follows the
+    rotor count: any n, with one PWM command per rotor). Raises ValueError if the file has
+    no [actuators] table."""
     base = base or RealDataOptions()
     act = spec.actuators
     if act is None:
@@ -157,7 +158,7 @@ def options_for_vehicle(spec: VehicleSpec, base: RealDataOptions | None = None
     flt = spec.faults
     top = (flt.max_rpm if flt.max_rpm is not None else math.inf if act.max_thrust is None
            else math.sqrt(act.max_thrust / act.kf) * rpm_per_rad_s)
-    repairable = bool(flt.repair_rel_se) and spec.n_rotors == 4
+    repairable = bool(flt.repair_rel_se)
     return replace(base, yaw_ratio=act.yaw_ratio, yaw_ratio_se=act.yaw_ratio_se,
                    spin=tuple(float(v) for v in spec.spin), arm=spec.arm,
                    xy=tuple((float(x), float(y)) for x, y in spec.positions),
@@ -255,15 +256,18 @@ class RealObservations:
 
 # ----------------------------------------------------------------------------- build
 
-def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
-            ) -> tuple[Array, BoolArray, BoolArray, list[str]]:
-    """Rotor speeds (N, 4) after the chosen fault handling, rows (N,) still untrusted,
-    readings (N, 4) taken from the PWM map, and notes."""
+def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str,
+            partners: Sequence[int | None]) -> tuple[Array, BoolArray, BoolArray, list[str]]:
+    """Rotor speeds (N, n) after the chosen fault handling, rows (N,) still untrusted,
+    readings (N, n) taken from the PWM map, and notes. partners: each rotor's diagonal
+    partner (``faults.diagonal_partners``) or None. Raises ValueError if the log's PWM
+    commands do not have one column per rotor speed."""
     log = raw.log
     rpm = np.asarray(log.rpm, dtype=float)
+    n_rotors = rpm.shape[1]
     untrusted = report.motor_mask | report.unreliable[None, :]
     notes: list[str] = []
-    none = np.zeros((log.n, 4), dtype=bool)
+    none = np.zeros((log.n, n_rotors), dtype=bool)
     if not untrusted.any():
         return rpm, np.zeros(log.n, dtype=bool), none, notes
     if mode == "exclude" or raw.pwm is None or not np.isfinite(raw.pwm).all():
@@ -271,20 +275,28 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
             notes.append("implausible rotor speeds cannot be rebuilt (no PWM in the log): "
                          "their rows are excluded")
         return rpm, untrusted.any(axis=1), none, notes
-    bad_motors = [i for i in range(4) if untrusted[:, i].any()]
-    if mode == "repair" and not any(untrusted[:, PARTNER[i]].any() for i in bad_motors):
+    if raw.pwm.shape != rpm.shape:
+        raise ValueError(f"{log.meta.source}: {raw.pwm.shape[1]} PWM commands per row but "
+                         f"{n_rotors} rotor speeds; PWM repair needs one command per rotor "
+                         "(or --faults exclude)")
+    bad_motors = [i for i in range(n_rotors) if untrusted[:, i].any()]
+    paired = all(partners[i] is not None and not untrusted[:, partners[i]].any()
+                 for i in bad_motors)
+    if mode == "repair" and paired:
         # A motor's diagonal partner spins the same way with the same propeller type;
         # on the clean flights the PWM -> rpm map of M3 alone predicts M1's mean speed
         # to +0.5 % on average, the map of all three other motors to +2 %.
         out = rpm.copy()
         rebuilt = none.copy()
         for i in bad_motors:
-            others = tuple(j for j in range(4) if j != PARTNER[i])
+            partner = partners[i]
+            assert partner is not None
+            others = tuple(j for j in range(n_rotors) if j != partner)
             rec = reconstruct_rpm(log, raw.pwm, report, replace_motors=others)
             out[untrusted[:, i], i] = rec.rpm[untrusted[:, i], i]
             rebuilt[:, i] = untrusted[:, i] & rec.replaced[:, i]
             notes.append(f"M{i + 1}: {int(rebuilt[:, i].sum())} readings rebuilt from its PWM "
-                         f"through the PWM -> rpm map of its diagonal partner M{PARTNER[i] + 1} "
+                         f"through the PWM -> rpm map of its diagonal partner M{partner + 1} "
                          f"(first-order lag {rec.tau * 1e3:.0f} ms, map residual "
                          f"{rec.fit_rms:.0f} rev/min)")
             div = rec.divisions[i]
@@ -292,7 +304,8 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
                 notes.append(div.describe(i))
         return out, np.zeros(log.n, dtype=bool), rebuilt, notes
     if mode == "repair":
-        notes.append("a diagonal partner is untrusted too: map learned on all trusted motors")
+        notes.append("a rotor without a trusted diagonal partner (untrusted too, or none in "
+                     "this geometry): map learned on all trusted motors")
     rec = reconstruct_rpm(log, raw.pwm, report)
     notes.extend(rec.notes)
     return rec.rpm, np.zeros(log.n, dtype=bool), rec.replaced, notes
@@ -300,7 +313,7 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
 
 def rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float], held: bool = False
                        ) -> Array:
-    """(N,) sum_i spin_i d(omega_i)/dt [rad/s^2] from rotor speeds rpm (N, 4) [rev/min] at
+    """(N,) sum_i spin_i d(omega_i)/dt [rad/s^2] from rotor speeds rpm (N, n) [rev/min] at
     times t (N,) [s]: central differences of sampled readings, NaN where a neighbouring
     interval is a log gap (longer than twice the median step) or a speed is not finite.
 
@@ -352,19 +365,21 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     notes: list[str] = [kf.note]
     dt = options.dt
 
+    actuator = ActuatorModel(kf=kf.kf, arm=options.arm, yaw_ratio=options.yaw_ratio,
+                             spin=options.spin, xy=options.xy)
+    if log.rpm.shape[1] != actuator.n_rotors:
+        raise ValueError(f"{source}: the log has {log.rpm.shape[1]} rotor speeds per row but "
+                         f"the vehicle has {actuator.n_rotors} rotors; give the vehicle file "
+                         "that matches the log (--vehicle FILE)")
+    # Diagonal partners from the vehicle's geometry (the Crazyflie's: M1-M3, M2-M4).
+    partners = diagonal_partners(actuator.positions, actuator.spin)
     report = detect_actuation_faults(log, flight_rpm=options.flight_rpm,
-                                    max_rpm=options.max_rpm)
-    rpm, untrusted_rows, rebuilt, repair_notes = _repair(raw, report, options.faults)
+                                    max_rpm=options.max_rpm, partners=partners)
+    rpm, untrusted_rows, rebuilt, repair_notes = _repair(raw, report, options.faults, partners)
     untrusted_motors = report.motor_mask | report.unreliable[None, :]
     notes.extend(repair_notes)
     if report.vbat_stuck:
         notes.append(f"battery voltage stuck at {report.vbat_value:.2f} V: not used")
-    actuator = ActuatorModel(kf=kf.kf, arm=options.arm, yaw_ratio=options.yaw_ratio,
-                             spin=options.spin, xy=options.xy)
-    if rpm.shape[1] != actuator.n_rotors:
-        raise ValueError(f"{source}: the log has {rpm.shape[1]} rotor speeds per row but the "
-                         f"vehicle has {actuator.n_rotors} rotors; give the vehicle file "
-                         "that matches the log (--vehicle FILE)")
     finite_rpm = np.isfinite(rpm).all(axis=1)
     thrust = np.full(log.n, np.nan)
     torque = np.full((log.n, 3), np.nan)
@@ -531,7 +546,7 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     resampled = FlightLog(t=obs.t, position=position, velocity=vel, euler=euler, gyro=gyro,
                           accel=accel, thrust=inputs[:, 0], torque=inputs[:, 1:4],
                           rpm=fill_rows(grid, rpm_g), vbat=vbat, meta=meta)
-    repaired = tuple(int(i) for i in range(4) if (untrusted_motors[:, i]).any()) \
+    repaired = tuple(int(i) for i in range(untrusted_motors.shape[1]) if (untrusted_motors[:, i]).any()) \
         if not untrusted_rows.any() else ()
     return RealObservations(obs=obs, log=resampled, exclusions=tuple(exclusions),
                             notes=tuple(notes), faults=report, kf=kf, source=source,
