@@ -105,6 +105,9 @@ class RealDataOptions:
     (``faults.detect_actuation_faults``); repair_rel_se (4,) [1]: the uncertainty PWM
     repair adds to [m, I_xx, I_yy, I_zz] (``identify.total_standard_errors``). The
     defaults of these three are the shipped crazyflie21 file's ``[faults]``.
+    ground_radius [m] or None: the ground-effect radius discovery evaluates
+    (``Observations.ground_radius``); None: the mixer's rotor footprint, the largest
+    centre-to-rotor distance (``VehicleSpec.ground_effect_radius``).
     """
 
     dt: float = GRID_DT
@@ -126,6 +129,7 @@ class RealDataOptions:
     outlier_rad: float = 0.2
     max_rpm: float = CRAZYFLIE_FAULTS.max_rpm  # type: ignore[assignment]
     repair_rel_se: tuple[float, ...] = CRAZYFLIE_FAULTS.repair_rel_se
+    ground_radius: float | None = None
 
     def __post_init__(self) -> None:
         bad = [c for c in self.channels if c not in ("pos", "vel", "euler", "gyro")]
@@ -166,7 +170,8 @@ def options_for_vehicle(spec: VehicleSpec, base: RealDataOptions | None = None
                    else base.rotor_inertia,
                    flight_rpm=flt.flight_rpm if flt.flight_rpm is not None else 0.5 * hover,
                    max_rpm=top, repair_rel_se=flt.repair_rel_se,
-                   faults=base.faults if repairable else "exclude")
+                   faults=base.faults if repairable else "exclude",
+                   ground_radius=spec.ground_effect_radius)
 
 
 SENSOR_CHANNELS = {
@@ -533,8 +538,12 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         ok = np.isfinite(blk).all(axis=1)
         if ok.any():
             x0[sl] = blk[np.argmax(ok)]
+    # the ground-effect radius from the vehicle's geometry (the rotor footprint) unless given
+    footprint = float(np.max(np.hypot(actuator.positions[:, 0], actuator.positions[:, 1])))
     obs = Observations(t=grid - grid[0], dt=dt, inputs=inputs, channels=options.channels,
-                       ys=ys, x0=x0, p0=p0, exclude=exclude, resets=resets)
+                       ys=ys, x0=x0, p0=p0, exclude=exclude, resets=resets,
+                       ground_radius=footprint if options.ground_radius is None
+                       else options.ground_radius)
     if obs.n < 3 or int((~exclude[:n_tr]).sum()) < 10:
         why = "; ".join(e.reason for e in exclusions if e.transitions)
         raise ValueError(f"{source}: only {int((~exclude[:n_tr]).sum())} usable transitions "
@@ -546,8 +555,8 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     resampled = FlightLog(t=obs.t, position=position, velocity=vel, euler=euler, gyro=gyro,
                           accel=accel, thrust=inputs[:, 0], torque=inputs[:, 1:4],
                           rpm=fill_rows(grid, rpm_g), vbat=vbat, meta=meta)
-    repaired = tuple(int(i) for i in range(untrusted_motors.shape[1]) if (untrusted_motors[:, i]).any()) \
-        if not untrusted_rows.any() else ()
+    repaired = tuple(int(i) for i in range(untrusted_motors.shape[1])
+                     if untrusted_motors[:, i].any()) if not untrusted_rows.any() else ()
     return RealObservations(obs=obs, log=resampled, exclusions=tuple(exclusions),
                             notes=tuple(notes), faults=report, kf=kf, source=source,
                             options=options, repaired=repaired,
