@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from flightgen import Effects, FlightSpec, generate, write_csv
-from pinquad.discovery.library import wrench_features
+from pinquad.discovery.library import TransitionData, lagged_inputs, wrench_features
 from pinquad.discovery.null import NullSettings
+from pinquad.discovery.refit import effect_mstep
 from pinquad.discovery.residuals import block_grams, compute_residuals, group_sums, step_blocks
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.estep import fast_smoother
@@ -26,7 +27,8 @@ from pinquad.experiments.recorded import (
 )
 from pinquad.identification import verdict
 from pinquad.io.read import read_log
-from pinquad.mstep.updates import regressor_stats
+from pinquad.mstep.stats import transition_mask
+from pinquad.mstep.updates import regressor_mstep, regressor_stats
 
 CFG = DiscoveryConfig()
 
@@ -115,3 +117,44 @@ def test_the_worker_pool_changes_nothing_but_the_wall_time(drag_start):
                                    rtol=1e-12)
         np.testing.assert_allclose(pooled.result.stderr[e], serial.result.stderr[e], rtol=1e-12)
     assert pooled.result.mass == pytest.approx(serial.result.mass, rel=1e-12)
+
+
+def test_effect_mstep_lateral_noise_equals_the_per_transition_residual(drag_start):
+    """The effect M-step's lateral wrench noise from the expected quadratic forms equals the
+    per-transition form it replaced: S_j = dt / n (sum_k (E[Y_k pi] - tau_k - f_k)_j^2 +
+    pi^T (A_j - sum_k Y_kj^T Y_kj) pi) with regressor_stats' arrays, j = x, y."""
+    obs, post, theta = drag_start.obs, drag_start.posterior, drag_start.theta
+    coefficients = {"drag": np.array([0.006, 0.006, 0.007]), "wind": np.array([0.01, -0.006])}
+    new = effect_mstep(coefficients)(post, obs, theta).theta
+    plain = regressor_mstep(post, obs, theta).theta
+    assert new.mass == plain.mass and np.array_equal(new.inertia, plain.inertia)
+    stats = regressor_stats(post, obs, theta.gravity)
+    idx = np.flatnonzero(transition_mask(obs))
+    data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
+                          index=idx, dt=obs.dt)
+    force = sum(np.einsum("kap,p->ka", wrench_features(e, data), c)
+                for e, c in coefficients.items())
+    pi = np.r_[new.mass, np.diag(new.inertia)]
+    rho = np.einsum("kap,p->ka", stats.y, pi) - stats.tau - force
+    cov_part = np.einsum("p,apq,q->a", pi,
+                         stats.a - np.einsum("kap,kaq->apq", stats.y, stats.y), pi)
+    ref = obs.dt * (np.sum(rho**2, axis=0) + cov_part)[0:2] / idx.size
+    np.testing.assert_allclose(new.noise.wrench[0:2], ref, rtol=1e-10)
+    # the flight's drag is what the lateral rows no longer count as noise
+    drag_only = effect_mstep({"drag": coefficients["drag"]})(post, obs, theta).theta
+    assert np.all(drag_only.noise.wrench[0:2] < plain.noise.wrench[0:2])
+
+
+@pytest.mark.parametrize("time_constant", [0.0, 0.002, 0.03])
+def test_lagged_inputs_is_the_first_order_recursion(time_constant):
+    """lagged_inputs (an IIR filter) equals the recursion it replaced,
+    u_k = u_{k-1} + dt/(tau + dt) (u_cmd,k - u_{k-1}) from u_0 = u_cmd,0."""
+    dt = 0.002
+    commands = 0.3 + 0.1 * np.random.default_rng(7).standard_normal((500, 4))
+    a = dt / (time_constant + dt)
+    ref = np.empty_like(commands)
+    ref[0] = commands[0]
+    for k in range(1, commands.shape[0]):
+        ref[k] = ref[k - 1] + a * (commands[k] - ref[k - 1])
+    np.testing.assert_allclose(lagged_inputs(commands, time_constant, dt), ref, rtol=0, atol=1e-14)
+    assert lagged_inputs(commands[:0], time_constant, dt).shape == (0, 4)

@@ -23,7 +23,7 @@ from pinquad.identification.em import initial_theta, run_em
 from pinquad.models.effect import EffectSSM
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.stats import transition_mask
-from pinquad.mstep.updates import regressor_mstep, regressor_stats
+from pinquad.mstep.updates import body_regressor, expected_quadratics, regressor_mstep
 
 Array = NDArray[np.float64]
 
@@ -63,33 +63,37 @@ def corrected_observations(obs: Observations, state: Array, coefficients: dict[s
 def effect_mstep(coefficients: dict[str, Array]):
     """The regressor M-step (``pinquad.mstep.updates.regressor_mstep``) with the lateral wrench
     noise of an ``EffectSSM``: the body x/y force rows' variance is re-estimated from the
-    residual the drag / wind forces leave,
+    residual the drag / wind forces f_k leave,
 
-        S_j = dt / n sum_k (E[(Y_k pi)_j] - (Phi_k c)_j)^2 + dt / n pi^T Cov-part_j pi,  j = x, y,
+        S_j = dt / n E[sum_k ((Y_k pi)_j - f_kj)^2]
+            = dt / n (pi^T A_j pi - 2 sum_k m (R_k^T a_k)_j f_kj + sum_k f_kj^2),  j = x, y,
 
-    (Phi at the smoothed state), instead of from Y pi alone, which would re-inflate the
-    noise by the very forces the extended model now explains. Without drag or wind in
-    ``coefficients`` it is ``regressor_mstep`` itself."""
+    (A_j the M-step's expected quadratic form of row j, whose applied wrench is zero;
+    (Y_k pi)_j = m (R_k^T a_k)_j and f_k at the smoothed states), instead of from Y pi
+    alone, which would re-inflate the noise by the very forces the extended model now
+    explains. One pass over the posterior serves both (the expected quadratics). Without
+    drag or wind in ``coefficients`` it is ``regressor_mstep`` itself."""
     wrench_effects = [e for e in ("drag", "wind") if e in coefficients]
     if not wrench_effects:
         return regressor_mstep
 
     def mstep(post: Posterior, obs: Observations, theta: Theta):
-        out = regressor_mstep(post, obs, theta)
+        stats = expected_quadratics(post, obs, theta.gravity)
+        out = regressor_mstep(post, obs, theta, stats=stats)
         new = out.theta
-        stats = regressor_stats(post, obs, theta.gravity)
         idx = np.flatnonzero(transition_mask(obs))
         data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
                               index=idx, dt=obs.dt, ground_radius=obs.ground_radius)
         force = sum(np.einsum("kap,p->ka", wrench_features(e, data), coefficients[e])
-                    for e in wrench_effects)
+                    for e in wrench_effects)[:, 0:2]
+        y_pi = new.mass * body_regressor(post.mean[idx], post.mean[idx + 1], obs.dt,
+                                         theta.gravity)[:, 0:2, 0]
         pi = np.r_[new.mass, np.diag(new.inertia)]
-        rho = np.einsum("kap,p->ka", stats.y, pi) - stats.tau - force
-        cov_part = np.einsum("p,apq,q->a", pi, stats.a - np.einsum("kap,kaq->apq", stats.y, stats.y),
-                             pi)
-        var = (np.sum(rho**2, axis=0) + cov_part) / max(idx.size, 1)
+        quad = np.einsum("p,apq,q->a", pi, stats.a[0:2], pi)
+        var = ((quad - 2.0 * np.sum(y_pi * force, axis=0) + np.sum(force**2, axis=0))
+               / max(idx.size, 1))
         wrench = new.noise.wrench.copy()
-        wrench[0:2] = np.maximum(obs.dt * var[0:2], 1e-6 * wrench[2])
+        wrench[0:2] = np.maximum(obs.dt * var, 1e-6 * wrench[2])
         return replace(out, theta=new.with_noise(replace(new.noise, wrench=wrench)))
 
     mstep.__name__ = "regressor_mstep"  # keeps EM's over-relaxation for this M-step

@@ -34,7 +34,10 @@ class DiscoveryConfig:
     min_heldout_gain [-]: minimum relative held-out SSE reduction on the candidate's rows
     (calibrated on clean flights, see ``python -m pinquad.discovery``);
     max_effects: stop after this many; candidates: effect names searched;
-    refit_passes: coefficient/EM alternations of the refit; em_iterations: E-steps per EM
+    refit_passes: coefficient/EM alternations of the refit (one: a second pass moved
+    mass and inertia by < 1e-5 relative over ~75 E-steps while the joint refinement
+    after the passes settles the coefficients anyway; docs/benchmark.md, "Discovery in a
+    minute"); em_iterations: E-steps per EM
     run of the refit (at most; the compiled E-step covers ``QuadSSM`` and ``EffectSSM``);
     restart_em: start the refit EM from the paper's warm-up (fixed Q0/R0) rather than
     the base fit's noise, which absorbed the missing effect (a refit that kept it and ran
@@ -61,7 +64,7 @@ class DiscoveryConfig:
     min_heldout_gain: float = 0.10
     max_effects: int = 3
     candidates: tuple[str, ...] = EFFECT_NAMES
-    refit_passes: int = 2
+    refit_passes: int = 1
     em_iterations: int = 100
     restart_em: bool = True
     full_refit: bool = True

@@ -329,13 +329,17 @@ def closed_form_mass(stats, fallback: float) -> float:
 
 
 def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
-                    earlier: QuadraticSums | None = None) -> MStepResult:
+                    earlier: QuadraticSums | None = None, *,
+                    stats: QuadraticSums | None = None) -> MStepResult:
     """Joint ML update of mass, diagonal inertia and all noise variances (see module).
 
     ``earlier``: statistics of transitions no longer in ``obs`` (the online estimator's
     memory of samples that left its window), added to this posterior's for mass and
-    inertia and the wrench noise; the measurement variances stay this posterior's own."""
-    stats = expected_quadratics(post, obs, theta.gravity)
+    inertia and the wrench noise; the measurement variances stay this posterior's own.
+    ``stats``: ``expected_quadratics(post, obs, theta.gravity)`` when the caller has
+    computed it already (discovery's effect M-step needs it too), else computed here."""
+    if stats is None:
+        stats = expected_quadratics(post, obs, theta.gravity)
     if earlier is not None:
         stats = QuadraticSums.of(stats).plus(earlier)
     n = stats.n
