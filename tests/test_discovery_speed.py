@@ -131,7 +131,7 @@ def test_effect_mstep_lateral_noise_equals_the_per_transition_residual(drag_star
     stats = regressor_stats(post, obs, theta.gravity)
     idx = np.flatnonzero(transition_mask(obs))
     data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
-                          index=idx, dt=obs.dt)
+                          index=idx, dt=obs.dt, ground_radius=obs.ground_radius)
     force = sum(np.einsum("kap,p->ka", wrench_features(e, data), c)
                 for e, c in coefficients.items())
     pi = np.r_[new.mass, np.diag(new.inertia)]

@@ -27,6 +27,8 @@ class Vehicle:
     arm: centre to motor axis [m].
     com: (3,) centre of mass in the body (thrust) frame [m].
     gravity: [m/s^2].
+    ground_radius: effective radius of the ground-effect law [m], or None: the arm (the
+    rotor footprint; ``VehicleSpec.ground_effect_radius``).
     """
 
     name: str
@@ -35,6 +37,12 @@ class Vehicle:
     arm: float
     com: Array = field(default_factory=lambda: np.zeros(3))
     gravity: float = GRAVITY
+    ground_radius: float | None = None
+
+    @property
+    def ground_effect_radius(self) -> float:
+        """r [m] of the ground-effect law for this vehicle (``ground_radius`` or the arm)."""
+        return self.arm if self.ground_radius is None else self.ground_radius
 
     @property
     def inertia_diag(self) -> Array:
@@ -47,9 +55,10 @@ class Vehicle:
 
 
 def vehicle_from_spec(spec: VehicleSpec) -> Vehicle:
-    """The rigid body of a vehicle file (``core.vehicle_file``): name, mass, inertia, arm."""
+    """The rigid body of a vehicle file (``core.vehicle_file``): name, mass, inertia, arm
+    and the ground-effect radius."""
     return Vehicle(name=spec.name, mass=spec.mass, inertia=np.array(spec.inertia, dtype=float),
-                   arm=spec.arm)
+                   arm=spec.arm, ground_radius=spec.ground_effect_radius)
 
 
 PAPER_VEHICLE = vehicle_from_spec(load_vehicle("paper"))

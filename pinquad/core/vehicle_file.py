@@ -105,6 +105,22 @@ class FaultSettings:
 
 
 @dataclass(frozen=True)
+class Aero:
+    """What the effect vocabulary (``core.effect_vocabulary``) uses of this vehicle (the
+    file's optional ``[aero]`` table).
+
+    drag (3,) [N s/m] or None: linear rotor-drag coefficients D of f_b = -diag(D) v_b
+    near hover; rotor_radius [m] or None: the propeller's; ground_effect_radius [m] or
+    None: the effective radius r of the ground-effect law (None: the rotor footprint,
+    ``VehicleSpec.ground_effect_radius``).
+    """
+
+    drag: Array | None = None
+    rotor_radius: float | None = None
+    ground_effect_radius: float | None = None
+
+
+@dataclass(frozen=True)
 class VehicleSpec:
     """A vehicle file, read.
 
@@ -114,7 +130,7 @@ class VehicleSpec:
     starts, with guess_note in words; positions (n, 2) [m]: rotor (x, y) in the body
     frame, in log order; spin (n,): +-1 yaw-torque sign per rotor; arm [m]: the largest
     centre-to-rotor distance; layout: ``x``, ``+`` or ``custom``; actuators;
-    reference; description; faults: the ``[faults]`` table.
+    reference; description; faults: the ``[faults]`` table; aero: the ``[aero]`` table.
     """
 
     name: str
@@ -133,6 +149,16 @@ class VehicleSpec:
     urdf: Path | None = None
     description: str = ""
     faults: FaultSettings = FaultSettings()
+    aero: Aero = Aero()
+
+    @property
+    def ground_effect_radius(self) -> float:
+        """Effective radius r [m] of the ground-effect law (``core.effect_vocabulary``):
+        ``[aero] ground_effect_radius`` if the file gives it, else the rotor footprint,
+        the largest centre-to-rotor distance (``arm``): the rotors together, not one
+        propeller, make the cushion a multirotor feels."""
+        r = self.aero.ground_effect_radius
+        return self.arm if r is None else r
 
     @property
     def n_rotors(self) -> int:
@@ -295,6 +321,19 @@ def _faults(r: _Reader) -> FaultSettings:
         repair_rel_se=tuple(float(v) for v in rel))
 
 
+def _aero(r: _Reader) -> Aero:
+    tab = r.table("aero")
+    drag = tab.get("drag")
+    if drag is not None and (not isinstance(drag, list) or len(drag) != 3 or any(
+            isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0 for v in drag)):
+        raise r.fail("aero.drag", "[D_x, D_y, D_z], three numbers >= 0 in N s/m", drag)
+    return Aero(
+        drag=None if drag is None else np.asarray(drag, dtype=float),
+        rotor_radius=r.number(tab, "aero", "rotor_radius", unit=" [m]", required=False),
+        ground_effect_radius=r.number(tab, "aero", "ground_effect_radius", unit=" [m]",
+                                      required=False))
+
+
 def parse_vehicle(text: str, path: Path) -> VehicleSpec:
     """A :class:`VehicleSpec` from TOML ``text`` (``path`` names it in errors and anchors
     relative paths). Raises VehicleFileError."""
@@ -340,7 +379,8 @@ def parse_vehicle(text: str, path: Path) -> VehicleSpec:
             inertia=r.inertia(ref, "reference", "inertia", required=False),
             mass_note=r.text(ref, "reference", "mass_note"),
             inertia_note=r.text(ref, "reference", "inertia_note")),
-        urdf=urdf, description=r.text(data, "", "description"), faults=_faults(r))
+        urdf=urdf, description=r.text(data, "", "description"), faults=_faults(r),
+        aero=_aero(r))
 
 
 def _urdf_inertial(urdf: Path, path: Path) -> tuple[float, Array]:

@@ -23,11 +23,7 @@ from numpy.typing import NDArray
 from scipy.signal import lfilter
 
 from pinquad.core.conventions import rotation_from_euler
-from pinquad.core.effect_vocabulary import (
-    COEFFICIENT_NAMES,
-    GROUND_EFFECT_RADIUS,
-    ground_effect_gain,
-)
+from pinquad.core.effect_vocabulary import COEFFICIENT_NAMES, ground_effect_gain
 
 Array = NDArray[np.float64]
 
@@ -38,7 +34,8 @@ class TransitionData:
 
     x (K, 12): smoothed state at k; inputs (K, 4): logged command [F (N), M (N m)] at k;
     applied_history (N, 4): the whole logged command sequence (for lags); index (K,):
-    the step k of each row; dt [s].
+    the step k of each row; dt [s]; ground_radius [m]: the vehicle's ground-effect radius
+    (``Observations.ground_radius``).
     """
 
     x: Array
@@ -46,6 +43,7 @@ class TransitionData:
     applied_history: Array
     index: NDArray[np.int64]
     dt: float
+    ground_radius: float
 
 
 def lagged_inputs(inputs: Array, time_constant: float, dt: float) -> Array:
@@ -100,8 +98,7 @@ SPECS: dict[str, EffectSpec] = {
 """Effect name -> its estimator-side description (every name of ``EFFECT_NAMES``)."""
 
 
-def wrench_features(name: str, data: TransitionData,
-                    ground_radius: float = GROUND_EFFECT_RADIUS) -> Array:
+def wrench_features(name: str, data: TransitionData) -> Array:
     """Phi (K, 6, p) with the effect's extra body wrench [N, N m] = Phi @ c (linear effects)."""
     k = data.x.shape[0]
     if name == "drag":
@@ -112,7 +109,7 @@ def wrench_features(name: str, data: TransitionData,
         return phi
     if name == "ground_effect":
         phi = np.zeros((k, 6, 1))
-        phi[:, 2, 0] = data.inputs[:, 0] * ground_effect_gain(data.x[:, 2], ground_radius)
+        phi[:, 2, 0] = data.inputs[:, 0] * ground_effect_gain(data.x[:, 2], data.ground_radius)
         return phi
     if name == "com_offset":
         phi = np.zeros((k, 6, 2))

@@ -44,7 +44,8 @@ def corrected_observations(obs: Observations, state: Array, coefficients: dict[s
     if "motor_lag" in coefficients:
         inputs = lagged_inputs(obs.inputs, float(coefficients["motor_lag"][0]), obs.dt)
     idx = np.arange(obs.n)
-    data = TransitionData(x=state, inputs=inputs, applied_history=inputs, index=idx, dt=obs.dt)
+    data = TransitionData(x=state, inputs=inputs, applied_history=inputs, index=idx, dt=obs.dt,
+                          ground_radius=obs.ground_radius)
     extra = np.zeros((obs.n, 6))
     for name, c in coefficients.items():
         if name in ("motor_lag", "gyro_bias"):
@@ -82,7 +83,7 @@ def effect_mstep(coefficients: dict[str, Array]):
         new = out.theta
         idx = np.flatnonzero(transition_mask(obs))
         data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
-                              index=idx, dt=obs.dt)
+                              index=idx, dt=obs.dt, ground_radius=obs.ground_radius)
         force = sum(np.einsum("kap,p->ka", wrench_features(e, data), coefficients[e])
                     for e in wrench_effects)[:, 0:2]
         y_pi = new.mass * body_regressor(post.mean[idx], post.mean[idx + 1], obs.dt,

@@ -41,6 +41,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from estimators.ekf import predict, update
 from pinquad.core.params import VEHICLES
+from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.estep.fast_smoother import Innovations, innovations_quad
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.stats import transition_mask
@@ -103,11 +104,21 @@ class VehicleRange:
 def vehicle_range(vehicle: str, mass_guess: float | None = None,
                   inertia_guess: Array | None = None,
                   thresholds: VerdictThresholds = DEFAULT_THRESHOLDS) -> VehicleRange | None:
-    """The range of a known vehicle (``core.params.VEHICLES``: its URDF values); for an
-    unknown name the sidecar's guesses; None when neither is known."""
+    """The range of a shipped vehicle (``core.params.VEHICLES``: its URDF values); of a
+    vehicle file (``.toml``) its ``[reference]`` mass and inertia where it gives them,
+    else its ``[body]``'s (never the guesses: EM starts there, often far off on
+    purpose); for an unknown name the sidecar's guesses; None when neither is known.
+    Raises VehicleFileError for an unreadable vehicle file."""
     known = VEHICLES.get(vehicle)
     if known is not None:
         mass, inertia, source = known.mass, known.inertia_diag, f"{vehicle} URDF"
+    elif is_vehicle_file(vehicle):
+        spec = load_vehicle(vehicle)
+        ref = spec.reference
+        mass = spec.mass if ref.mass is None else ref.mass
+        inertia = np.diag(spec.inertia).copy() if ref.inertia is None else np.asarray(ref.inertia)
+        source = (f"{spec.name} file: mass from its [{'body' if ref.mass is None else 'reference'}]"
+                  f", inertia from its [{'body' if ref.inertia is None else 'reference'}]")
     elif mass_guess is not None and inertia_guess is not None:
         mass = float(mass_guess)
         inertia = np.diag(np.asarray(inertia_guess, dtype=float).reshape(3, 3)).copy()

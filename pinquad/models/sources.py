@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from estimators.ekf import run_filter
 from pinquad.core.conventions import rotation_from_euler
+from pinquad.core.effect_vocabulary import vehicle_ground_radius
 from pinquad.io.logs import FlightLog
 from pinquad.models.contact import ContactDetection, ContactSettings, detect_floor_contact
 from pinquad.models.navigation import NavTuning, SensorANavModel
@@ -160,5 +161,7 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
         # smoother must not carry the flight dynamics across that (ssm.RESET_VAR)
         resets[:-1] = rows[1:]
     inputs = interval_inputs(np.column_stack([log.thrust, log.torque]), log.meta.actuation)
+    # the ground-effect radius of the vehicle the log names (a log naming none: the default)
+    radius = vehicle_ground_radius(log.meta.vehicle if log.meta.vehicle_named else None)
     return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
-                        p0=p0, exclude=exclude, resets=resets)
+                        p0=p0, exclude=exclude, resets=resets, ground_radius=radius)

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import wrap_angle
+from pinquad.core.effect_vocabulary import DEFAULT_GROUND_RADIUS
 from pinquad.vehicle.model import RigidBodyParams, state_derivative_and_jacobian
 
 Array = NDArray[np.float64]
@@ -90,7 +91,10 @@ class Observations:
     not use (ground contact, implausible actuation); resets (N,) bool: transitions
     k -> k+1 that the flight dynamics do not describe because something outside the
     model changed the state (the floor stopping the vehicle as it touches down), whose
-    process covariance is widened by ``RESET_VAR`` (empty: none).
+    process covariance is widened by ``RESET_VAR`` (empty: none); ground_radius [m]: the
+    flown vehicle's ground-effect radius, which discovery's ``ground_effect`` feature
+    evaluates (``core.effect_vocabulary.vehicle_ground_radius``; the default is for
+    observations built without a vehicle).
     """
 
     t: Array
@@ -102,6 +106,7 @@ class Observations:
     p0: Array
     exclude: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     resets: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    ground_radius: float = DEFAULT_GROUND_RADIUS
 
     @property
     def n(self) -> int:

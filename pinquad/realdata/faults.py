@@ -1,17 +1,21 @@
 """Detection (and optional repair) of implausible actuation in measured Crazyflie logs.
 
 A rotor reading cannot be the true rotor speed when the vehicle keeps flying without
-it: a quadcopter that hovers needs all four rotors near hover speed, and diagonal
-partners (M1, M3) and (M2, M4) carry nearly equal thrust because roll and pitch
-torques stay small (tau_x, tau_y ~ 0 gives T1 ~ T3 and T2 ~ T4; the yaw command only
-moves the two pairs against each other). Per row k and motor i (rpm in rev/min):
+it: a multirotor that hovers needs all its rotors near hover speed, and on a quadcopter
+the diagonal partners (M1, M3) and (M2, M4) carry nearly equal thrust because roll and
+pitch torques stay small (tau_x, tau_y ~ 0 gives T1 ~ T3 and T2 ~ T4; the yaw command
+only moves the two pairs against each other). The partners come from the vehicle's
+geometry (:func:`diagonal_partners`: the rotor at the mirrored position that spins the
+same way); on a vehicle with more rotors the torque balance does not pair them, so a
+rotor without such a partner is not compared with one. Per row k and rotor i of n
+(rpm in rev/min):
 
 * airborne[k]:        median_j rpm_j >= flight_rpm (rotors at flight speed);
-* dropout[k, i]:      airborne, rpm_i < dropout_rpm and the median of the other three
+* dropout[k, i]:      airborne, rpm_i < dropout_rpm and the median of the other n - 1
                       >= flight_rpm (one rotor "stopped" while the vehicle flies);
 * implausible[k, i]:  dropout, or airborne with rpm_i < partner_ratio * rpm_partner(i)
-                      (far below its diagonal partner; only the lower reading is
-                      blamed), or rpm_i > max_rpm (beyond the motor's reach).
+                      (far below its diagonal partner, if it has one; only the lower
+                      reading is blamed), or rpm_i > max_rpm (beyond the motor's reach).
 
 Real case (IMRC Lab jana20-jana29): motor 1 reads 0 in 21-88 % of the rows and about
 half its partner's speed in most of the rest, and the battery voltage is stuck at
@@ -27,6 +31,7 @@ readings are doubled and kept (:func:`pulse_divided_readings`).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -39,8 +44,25 @@ from pinquad.vehicle.actuators import CRAZYFLIE_SPEC
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-PARTNER = (2, 3, 0, 1)
-"""Index of each motor's diagonal partner: M1-M3, M2-M4."""
+QUAD_PARTNERS: tuple[int | None, ...] = (2, 3, 0, 1)
+"""Each rotor's diagonal partner on a quadcopter in X or + layout (M1-M3, M2-M4, 0-based;
+what :func:`diagonal_partners` gives for both layouts)."""
+
+
+def diagonal_partners(positions: Array, spin: Sequence[float], rel_tol: float = 1e-6
+                      ) -> tuple[int | None, ...]:
+    """Per rotor, the index (0-based) of the rotor at its mirrored position -(x, y) that
+    spins the same way, or None: positions (n, 2) [m], spin (n,) +-1. The torque
+    balance makes such a pair carry nearly equal thrust (module docstring); a hexacopter's
+    opposite rotors spin against each other and have none."""
+    xy = np.asarray(positions, dtype=float)
+    tol = rel_tol * float(np.max(np.hypot(xy[:, 0], xy[:, 1])))
+    out: list[int | None] = []
+    for i in range(xy.shape[0]):
+        match = [j for j in range(xy.shape[0]) if j != i and spin[j] == spin[i]
+                 and float(np.hypot(*(xy[j] + xy[i]))) <= tol]
+        out.append(match[0] if len(match) == 1 else None)
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -48,9 +70,10 @@ class ActuationFaultReport:
     """Which rows of a log carry implausible rotor readings, and why.
 
     source: the log; airborne (N,) bool: rotors at flight speed (the definition in the
-    module docstring); motor_mask (N, 4) bool: implausible reading of motor i in row k;
-    dropout_mask (N, 4) bool: the subset reading ~0 rev/min; mask (N,) bool: any motor
-    implausible in that row; unreliable (4,) bool: motors whose channel as a whole
+    module docstring); motor_mask (N, n) bool: implausible reading of rotor i in row k
+    (n rotors: the log's rotor-speed columns); dropout_mask (N, n) bool: the subset
+    reading ~0 rev/min; mask (N,) bool: any rotor implausible in that row; unreliable
+    (n,) bool: motors whose channel as a whole
     should not be trusted; vbat_stuck: the battery voltage is constant over the whole
     log (a real battery sags under load and the ADC is noisy); vbat_value [V] the stuck
     value (NaN otherwise); notes: what was flagged and why, in words.
@@ -68,12 +91,12 @@ class ActuationFaultReport:
 
     @property
     def counts(self) -> NDArray[np.int64]:
-        """(4,) rows with an implausible reading, per motor."""
+        """(n,) rows with an implausible reading, per motor."""
         return self.motor_mask.sum(axis=0).astype(np.int64)
 
     @property
     def dropout_counts(self) -> NDArray[np.int64]:
-        """(4,) rows reading ~0 while flying, per motor."""
+        """(n,) rows reading ~0 while flying, per motor."""
         return self.dropout_mask.sum(axis=0).astype(np.int64)
 
     @property
@@ -88,7 +111,7 @@ class ActuationFaultReport:
 
     @property
     def trusted(self) -> BoolArray:
-        """(N, 4) readings that may be used: neither flagged nor from an unreliable motor."""
+        """(N, n) readings that may be used: neither flagged nor from an unreliable motor."""
         return ~(self.motor_mask | self.unreliable[None, :])
 
     @property
@@ -105,7 +128,8 @@ def _row_median(x: Array) -> Array:
 
 def detect_actuation_faults(log: FlightLog, flight_rpm: float | None = None,
                             dropout_rpm: float = 1000.0, partner_ratio: float = 0.7,
-                            max_rpm: float | None = None, unreliable_fraction: float = 0.05
+                            max_rpm: float | None = None, unreliable_fraction: float = 0.05,
+                            partners: Sequence[int | None] | None = None
                             ) -> ActuationFaultReport:
     """Flag implausible rotor readings and a stuck battery voltage (see module docstring).
 
@@ -113,7 +137,10 @@ def detect_actuation_faults(log: FlightLog, flight_rpm: float | None = None,
     crazyflie21 file's ``[faults]``, which says why); dropout_rpm [rev/min];
     partner_ratio [1] (clean flights, including the yaw sweeps, stay above 0.85);
     unreliable_fraction [1] of airborne rows above which a motor's whole channel is
-    distrusted.
+    distrusted. partners: each rotor's diagonal partner (:func:`diagonal_partners` of the
+    vehicle's geometry; None: ``QUAD_PARTNERS`` for a log with four rotor speeds, no
+    partner check otherwise). Raises ValueError if ``partners`` does not have one entry
+    per rotor-speed column.
     """
     defaults = CRAZYFLIE_SPEC.faults
     flight_rpm = float(defaults.flight_rpm if flight_rpm is None else flight_rpm)  # type: ignore[arg-type]
@@ -122,35 +149,44 @@ def detect_actuation_faults(log: FlightLog, flight_rpm: float | None = None,
     source = log.meta.source
     notes: list[str] = []
     if log.rpm is None:
-        empty = np.zeros((n, 4), dtype=bool)
+        empty = np.zeros((n, 0), dtype=bool)
         return ActuationFaultReport(
             source=source, airborne=np.zeros(n, dtype=bool), motor_mask=empty,
             dropout_mask=empty, mask=np.zeros(n, dtype=bool),
-            unreliable=np.zeros(4, dtype=bool), vbat_stuck=False, vbat_value=float("nan"),
+            unreliable=np.zeros(0, dtype=bool), vbat_stuck=False, vbat_value=float("nan"),
             notes=("no rotor speeds in the log: nothing to check",))
     rpm = np.asarray(log.rpm, dtype=float)
+    n_rotors = rpm.shape[1]
+    if partners is None:
+        partners = QUAD_PARTNERS if n_rotors == 4 else (None,) * n_rotors
+    if len(partners) != n_rotors:
+        raise ValueError(f"{source}: {n_rotors} rotor speeds per row but {len(partners)} "
+                         "diagonal partners given (one per rotor)")
     finite = np.isfinite(rpm)
     rpm0 = np.where(finite, rpm, 0.0)
     airborne = _row_median(rpm) >= flight_rpm
-    airborne &= finite.sum(axis=1) >= 3
+    airborne &= finite.sum(axis=1) >= n_rotors - 1
     n_air = int(airborne.sum())
 
-    dropout = np.zeros((n, 4), dtype=bool)
-    low_vs_partner = np.zeros((n, 4), dtype=bool)
-    for i in range(4):
+    dropout = np.zeros((n, n_rotors), dtype=bool)
+    low_vs_partner = np.zeros((n, n_rotors), dtype=bool)
+    for i in range(n_rotors):
         others = np.delete(rpm, i, axis=1)
         others_fly = _row_median(others) >= flight_rpm
         dropout[:, i] = airborne & finite[:, i] & (rpm0[:, i] < dropout_rpm) & others_fly
-        partner = rpm0[:, PARTNER[i]]
+        p = partners[i]
+        if p is None:
+            continue
+        partner = rpm0[:, p]
         low_vs_partner[:, i] = (airborne & finite[:, i] & (partner >= flight_rpm)
                                 & (rpm0[:, i] < partner_ratio * partner))
     over = finite & (rpm0 > max_rpm)
     motor_mask = dropout | low_vs_partner | over
     mask = motor_mask.any(axis=1)
-    frac = motor_mask[airborne].mean(axis=0) if n_air else np.zeros(4)
+    frac = motor_mask[airborne].mean(axis=0) if n_air else np.zeros(n_rotors)
     unreliable = frac > unreliable_fraction
 
-    for i in range(4):
+    for i in range(n_rotors):
         if not motor_mask[:, i].any():
             continue
         n_drop = int(dropout[:, i].sum())
@@ -162,9 +198,11 @@ def detect_actuation_faults(log: FlightLog, flight_rpm: float | None = None,
                          "run at flight speed (the vehicle would fall: dropout)")
         if n_low:
             sel = low_vs_partner[:, i] & ~dropout[:, i]
-            ratio = float(np.median(rpm0[sel, i] / rpm0[sel, PARTNER[i]]))
+            p = partners[i]
+            assert p is not None
+            ratio = float(np.median(rpm0[sel, i] / rpm0[sel, p]))
             parts.append(f"{n_low} more read below {partner_ratio:g} x the diagonal partner "
-                         f"M{PARTNER[i] + 1} (median ratio {ratio:.2f}; the vehicle would "
+                         f"M{p + 1} (median ratio {ratio:.2f}; the vehicle would "
                          "roll and pitch away)")
         if n_over:
             parts.append(f"{n_over} read above {max_rpm:.0f} rev/min")
@@ -212,12 +250,12 @@ class RpmReconstruction:
     its readings where they agree with that fraction: they are multiplied by n and used
     as measurements (:func:`pulse_divided_readings`).
 
-    rpm (N, 4) [rev/min]: the measured speeds with ``replaced`` entries substituted;
-    replaced (N, 4) bool: entries taken from the PWM map; coef (3,) c0 [rev/min], c1, c2
-    [rev/min per 1e4 PWM counts (squared)]; tau [s]; fit_rms [rev/min]: residual of the
-    map on the training data; motors_used: motors (0-based) that trained the map; notes;
-    divisions (4,): each replaced channel's :class:`PulseDivision` (None: not replaced or
-    not checked).
+    rpm (N, n) [rev/min]: the measured speeds of the n rotors with ``replaced`` entries
+    substituted; replaced (N, n) bool: entries taken from the PWM map; coef (3,)
+    c0 [rev/min], c1, c2 [rev/min per 1e4 PWM counts (squared)]; tau [s]; fit_rms
+    [rev/min]: residual of the map on the training data; motors_used: motors (0-based)
+    that trained the map; notes; divisions (n,): each replaced channel's
+    :class:`PulseDivision` (None: not replaced or not checked; empty: none checked).
     """
 
     rpm: Array
@@ -227,11 +265,11 @@ class RpmReconstruction:
     fit_rms: float
     motors_used: tuple[int, ...]
     notes: tuple[str, ...]
-    divisions: tuple[PulseDivision | None, ...] = (None, None, None, None)
+    divisions: tuple[PulseDivision | None, ...] = ()
 
     @property
     def rescaled(self) -> BoolArray:
-        """(N, 4) distrusted readings kept, multiplied by their channel's divisor."""
+        """(N, n) distrusted readings kept, multiplied by their channel's divisor."""
         out = np.zeros_like(self.replaced)
         for i, div in enumerate(self.divisions):
             if div is not None:
@@ -240,8 +278,9 @@ class RpmReconstruction:
 
     @property
     def divisor(self) -> tuple[int, ...]:
-        """(4,) each channel's pulse divisor (1: none found)."""
-        return tuple(1 if d is None else d.divisor for d in self.divisions)
+        """(n,) each channel's pulse divisor (1: none found)."""
+        divisions = self.divisions or (None,) * self.rpm.shape[1]
+        return tuple(1 if d is None else d.divisor for d in divisions)
 
 
 @dataclass(frozen=True)
@@ -307,7 +346,8 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
                     rescue: bool = True) -> RpmReconstruction:
     """Replace untrusted rotor readings from the PWM commands (see :class:`RpmReconstruction`).
 
-    pwm: (N, 4) motor commands [0..65535] on the log's rows (``SdFlight.pwm``).
+    pwm: (N, n) motor commands [0..65535] on the log's rows (``SdFlight.pwm``), one
+    column per rotor-speed column of the log (any n).
     Replaced: every reading of an unreliable motor, and each flagged reading of the
     others; ``replace_motors`` (0-based) forces whole motors to be replaced instead
     (used to validate the map on clean logs against the measured speeds). tau is chosen
@@ -320,14 +360,17 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
     rpm = np.asarray(log.rpm, dtype=float)
     pwm = np.asarray(pwm, dtype=float)
     if pwm.shape != rpm.shape:
-        raise ValueError(f"pwm shape {pwm.shape} differs from rpm shape {rpm.shape}")
+        raise ValueError(f"{log.meta.source}: {pwm.shape[-1]} PWM commands per row but "
+                         f"{rpm.shape[-1]} rotor speeds (pwm shape {pwm.shape}, rpm shape "
+                         f"{rpm.shape}); expected one PWM column per rotor")
+    n_rotors = rpm.shape[1]
     if replace_motors is None:
         replaced = report.motor_mask | report.unreliable[None, :]
     else:
         replaced = np.zeros_like(report.motor_mask)
         replaced[:, list(replace_motors)] = True
     whole = replaced.all(axis=0)
-    train_motors = tuple(int(i) for i in range(4)
+    train_motors = tuple(int(i) for i in range(n_rotors)
                          if not whole[i] and np.isfinite(pwm[:, i]).all())
     if not train_motors:
         raise ValueError(f"{log.meta.source}: no trusted motor with a PWM command to learn from")
@@ -347,9 +390,9 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
     assert best is not None
     rms, tau, coef = best
     out = rpm.copy()
-    divisions: list[PulseDivision | None] = [None, None, None, None]
+    divisions: list[PulseDivision | None] = [None] * n_rotors
     notes: list[str] = []
-    for i in range(4):
+    for i in range(n_rotors):
         if replaced[:, i].any():
             if not np.isfinite(pwm[:, i]).all():
                 raise ValueError(f"{log.meta.source}: motor M{i + 1} has no PWM command to "
@@ -366,7 +409,7 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
                 replaced[div.keep, i] = False
                 notes.append(div.describe(i))
     n_rep = replaced.sum(axis=0)
-    rebuilt = ", ".join(f"M{i + 1}: {int(n_rep[i])} rows" for i in range(4) if n_rep[i])
+    rebuilt = ", ".join(f"M{i + 1}: {int(n_rep[i])} rows" for i in range(n_rotors) if n_rep[i])
     notes.insert(0, f"rotor speeds of {rebuilt} rebuilt from PWM (map learned on "
                     f"{', '.join(f'M{i + 1}' for i in train_motors)}: tau = "
                     f"{tau * 1e3:.0f} ms, residual {rms:.0f} rev/min)")

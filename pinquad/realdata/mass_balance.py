@@ -52,9 +52,10 @@ def quasi_static_mass(real: RealObservations) -> float:
 class MotorSplit:
     """:func:`quasi_static_mass` split by motor.
 
-    share (4,) [-]: each motor's part of the vertical thrust over the used transitions
-    relative to the four-motor mean, s_i = 4 sum_k F_k R_k,zz w_ik / sum_k F_k R_k,zz with
-    w_ik = omega_ik^2 / sum_j omega_jk^2 (1 for all four when they carry equal thrust);
+    share (n,) [-]: each of the n motors' part of the vertical thrust over the used
+    transitions relative to the mean over the n motors, s_i = n sum_k F_k R_k,zz w_ik /
+    sum_k F_k R_k,zz with w_ik = omega_ik^2 / sum_j omega_jk^2 (1 for all when they carry
+    equal thrust);
     measured_mass [kg]:
     the part of m_qs the motors whose speeds were measured carry,
     m_meas = sum_k F_k R_k,zz sum_(i measured) w_ik / sum_k (g + a_z,k); rebuilt: the
@@ -72,26 +73,27 @@ class MotorSplit:
 
     def mass_if(self, share: float) -> float:
         """The model-free mass [kg] if the rebuilt motors carried ``share`` each (of the
-        four-motor mean): m_meas / (1 - n_rebuilt share / 4)."""
-        return self.measured_mass / (1.0 - len(self.rebuilt) * share / 4.0)
+        mean over the n motors): m_meas / (1 - n_rebuilt share / n)."""
+        return self.measured_mass / (1.0 - len(self.rebuilt) * share / self.share.size)
 
     def share_for(self, mass: float) -> float:
         """The share each rebuilt motor would carry if the mass were ``mass`` [kg]."""
-        return 4.0 * (1.0 - self.measured_mass / mass) / max(len(self.rebuilt), 1)
+        return self.share.size * (1.0 - self.measured_mass / mass) / max(len(self.rebuilt), 1)
 
 
 def motor_split(real: RealObservations) -> MotorSplit:
     """:class:`MotorSplit` of a measured flight (the rows of :func:`quasi_static_mass`;
     each bin's thrust divided between the motors by their bin-mean speeds squared)."""
     rows, rzz, lift = _vertical_balance(real)
+    n_rotors = np.asarray(real.log.rpm).shape[1]
     if not rows.size:
-        return MotorSplit(share=np.full(4, np.nan), measured_mass=float("nan"),
+        return MotorSplit(share=np.full(n_rotors, np.nan), measured_mass=float("nan"),
                           rebuilt=tuple(real.repaired))
     omega2 = np.asarray(real.log.rpm, dtype=float)[rows] ** 2
     weight = omega2 / omega2.sum(axis=1, keepdims=True)
     vertical = real.obs.inputs[rows, 0] * rzz
-    share = 4.0 * (vertical @ weight) / vertical.sum()
-    measured = [i for i in range(4) if i not in real.repaired]
+    share = float(n_rotors) * (vertical @ weight) / vertical.sum()
+    measured = [i for i in range(n_rotors) if i not in real.repaired]
     mass = float(np.sum(vertical * weight[:, measured].sum(axis=1)) / np.sum(lift))
     if real.rebuilt_fraction is None:
         own = np.ones(rows.size, dtype=bool) if not real.repaired else np.zeros(rows.size, bool)

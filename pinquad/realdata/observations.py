@@ -45,9 +45,9 @@ from pinquad.models.contact import ContactSettings, detect_floor_contact
 from pinquad.models.ssm import Observations
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.faults import (
-    PARTNER,
     ActuationFaultReport,
     detect_actuation_faults,
+    diagonal_partners,
     reconstruct_rpm,
 )
 from pinquad.realdata.raw import PoseSamples, RawFlight, raw_from_sdflight, raw_from_simulated
@@ -105,6 +105,9 @@ class RealDataOptions:
     (``faults.detect_actuation_faults``); repair_rel_se (4,) [1]: the uncertainty PWM
     repair adds to [m, I_xx, I_yy, I_zz] (``identify.total_standard_errors``). The
     defaults of these three are the shipped crazyflie21 file's ``[faults]``.
+    ground_radius [m] or None: the ground-effect radius discovery evaluates
+    (``Observations.ground_radius``); None: the mixer's rotor footprint, the largest
+    centre-to-rotor distance (``VehicleSpec.ground_effect_radius``).
     """
 
     dt: float = GRID_DT
@@ -126,6 +129,7 @@ class RealDataOptions:
     outlier_rad: float = 0.2
     max_rpm: float = CRAZYFLIE_FAULTS.max_rpm  # type: ignore[assignment]
     repair_rel_se: tuple[float, ...] = CRAZYFLIE_FAULTS.repair_rel_se
+    ground_radius: float | None = None
 
     def __post_init__(self) -> None:
         bad = [c for c in self.channels if c not in ("pos", "vel", "euler", "gyro")]
@@ -144,8 +148,9 @@ def options_for_vehicle(spec: VehicleSpec, base: RealDataOptions | None = None
     its ``[faults]``, else derived from it: flight_rpm half the hover speed of the
     reference (else body) mass, omega_h = sqrt(m g / (n kf)); max_rpm the speed of
     ``max_thrust``, sqrt(max_thrust / kf) (no limit without one); without
-    ``repair_rel_se`` (or with other than four rotors) no PWM repair: implausible rows are
-    excluded. Raises ValueError if the file has no [actuators] table."""
+    ``repair_rel_se`` no PWM repair: implausible rows are excluded (the repair follows the
+    rotor count: any n, with one PWM command per rotor). Raises ValueError if the file has
+    no [actuators] table."""
     base = base or RealDataOptions()
     act = spec.actuators
     if act is None:
@@ -157,7 +162,7 @@ def options_for_vehicle(spec: VehicleSpec, base: RealDataOptions | None = None
     flt = spec.faults
     top = (flt.max_rpm if flt.max_rpm is not None else math.inf if act.max_thrust is None
            else math.sqrt(act.max_thrust / act.kf) * rpm_per_rad_s)
-    repairable = bool(flt.repair_rel_se) and spec.n_rotors == 4
+    repairable = bool(flt.repair_rel_se)
     return replace(base, yaw_ratio=act.yaw_ratio, yaw_ratio_se=act.yaw_ratio_se,
                    spin=tuple(float(v) for v in spec.spin), arm=spec.arm,
                    xy=tuple((float(x), float(y)) for x, y in spec.positions),
@@ -165,7 +170,8 @@ def options_for_vehicle(spec: VehicleSpec, base: RealDataOptions | None = None
                    else base.rotor_inertia,
                    flight_rpm=flt.flight_rpm if flt.flight_rpm is not None else 0.5 * hover,
                    max_rpm=top, repair_rel_se=flt.repair_rel_se,
-                   faults=base.faults if repairable else "exclude")
+                   faults=base.faults if repairable else "exclude",
+                   ground_radius=spec.ground_effect_radius)
 
 
 SENSOR_CHANNELS = {
@@ -255,15 +261,18 @@ class RealObservations:
 
 # ----------------------------------------------------------------------------- build
 
-def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
-            ) -> tuple[Array, BoolArray, BoolArray, list[str]]:
-    """Rotor speeds (N, 4) after the chosen fault handling, rows (N,) still untrusted,
-    readings (N, 4) taken from the PWM map, and notes."""
+def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str,
+            partners: Sequence[int | None]) -> tuple[Array, BoolArray, BoolArray, list[str]]:
+    """Rotor speeds (N, n) after the chosen fault handling, rows (N,) still untrusted,
+    readings (N, n) taken from the PWM map, and notes. partners: each rotor's diagonal
+    partner (``faults.diagonal_partners``) or None. Raises ValueError if the log's PWM
+    commands do not have one column per rotor speed."""
     log = raw.log
     rpm = np.asarray(log.rpm, dtype=float)
+    n_rotors = rpm.shape[1]
     untrusted = report.motor_mask | report.unreliable[None, :]
     notes: list[str] = []
-    none = np.zeros((log.n, 4), dtype=bool)
+    none = np.zeros((log.n, n_rotors), dtype=bool)
     if not untrusted.any():
         return rpm, np.zeros(log.n, dtype=bool), none, notes
     if mode == "exclude" or raw.pwm is None or not np.isfinite(raw.pwm).all():
@@ -271,20 +280,28 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
             notes.append("implausible rotor speeds cannot be rebuilt (no PWM in the log): "
                          "their rows are excluded")
         return rpm, untrusted.any(axis=1), none, notes
-    bad_motors = [i for i in range(4) if untrusted[:, i].any()]
-    if mode == "repair" and not any(untrusted[:, PARTNER[i]].any() for i in bad_motors):
+    if raw.pwm.shape != rpm.shape:
+        raise ValueError(f"{log.meta.source}: {raw.pwm.shape[1]} PWM commands per row but "
+                         f"{n_rotors} rotor speeds; PWM repair needs one command per rotor "
+                         "(or --faults exclude)")
+    bad_motors = [i for i in range(n_rotors) if untrusted[:, i].any()]
+    paired = all(partners[i] is not None and not untrusted[:, partners[i]].any()
+                 for i in bad_motors)
+    if mode == "repair" and paired:
         # A motor's diagonal partner spins the same way with the same propeller type;
         # on the clean flights the PWM -> rpm map of M3 alone predicts M1's mean speed
         # to +0.5 % on average, the map of all three other motors to +2 %.
         out = rpm.copy()
         rebuilt = none.copy()
         for i in bad_motors:
-            others = tuple(j for j in range(4) if j != PARTNER[i])
+            partner = partners[i]
+            assert partner is not None
+            others = tuple(j for j in range(n_rotors) if j != partner)
             rec = reconstruct_rpm(log, raw.pwm, report, replace_motors=others)
             out[untrusted[:, i], i] = rec.rpm[untrusted[:, i], i]
             rebuilt[:, i] = untrusted[:, i] & rec.replaced[:, i]
             notes.append(f"M{i + 1}: {int(rebuilt[:, i].sum())} readings rebuilt from its PWM "
-                         f"through the PWM -> rpm map of its diagonal partner M{PARTNER[i] + 1} "
+                         f"through the PWM -> rpm map of its diagonal partner M{partner + 1} "
                          f"(first-order lag {rec.tau * 1e3:.0f} ms, map residual "
                          f"{rec.fit_rms:.0f} rev/min)")
             div = rec.divisions[i]
@@ -292,7 +309,8 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
                 notes.append(div.describe(i))
         return out, np.zeros(log.n, dtype=bool), rebuilt, notes
     if mode == "repair":
-        notes.append("a diagonal partner is untrusted too: map learned on all trusted motors")
+        notes.append("a rotor without a trusted diagonal partner (untrusted too, or none in "
+                     "this geometry): map learned on all trusted motors")
     rec = reconstruct_rpm(log, raw.pwm, report)
     notes.extend(rec.notes)
     return rec.rpm, np.zeros(log.n, dtype=bool), rec.replaced, notes
@@ -300,7 +318,7 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str
 
 def rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float], held: bool = False
                        ) -> Array:
-    """(N,) sum_i spin_i d(omega_i)/dt [rad/s^2] from rotor speeds rpm (N, 4) [rev/min] at
+    """(N,) sum_i spin_i d(omega_i)/dt [rad/s^2] from rotor speeds rpm (N, n) [rev/min] at
     times t (N,) [s]: central differences of sampled readings, NaN where a neighbouring
     interval is a log gap (longer than twice the median step) or a speed is not finite.
 
@@ -352,19 +370,21 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     notes: list[str] = [kf.note]
     dt = options.dt
 
+    actuator = ActuatorModel(kf=kf.kf, arm=options.arm, yaw_ratio=options.yaw_ratio,
+                             spin=options.spin, xy=options.xy)
+    if log.rpm.shape[1] != actuator.n_rotors:
+        raise ValueError(f"{source}: the log has {log.rpm.shape[1]} rotor speeds per row but "
+                         f"the vehicle has {actuator.n_rotors} rotors; give the vehicle file "
+                         "that matches the log (--vehicle FILE)")
+    # Diagonal partners from the vehicle's geometry (the Crazyflie's: M1-M3, M2-M4).
+    partners = diagonal_partners(actuator.positions, actuator.spin)
     report = detect_actuation_faults(log, flight_rpm=options.flight_rpm,
-                                    max_rpm=options.max_rpm)
-    rpm, untrusted_rows, rebuilt, repair_notes = _repair(raw, report, options.faults)
+                                    max_rpm=options.max_rpm, partners=partners)
+    rpm, untrusted_rows, rebuilt, repair_notes = _repair(raw, report, options.faults, partners)
     untrusted_motors = report.motor_mask | report.unreliable[None, :]
     notes.extend(repair_notes)
     if report.vbat_stuck:
         notes.append(f"battery voltage stuck at {report.vbat_value:.2f} V: not used")
-    actuator = ActuatorModel(kf=kf.kf, arm=options.arm, yaw_ratio=options.yaw_ratio,
-                             spin=options.spin, xy=options.xy)
-    if rpm.shape[1] != actuator.n_rotors:
-        raise ValueError(f"{source}: the log has {rpm.shape[1]} rotor speeds per row but the "
-                         f"vehicle has {actuator.n_rotors} rotors; give the vehicle file "
-                         "that matches the log (--vehicle FILE)")
     finite_rpm = np.isfinite(rpm).all(axis=1)
     thrust = np.full(log.n, np.nan)
     torque = np.full((log.n, 3), np.nan)
@@ -518,8 +538,12 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         ok = np.isfinite(blk).all(axis=1)
         if ok.any():
             x0[sl] = blk[np.argmax(ok)]
+    # the ground-effect radius from the vehicle's geometry (the rotor footprint) unless given
+    footprint = float(np.max(np.hypot(actuator.positions[:, 0], actuator.positions[:, 1])))
     obs = Observations(t=grid - grid[0], dt=dt, inputs=inputs, channels=options.channels,
-                       ys=ys, x0=x0, p0=p0, exclude=exclude, resets=resets)
+                       ys=ys, x0=x0, p0=p0, exclude=exclude, resets=resets,
+                       ground_radius=footprint if options.ground_radius is None
+                       else options.ground_radius)
     if obs.n < 3 or int((~exclude[:n_tr]).sum()) < 10:
         why = "; ".join(e.reason for e in exclusions if e.transitions)
         raise ValueError(f"{source}: only {int((~exclude[:n_tr]).sum())} usable transitions "
@@ -531,8 +555,8 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     resampled = FlightLog(t=obs.t, position=position, velocity=vel, euler=euler, gyro=gyro,
                           accel=accel, thrust=inputs[:, 0], torque=inputs[:, 1:4],
                           rpm=fill_rows(grid, rpm_g), vbat=vbat, meta=meta)
-    repaired = tuple(int(i) for i in range(4) if (untrusted_motors[:, i]).any()) \
-        if not untrusted_rows.any() else ()
+    repaired = tuple(int(i) for i in range(untrusted_motors.shape[1])
+                     if untrusted_motors[:, i].any()) if not untrusted_rows.any() else ()
     return RealObservations(obs=obs, log=resampled, exclusions=tuple(exclusions),
                             notes=tuple(notes), faults=report, kf=kf, source=source,
                             options=options, repaired=repaired,

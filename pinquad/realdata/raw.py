@@ -35,10 +35,11 @@ class PoseSamples:
 class RawFlight:
     """What :func:`build_observations` needs of a measured flight, before resampling.
 
-    log: the flight at its own rate (rows at log.t [s]) with ``rpm`` (N, 4) [rev/min];
-    pose: motion-capture samples (None: use the log's own position / euler rows);
-    pwm (N, 4) [0..65535] or None; onboard_pos (N, 3) [m] or None: the vehicle's own
-    position estimate; vbat_stuck: the battery reading is not a measurement.
+    log: the flight at its own rate (rows at log.t [s]) with ``rpm`` (N, n) [rev/min] of
+    its n rotors; pose: motion-capture samples (None: use the log's own position / euler
+    rows); pwm (N, n) [0..65535], one command per rotor, or None; onboard_pos (N, 3) [m]
+    or None: the vehicle's own position estimate; vbat_stuck: the battery reading is not
+    a measurement.
     """
 
     log: FlightLog

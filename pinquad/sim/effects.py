@@ -17,10 +17,12 @@ weight change over a flight at near-constant attitude, so it would trade off aga
 mass. ``motor_lag`` is discretised by backward Euler:
 u_k = u_{k-1} + dt / (tau_m + dt) (u_cmd,k - u_{k-1}).
 
-Realistic Crazyflie 2.x magnitudes (used as the defaults): rotor drag from Foerster's
-k_aero (-9.18e-7, -9.18e-7, -10.3e-7) N s/m per rad/s times the summed hover rotor speed
-(about 4 x 1700 rad/s): D = (0.0062, 0.0062, 0.0070) N s/m; motor time constant about
-0.03 s; a MEMS gyro bias of a few mrad/s to 0.05 rad/s; a battery a few mm off centre.
+Realistic Crazyflie 2.x magnitudes (used as the defaults): rotor drag from the shipped
+``crazyflie21.toml`` ``[aero] drag`` (Foerster's k_aero times the summed hover rotor
+speed, ``core.effect_vocabulary.SIMULATED_DRAG``); motor time constant about 0.03 s; a
+MEMS gyro bias of a few mrad/s to 0.05 rad/s; a battery a few mm off centre. The ground
+effect's radius is the flown vehicle's (``Vehicle.ground_effect_radius``: its rotor
+footprint), so the simulator and discovery evaluate the same law for any vehicle.
 """
 
 from __future__ import annotations
@@ -34,10 +36,10 @@ from numpy.typing import NDArray
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.effect_vocabulary import (
     COEFFICIENT_NAMES,
-    CRAZYFLIE_DRAG,
-    GROUND_EFFECT_RADIUS,
+    SIMULATED_DRAG,
     ground_effect_gain,
 )
+from pinquad.core.params import Vehicle
 from pinquad.sim.simulator import Disturbance
 
 Array = NDArray[np.float64]
@@ -47,7 +49,7 @@ def _disturbance(**kwargs) -> Disturbance:
     return Disturbance(**kwargs)
 
 
-def drag(coefficients: tuple[float, float, float] | Array = CRAZYFLIE_DRAG) -> Disturbance:
+def drag(coefficients: tuple[float, float, float] | Array = SIMULATED_DRAG) -> Disturbance:
     """Linear body drag f_b = -diag(D) R^T v [N] with D (3,) [N s/m]."""
     d = np.asarray(coefficients, dtype=float)
 
@@ -58,15 +60,25 @@ def drag(coefficients: tuple[float, float, float] | Array = CRAZYFLIE_DRAG) -> D
     return _disturbance(name="drag", wrench=wrench)
 
 
-def ground_effect(gain: float = 1.0, radius: float = GROUND_EFFECT_RADIUS) -> Disturbance:
-    """Extra thrust f_z = k_ge F g(z) [N] near the floor, g from ``ground_effect_gain``."""
+def ground_effect(gain: float = 1.0, radius: float | None = None) -> Disturbance:
+    """Extra thrust f_z = k_ge F g(z) [N] near the floor, g from ``ground_effect_gain``
+    with radius r [m] (None: the flown vehicle's, ``Vehicle.ground_effect_radius``)."""
 
-    def wrench(x: Array, u: Array, t: float) -> Array:
-        out = np.zeros(6)
-        out[2] = gain * u[0] * float(ground_effect_gain(x[2], radius))
-        return out
+    def at_radius(r: float) -> Disturbance:
+        def wrench(x: Array, u: Array, t: float) -> Array:
+            out = np.zeros(6)
+            out[2] = gain * u[0] * float(ground_effect_gain(x[2], r))
+            return out
 
-    return _disturbance(name="ground_effect", wrench=wrench)
+        return _disturbance(name="ground_effect", wrench=wrench)
+
+    if radius is not None:
+        return at_radius(radius)
+
+    def for_vehicle(vehicle: Vehicle) -> Disturbance:
+        return at_radius(vehicle.ground_effect_radius)
+
+    return _disturbance(name="ground_effect", for_vehicle=for_vehicle)
 
 
 def com_offset(offset: tuple[float, float] | Array = (0.003, -0.002)) -> Disturbance:

@@ -72,13 +72,16 @@ class Disturbance:
 
     ``wrench(x, u, t)`` -> extra body wrench (6,) [N, N m] at the body origin;
     ``actuation(u_cmd, u_prev, dt)`` -> the actuation that reaches the body (4,);
-    ``gyro_bias`` (3,) [rad/s] added to every gyro sample.
+    ``gyro_bias`` (3,) [rad/s] added to every gyro sample; ``for_vehicle(vehicle)`` ->
+    the disturbance to fly on that vehicle, for an effect that depends on it (the ground
+    effect's radius is the flown vehicle's footprint): the simulator flies that instead.
     """
 
     name: str
     wrench: Callable[[Array, Array, float], Array] | None = None
     actuation: Callable[[Array, Array, float], Array] | None = None
     gyro_bias: Array | None = None
+    for_vehicle: Callable[[Vehicle], Disturbance] | None = None
 
 
 @dataclass(frozen=True)
@@ -219,8 +222,11 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
     thrust_max = config.thrust_max_factor * veh.mass * g
     suite = SENSORS[config.sensor]
     suite = suite.__class__(**{**suite.__dict__, "noise": config.sensor_noise})
+    # effects that depend on the vehicle (the ground effect's footprint) take this one's
+    disturbances = tuple(d if d.for_vehicle is None else d.for_vehicle(veh)
+                         for d in config.disturbances)
     gyro_bias = np.zeros(3)
-    for dist in config.disturbances:
+    for dist in disturbances:
         if dist.gyro_bias is not None:
             gyro_bias = gyro_bias + dist.gyro_bias
 
@@ -287,13 +293,13 @@ def simulate(config: SimConfig, rng: np.random.Generator, on_step: ParamUpdate |
         buf.torque[k] = u[1:4]
         u_act = u.copy()
         extra = np.zeros(6)
-        for dist in config.disturbances:
+        for dist in disturbances:
             if dist.actuation is not None:
                 u_act = dist.actuation(u_act, u_prev, dt)
         u_prev = u_act
         u_true = u_act + u_noise
         u_true[0] = max(u_true[0], 0.0)
-        for dist in config.disturbances:
+        for dist in disturbances:
             if dist.wrench is not None:
                 extra = extra + dist.wrench(x, u_true, float(ref.t[k]))
         applied[k] = u_true
