@@ -126,7 +126,8 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     are also resets for the E-step (``Observations.resets``). The contact rows are
     ``contact.rows``; without it, the log's contact flags, else none (the data-based
     detection needs a mass guess: pass ``floor_contact(log, mass_guess)``). The inputs are
-    what each transition applies (``interval_inputs`` by ``log.meta.actuation``).
+    what each transition applies (``interval_inputs`` by ``log.meta.actuation``); a
+    sampled log's rows themselves are kept as ``samples``.
     """
     if log.thrust is None or log.torque is None:
         raise ValueError("the log has no thrust/torque actuation; convert rotor speeds first")
@@ -159,6 +160,8 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
         # touching down, the floor stops and levels the vehicle within the step: the
         # smoother must not carry the flight dynamics across that (ssm.RESET_VAR)
         resets[:-1] = rows[1:]
-    inputs = interval_inputs(np.column_stack([log.thrust, log.torque]), log.meta.actuation)
+    logged = np.column_stack([log.thrust, log.torque])
+    inputs = interval_inputs(logged, log.meta.actuation)
+    samples = logged.copy() if log.meta.actuation == "sampled" else None
     return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
-                        p0=p0, exclude=exclude, resets=resets)
+                        p0=p0, exclude=exclude, resets=resets, samples=samples)

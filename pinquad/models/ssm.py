@@ -90,7 +90,11 @@ class Observations:
     not use (ground contact, implausible actuation); resets (N,) bool: transitions
     k -> k+1 that the flight dynamics do not describe because something outside the
     model changed the state (the floor stopping the vehicle as it touches down), whose
-    process covariance is widened by ``RESET_VAR`` (empty: none).
+    process covariance is widened by ``RESET_VAR`` (empty: none); samples (N, 4) or
+    None: the logged thrust [N] and torques [N m] at each row's instant when ``inputs``
+    are their interval means (a ``sampled`` log, ``models.sources.interval_inputs``),
+    None when the inputs are held over each interval (the motor lag of discovery is
+    discretised on the samples then: ``discovery.library.applied_lag``).
     """
 
     t: Array
@@ -102,6 +106,7 @@ class Observations:
     p0: Array
     exclude: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     resets: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    samples: Array | None = None
 
     @property
     def n(self) -> int:
