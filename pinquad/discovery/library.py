@@ -10,8 +10,16 @@ names and constants both use are ``pinquad.core.effect_vocabulary``.
 
 The forms and coefficients of each effect are tabled in ``pinquad.core.effect_vocabulary``.
 
-``motor_lag`` is discretised by backward Euler: u_k = u_{k-1} + dt / (tau_m + dt)
-(u_cmd,k - u_{k-1}).
+``motor_lag`` (tau_m u' = u_cmd - u) is discretised by how the log's inputs were read
+(``applied_lag``). Held inputs (pinquad's simulator, whose truth is this very step): backward
+Euler, u_k = u_{k-1} + dt / (tau_m + dt) (u_cmd,k - u_{k-1}). Sampled inputs (the command
+of a faster controller at each row's instant; the transition applies the interval mean):
+the exact lag of the command interpolated linearly between the samples, averaged over each
+interval (``sampled_lag_means``). Backward Euler on a sampled log's interval means has too
+little phase lag at frequencies near 1/dt (at 7 Hz and 100 Hz, 45 degrees where a 30 ms lag
+has 54): where the torque is dominated by such a frequency (flightgen's lagged attitude
+loop rings at about 7 Hz), the fit matched the phase with a 42 ms lag and made up the
+gain with an inertia 28 % low (docs/discovery.md).
 """
 
 from __future__ import annotations
@@ -33,9 +41,11 @@ class TransitionData:
     """What an effect's features see of the transitions k -> k+1 used for fitting.
 
     x (K, 12): smoothed state at k; inputs (K, 4): logged command [F (N), M (N m)] at k;
-    applied_history (N, 4): the whole logged command sequence (for lags); index (K,):
-    the step k of each row; dt [s]; ground_radius [m]: the vehicle's ground-effect radius
-    (``Observations.ground_radius``).
+    applied_history (N, 4): the whole input sequence the transitions apply (for lags);
+    index (K,): the step k of each row; dt [s]; ground_radius [m]: the vehicle's
+    ground-effect radius (``Observations.ground_radius``); samples (N, 4) or None: the
+    logged command at each row's instant when ``applied_history`` holds its interval
+    means (``Observations.samples``; None: held inputs).
     """
 
     x: Array
@@ -44,6 +54,7 @@ class TransitionData:
     index: NDArray[np.int64]
     dt: float
     ground_radius: float
+    samples: Array | None = None
 
 
 def lagged_inputs(inputs: Array, time_constant: float, dt: float) -> Array:
@@ -56,6 +67,45 @@ def lagged_inputs(inputs: Array, time_constant: float, dt: float) -> Array:
     # selection's grid search runs it dozens of times on logs of 30,000 rows); the
     # initial state (1 - a) u_cmd,0 makes u_0 = u_cmd,0
     return lfilter([a], [1.0, a - 1.0], u, axis=0, zi=(1.0 - a) * u[0:1])[0]
+
+
+def sampled_lag_means(samples: Array, time_constant: float, dt: float) -> Array:
+    """(N, 4) interval means of the lag tau_m u' = u_cmd - u driven by the command
+    interpolated linearly between its samples u_cmd,k (N, 4) at t_k = k dt [s].
+
+    Exact for that command. With E = exp(-dt/tau_m), beta = tau_m / dt,
+    Delta_k = u_cmd,k+1 - u_cmd,k and u_0 = u_cmd,0 (at rest on the first sample):
+
+        u_k+1 = E u_k + (1 - beta (1 - E)) u_cmd,k+1 + (beta (1 - E) - E) u_cmd,k
+        mean over [t_k, t_k+1] = (u_cmd,k + u_cmd,k+1) / 2 - beta Delta_k
+                                 + (u_k - u_cmd,k + beta Delta_k) beta (1 - E)
+
+    The last row, with no next sample, holds its command (as ``interval_inputs`` does).
+    tau_m <= 0: the command's interval means themselves."""
+    u = np.asarray(samples, dtype=float)
+    delta = np.zeros_like(u)
+    delta[:-1] = u[1:] - u[:-1]
+    if time_constant <= 0.0:
+        return u + 0.5 * delta
+    decay = float(np.exp(-dt / time_constant))
+    beta = time_constant / dt
+    gain = beta * (1.0 - decay)              # the mean of exp(-s / tau_m) over the interval
+    lagged = np.empty_like(u)
+    lagged[0] = u[0]
+    if u.shape[0] > 1:
+        b = [1.0 - gain, gain - decay]
+        zi = (decay * u[0] + b[1] * u[0])[None, :]
+        lagged[1:], _ = lfilter(b, [1.0, -decay], u[1:], axis=0, zi=zi)
+    return u + 0.5 * delta - beta * delta + (lagged - u + beta * delta) * gain
+
+
+def applied_lag(inputs: Array, samples: Array | None, time_constant: float, dt: float) -> Array:
+    """(N, 4) what each transition applies through the motor lag tau_m [s]: backward Euler
+    on held ``inputs`` (``lagged_inputs``), or, when the log's ``samples`` are given (the
+    inputs are their interval means), ``sampled_lag_means`` of the samples."""
+    if samples is None:
+        return lagged_inputs(inputs, time_constant, dt)
+    return sampled_lag_means(samples, time_constant, dt)
 
 
 @dataclass(frozen=True)
@@ -126,8 +176,9 @@ def wrench_features(name: str, data: TransitionData) -> Array:
 
 
 def lag_wrench(data: TransitionData, time_constant: float) -> Array:
-    """(K, 6) extra wrench u_lagged - u_cmd of ``motor_lag`` (thrust and torque rows)."""
-    lagged = lagged_inputs(data.applied_history, time_constant, data.dt)
+    """(K, 6) extra wrench u_lagged - u_applied of ``motor_lag`` (thrust and torque rows):
+    the lagged input (``applied_lag``) minus what the transition applies without the lag."""
+    lagged = applied_lag(data.applied_history, data.samples, time_constant, data.dt)
     out = np.zeros((data.index.size, 6))
     out[:, 2:6] = lagged[data.index] - data.applied_history[data.index]
     return out

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.discovery.library import TransitionData, lagged_inputs, wrench_features
+from pinquad.discovery.library import TransitionData, applied_lag, wrench_features
 from pinquad.discovery.residuals import step_blocks
 from pinquad.discovery.result import DEFAULT_CONFIG, DiscoveryConfig
 from pinquad.discovery.selection import estimate_coefficients
@@ -33,7 +33,9 @@ def corrected_observations(obs: Observations, state: Array, coefficients: dict[s
     """Fold identified effects into the observations the unchanged E/M-steps see.
 
     state (N, 12): the smoothed trajectory at which state-dependent corrections are
-    evaluated. motor_lag: inputs replaced by the lagged command; thrust and torque rows of
+    evaluated. motor_lag: inputs replaced by the lagged command (``applied_lag``: on the
+    log's samples when it has them; the returned inputs are no longer their interval means,
+    so the returned observations carry no samples); thrust and torque rows of
     drag / wind / ground_effect / com_offset added to the thrust and torques; gyro_bias
     subtracted from the gyro samples. The body x/y forces of drag and wind cannot be
     expressed as [F, M] inputs and are left out (they do not enter the mass/inertia
@@ -42,7 +44,7 @@ def corrected_observations(obs: Observations, state: Array, coefficients: dict[s
     """
     inputs = obs.inputs.copy()
     if "motor_lag" in coefficients:
-        inputs = lagged_inputs(obs.inputs, float(coefficients["motor_lag"][0]), obs.dt)
+        inputs = applied_lag(obs.inputs, obs.samples, float(coefficients["motor_lag"][0]), obs.dt)
     idx = np.arange(obs.n)
     data = TransitionData(x=state, inputs=inputs, applied_history=inputs, index=idx, dt=obs.dt,
                           ground_radius=obs.ground_radius)
@@ -57,7 +59,7 @@ def corrected_observations(obs: Observations, state: Array, coefficients: dict[s
     if "gyro_bias" in coefficients and "gyro" in obs.channels:
         i = obs.channels.index("gyro")
         ys[:, 3 * i:3 * i + 3] -= coefficients["gyro_bias"]
-    return replace(obs, inputs=inputs, ys=ys)
+    return replace(obs, inputs=inputs, ys=ys, samples=None)
 
 
 def effect_mstep(coefficients: dict[str, Array]):
@@ -83,7 +85,8 @@ def effect_mstep(coefficients: dict[str, Array]):
         new = out.theta
         idx = np.flatnonzero(transition_mask(obs))
         data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
-                              index=idx, dt=obs.dt, ground_radius=obs.ground_radius)
+                              index=idx, dt=obs.dt, ground_radius=obs.ground_radius,
+                              samples=obs.samples)
         force = sum(np.einsum("kap,p->ka", wrench_features(e, data), coefficients[e])
                     for e in wrench_effects)[:, 0:2]
         y_pi = new.mass * body_regressor(post.mean[idx], post.mean[idx + 1], obs.dt,

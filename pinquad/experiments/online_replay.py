@@ -29,7 +29,8 @@ def window_of(obs: Observations, start: int, stop: int, x0: Array, p0: Array) ->
     return replace(obs, t=obs.t[start:stop], inputs=obs.inputs[start:stop],
                    ys=obs.ys[start:stop], x0=x0, p0=p0,
                    exclude=obs.exclude[start:stop] if obs.exclude.size else obs.exclude,
-                   resets=obs.resets[start:stop] if obs.resets.size else obs.resets)
+                   resets=obs.resets[start:stop] if obs.resets.size else obs.resets,
+                   samples=None if obs.samples is None else obs.samples[start:stop])
 
 
 def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] | None,

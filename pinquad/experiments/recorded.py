@@ -394,7 +394,8 @@ def input_alternative(log: FlightLog, obs: Observations, mstep: str, mass0: floa
     meta = log.meta
     if meta.actuation != "sampled" or meta.actuation_declared or mstep == "full":
         return None
-    held = replace(obs, inputs=interval_inputs(np.column_stack([log.thrust, log.torque]), "held"))
+    held = replace(obs, inputs=interval_inputs(np.column_stack([log.thrust, log.torque]), "held"),
+                   samples=None)
     alt, _ = identify(held, mass0, inertia0, log.meta.gravity, options.estep, mstep,
                       options.max_iterations, False)
     return np.r_[alt.mass, np.diag(alt.inertia)]

@@ -127,7 +127,8 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     are also resets for the E-step (``Observations.resets``). The contact rows are
     ``contact.rows``; without it, the log's contact flags, else none (the data-based
     detection needs a mass guess: pass ``floor_contact(log, mass_guess)``). The inputs are
-    what each transition applies (``interval_inputs`` by ``log.meta.actuation``).
+    what each transition applies (``interval_inputs`` by ``log.meta.actuation``); a
+    sampled log's rows themselves are kept as ``samples``.
     """
     if log.thrust is None or log.torque is None:
         raise ValueError("the log has no thrust/torque actuation; convert rotor speeds first")
@@ -160,8 +161,11 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
         # touching down, the floor stops and levels the vehicle within the step: the
         # smoother must not carry the flight dynamics across that (ssm.RESET_VAR)
         resets[:-1] = rows[1:]
-    inputs = interval_inputs(np.column_stack([log.thrust, log.torque]), log.meta.actuation)
+    logged = np.column_stack([log.thrust, log.torque])
+    inputs = interval_inputs(logged, log.meta.actuation)
+    samples = logged.copy() if log.meta.actuation == "sampled" else None
     # the ground-effect radius of the vehicle the log names (a log naming none: the default)
     radius = vehicle_ground_radius(log.meta.vehicle if log.meta.vehicle_named else None)
     return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
-                        p0=p0, exclude=exclude, resets=resets, ground_radius=radius)
+                        p0=p0, exclude=exclude, resets=resets, ground_radius=radius,
+                        samples=samples)

@@ -94,7 +94,11 @@ class Observations:
     process covariance is widened by ``RESET_VAR`` (empty: none); ground_radius [m]: the
     flown vehicle's ground-effect radius, which discovery's ``ground_effect`` feature
     evaluates (``core.effect_vocabulary.vehicle_ground_radius``; the default is for
-    observations built without a vehicle).
+    observations built without a vehicle); samples (N, 4) or None: the logged thrust [N]
+    and torques [N m] at each row's instant when ``inputs`` are their interval means (a
+    ``sampled`` log, ``models.sources.interval_inputs``), None when the inputs are held
+    over each interval (the motor lag of discovery is discretised on the samples then:
+    ``discovery.library.applied_lag``).
     """
 
     t: Array
@@ -107,6 +111,7 @@ class Observations:
     exclude: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     resets: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     ground_radius: float = DEFAULT_GROUND_RADIUS
+    samples: Array | None = None
 
     @property
     def n(self) -> int:

@@ -50,7 +50,11 @@ def corrected(obs: Observations, theta: Theta) -> Observations:
         return obs
     inputs = obs.inputs.copy()
     inputs[:, 1:4] += off
-    return replace(obs, inputs=inputs)
+    samples = None
+    if obs.samples is not None:
+        samples = obs.samples.copy()
+        samples[:, 1:4] += off
+    return replace(obs, inputs=inputs, samples=samples)
 
 
 def real_model(obs: Observations, theta: Theta):

@@ -238,9 +238,17 @@ def shadow_flight(obs: Observations, theta: Theta, reference: Array, rng: np.ran
          euler_step, np.ascontiguousarray(obs.inputs, dtype=float), float(obs.dt), substeps,
          float(theta.mass), inertia, np.linalg.inv(inertia), float(theta.gravity), gains, noise,
          actuation == "held", states, logged)
-    # read as the recorded log is read, then as rough as the recorded inputs
-    inputs = interval_inputs(logged, actuation)
-    inputs = inputs + rng.standard_normal(inputs.shape) * input_roughness_gap(obs.inputs, inputs)
+    # as rough as the recorded inputs, then read as the recorded log is read; a log with
+    # samples (``Observations.samples``) is roughened on its samples, so that the shadow's
+    # samples and their interval means agree as the recorded log's do (the motor lag of
+    # discovery is discretised on them)
+    samples = None
+    if actuation == "sampled" and obs.samples is not None:
+        samples = logged + rng.standard_normal(logged.shape) * input_roughness_gap(obs.samples, logged)
+        inputs = interval_inputs(samples, actuation)
+    else:
+        inputs = interval_inputs(logged, actuation)
+        inputs = inputs + rng.standard_normal(inputs.shape) * input_roughness_gap(obs.inputs, inputs)
     clean = states @ obs.measurement_matrix().T
     meas_sd = np.sqrt(np.maximum(np.asarray(theta.noise.meas, dtype=float), 0.0))
     ys = clean + rng.standard_normal(clean.shape) * meas_sd
@@ -248,4 +256,4 @@ def shadow_flight(obs: Observations, theta: Theta, reference: Array, rng: np.ran
     if angle_rows.size:
         ys[:, angle_rows] = wrap_angle(ys[:, angle_rows])
     ys[np.isnan(obs.ys)] = np.nan
-    return ShadowFlight(replace(obs, inputs=inputs, ys=ys), states)
+    return ShadowFlight(replace(obs, inputs=inputs, ys=ys, samples=samples), states)
