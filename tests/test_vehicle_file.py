@@ -73,6 +73,17 @@ def test_bad_file_names_file_and_key(edit, key):
     assert "/x/quad250.toml" in str(err.value) and f"'{key}'" in str(err.value)
 
 
+def test_rotor_inertia_absent_is_fitted_a_value_zero_included_is_fixed():
+    where = Path("/x/quad250.toml")
+    assert parse_vehicle(GOOD, where).actuators.rotor_inertia is None  # fitted per flight
+    fixed = GOOD.replace("max_thrust = 4.0", "max_thrust = 4.0\nrotor_inertia = 0.0")
+    assert parse_vehicle(fixed, where).actuators.rotor_inertia == 0.0
+    given = fixed.replace("rotor_inertia = 0.0", "rotor_inertia = 2e-7")
+    assert parse_vehicle(given, where).actuators.rotor_inertia == 2e-7
+    with pytest.raises(VehicleFileError, match="'actuators.rotor_inertia'.*>= 0"):
+        parse_vehicle(fixed.replace("rotor_inertia = 0.0", "rotor_inertia = -1e-7"), where)
+
+
 def test_plus_layout_mixer_from_file():
     spec = parse_vehicle(GOOD, Path("q.toml"))
     act = ActuatorModel.from_spec(spec)

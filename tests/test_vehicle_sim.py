@@ -5,6 +5,7 @@ measured-flight commands; the shipped vehicles' constants only in their files.""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from pinquad.experiments.vehicle_file_mc import (
 )
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.read import read_log, with_vehicle
+from pinquad.realdata.identify import identify_real
 from pinquad.realdata.observations import (
     RealDataOptions,
     build_observations,
@@ -144,3 +146,26 @@ def test_bins_without_a_trusted_input_are_resets_for_the_e_step():
     assert resets.shape == (real.obs.n,)
     np.testing.assert_array_equal(np.flatnonzero(resets), np.flatnonzero(stopped))
     assert np.all(real.obs.exclude[resets])
+
+
+def test_files_rotor_inertia_zero_fixes_j_r_and_an_absent_key_fits_it():
+    """quad250_plus.toml gives rotor_inertia = 0 (the simulated world flies none): the
+    identification reports J_r = 0, fixed; the same file without the key fits J_r on the
+    flight (a nonzero value). Three E-steps on a one-waypoint flight: only who decides
+    J_r is tested here, not its value."""
+    spec = load_vehicle(str(QUAD.resolve()))
+    assert spec.actuators.rotor_inertia == 0.0
+    log, _ = fly_vehicle_file(spec, 0, short_scenario(0.3, 1))
+    base, kf = measured_vehicle(log)
+    assert base.rotor_inertia == 0.0
+    raw = raw_flight(log)
+    guess = (spec.guess_mass, spec.guess_inertia)
+    fixed, _, _ = identify_real(build_observations(raw, base, kf), *guess, max_iterations=3,
+                                information=False, band=FILE_VEHICLE_BAND)
+    assert fixed.rotor_inertia == 0.0
+    absent = options_for_vehicle(replace(spec, actuators=replace(spec.actuators,
+                                                                 rotor_inertia=None)))
+    assert absent.rotor_inertia is None
+    fitted, _, _ = identify_real(build_observations(raw, absent, kf), *guess, max_iterations=3,
+                                 information=False, band=FILE_VEHICLE_BAND)
+    assert np.isfinite(fitted.rotor_inertia) and fitted.rotor_inertia != 0.0

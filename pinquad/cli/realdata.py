@@ -78,11 +78,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="shadow flights of each log's base fit that a found effect's "
                              "evidence must beat (pinquad.discovery.null; >= 19 for p <= "
                              "0.05; 0: no calibration)")
-    parser.add_argument("--rotor-inertia", type=_rotor_choice, default="pooled",
+    parser.add_argument("--rotor-inertia", type=_rotor_choice, default=None,
                         help="rotor inertia J_r of the yaw torque J_r sum spin_i omega_i': "
-                             "pooled (default: one J_r fitted jointly on the --pool logs, each "
-                             "pool log identified with the J_r of the others, leave-one-out), "
-                             "per-flight (fitted on each log), none, or a value [kg m^2]")
+                             "pooled (default, unless the vehicle file gives [actuators] "
+                             "rotor_inertia, which is then used: one J_r fitted jointly on the "
+                             "--pool logs, each pool log identified with the J_r of the "
+                             "others, leave-one-out), per-flight (fitted on each log), none, "
+                             "or a value [kg m^2]")
     parser.add_argument("--pool", nargs="*", default=None,
                         help="logs the pooled J_r is fitted on (default: crazyflie21's seven "
                              "with every rotor speed measured; a vehicle file's: every log); "
@@ -119,7 +121,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
-    mode = args.rotor_inertia
+    # J_r: the command line's, else the one the vehicle file fixes, else pooled
+    file_jr = spec.actuators.rotor_inertia if spec.actuators is not None else None
+    mode = args.rotor_inertia if args.rotor_inertia is not None else \
+        file_jr if file_jr is not None else "pooled"
     print(f"pinquad real data: {len(logs)} logs from {flights}, channels {options.channels}, "
           f"faults {options.faults}, torque band {args.band[0]:g}-{args.band[1]:g} Hz, "
           f"rotor inertia {mode}, {backend_from_args(args).describe()}; {kf.note}",
@@ -146,7 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if mode == "pooled":
                 print(f"pass 1: J_r fitted per flight on the {len(pool)} pool logs "
                       f"({', '.join(p.name for p in pool)}) to pool it", file=sys.stderr)
-                first = run_jobs([TableJob(p, options, args.max_iterations, False,
+                first = run_jobs([TableJob(p, replace(options, rotor_inertia=None),
+                                           args.max_iterations, False,
                                            tuple(args.band), stand, keep_band_stats=True, kf=kf,
                                            vehicle=vehicle)
                                   for p in pool], executor)
@@ -170,9 +176,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                          rotor_source=src, effects=effects, kf=kf,
                                          vehicle=vehicle))
             else:
-                fixed = 0.0 if isinstance(mode, str) else mode
+                # None: J_r not fixed (fitted with per-flight, none with none)
+                fixed = None if isinstance(mode, str) else mode
                 src = {"per-flight": "fitted on this log", "none": ""}.get(mode, "given") \
-                    if isinstance(mode, str) else "given"
+                    if isinstance(mode, str) else ("given" if args.rotor_inertia is not None
+                                                   else f"fixed by {spec.source}")
                 jobs = [TableJob(p, replace(options, rotor_inertia=fixed), args.max_iterations,
                                  not args.no_information, tuple(args.band), stand,
                                  fit_rotor_inertia=mode == "per-flight", rotor_source=src,

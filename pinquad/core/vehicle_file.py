@@ -64,7 +64,8 @@ class Actuators:
     thrust_stand: a CSV file or a directory of them to fit kf from instead (absolute,
     resolved against the vehicle file's folder), or None; yaw_ratio [m]: yaw torque per
     unit thrust, tau_z = sum_i spin_i yaw_ratio T_i; yaw_ratio_se [m];
-    rotor_inertia [kg m^2] of one rotor about its axis, or None (fitted from the flight);
+    rotor_inertia [kg m^2] of one rotor about its axis, fixed at this value (0 included:
+    no rotor inertia), or None when the file leaves it out (fitted per flight);
     max_thrust [N] per rotor, or None (not checked); pwm_to_rpm: polynomial coefficients,
     highest power first, rpm = polyval(c, pwm [0..1]), or empty; battery: the file's
     battery model (``voltage`` [V], ``capacity`` [mAh], ...), kept as given.
@@ -300,12 +301,23 @@ def _actuators(r: _Reader) -> Actuators | None:
     return Actuators(
         kf=kf, kf_se=kf_se, yaw_ratio=yaw, yaw_ratio_se=yaw_se if yaw_se is not None else 0.0,
         thrust_stand=r.resolve(stand) if stand else None,
-        rotor_inertia=r.number(act, "actuators", "rotor_inertia", unit=" [kg m^2]",
-                               required=False),
+        rotor_inertia=_rotor_inertia(r, act),
         max_thrust=r.number(act, "actuators", "max_thrust", unit=" [N] per rotor",
                             required=False),
         pwm_to_rpm=tuple(float(c) for c in pwm),
         battery=tuple((str(k), float(v)) for k, v in battery.items()))
+
+
+def _rotor_inertia(r: _Reader, act: dict[str, Any]) -> float | None:
+    """``[actuators] rotor_inertia`` [kg m^2]: None when the key is absent (J_r is fitted
+    per flight), else the value J_r is fixed at, 0 included (a vehicle without rotor
+    inertia, e.g. the simulated world's)."""
+    val = r.number(act, "actuators", "rotor_inertia", positive=False, required=False,
+                   unit=" [kg m^2]")
+    if val is not None and val < 0:
+        raise r.fail("actuators.rotor_inertia", "a number >= 0 [kg m^2] (0: no rotor inertia; "
+                     "leave the key out to fit J_r per flight)", val)
+    return val
 
 
 def _faults(r: _Reader) -> FaultSettings:

@@ -29,7 +29,7 @@ from pinquad.identification.verdict import EstimateVerdict
 from pinquad.models.ssm import Theta
 from pinquad.realdata.band_mstep import BandStats, RealMStep
 from pinquad.realdata.mass_balance import MotorSplit, motor_split, quasi_static_mass
-from pinquad.realdata.model import corrected, real_model
+from pinquad.realdata.model import RealTheta, corrected, real_model
 from pinquad.realdata.observations import RealObservations
 from pinquad.realdata.rotor_inertia import yaw_band_stats
 from pinquad.realdata.thrust import ThrustCoefficient
@@ -133,6 +133,15 @@ def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
     return np.sqrt(stat**2 + params**2 * rel)
 
 
+def used_rotor_inertia(fitted: RealTheta | None, fixed: float | None) -> float:
+    """J_r [kg m^2] a measured flight was identified with: the EM's fitted value
+    (``fitted``, the final RealTheta when J_r was fitted; NaN if its band fit was not
+    finite), else the fixed value (0 included), else NaN (none)."""
+    if fitted is not None:
+        return float(fitted.rotor_inertia) if fitted.rotor_inertia is not None else float("nan")
+    return float(fixed) if fixed is not None else float("nan")
+
+
 def identify_real(real: RealObservations, mass0: float, inertia0: Array,
                   max_iterations: int = 100, information: bool = True,
                   band: tuple[float, float] = (3.0, 8.0), tol: float = 1e-4,
@@ -143,7 +152,9 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     (the observed information always uses the EKF likelihood).
 
     keep_band_stats: store :func:`yaw_band_stats` at the final posterior in the result
-    (the input of :func:`pooled_rotor_inertia`).
+    (the input of :func:`pooled_rotor_inertia`). J_r: fixed at ``real.options.rotor_inertia``
+    when that is a value (0 included), else fitted per flight if ``fit_rotor_inertia`` and
+    the log has rotor speeds, else none (``RealIdentification.rotor_inertia`` NaN).
 
     Returns (RealIdentification, Posterior, RealTheta). EM stops when the relative change
     of (m, I) is below ``tol`` (1e-4, far below the standard errors) and the relative
@@ -152,7 +163,9 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     t0 = time.perf_counter()
     obs = real.obs
     gravity = real.log.meta.gravity
-    fit_jr = fit_rotor_inertia and real.rotor_acc is not None and not real.options.rotor_inertia
+    # J_r: fixed when the options give a value (0 included), else fitted if asked
+    fixed_jr = real.options.rotor_inertia
+    fit_jr = fit_rotor_inertia and real.rotor_acc is not None and fixed_jr is None
     mstep = RealMStep(band, real.rotor_acc if fit_jr else None)
     theta0 = initial_theta(obs, mass0, inertia0, gravity)
     res = run_em(obs, theta0, get_smoother(estep), mstep, max_iterations=max_iterations,
@@ -182,8 +195,7 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         moment_coef=np.zeros((3, 7)) if coef is None else coef, n_used=real.n_used,
         n_excluded=real.n_excluded, excluded=real.excluded, notes=real.notes,
         seconds=time.perf_counter() - t0, band=band,
-        rotor_inertia=float(getattr(theta, "rotor_inertia", None) or real.options.rotor_inertia
-                            or float("nan")),
+        rotor_inertia=used_rotor_inertia(theta if fit_jr else None, fixed_jr),
         band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None,
         quasi_static_mass=quasi_static_mass(real), motor_split=motor_split(real))
     return out, res.posterior, theta

@@ -96,7 +96,10 @@ class RealDataOptions:
     the diagonal partner, which spins the same way), ``repair-all`` (map learned on all
     trusted motors: ``faults.repair_log``), or ``exclude`` (skip flagged rows);
     kf [N/(rad/s)^2] or None for :func:`thrust_coefficient`; yaw_ratio [m] and its
-    standard error yaw_ratio_se [m]; spin (n,) +-1; arm [m] and xy (n rotor (x, y) [m],
+    standard error yaw_ratio_se [m]; rotor_inertia [kg m^2]: J_r fixed at this value
+    (0 included: no rotor inertia), its yaw torque J_r sum_i spin_i omega_i' added to
+    the input, or None: not fixed (``identify_real`` fits it per flight when asked,
+    else there is none); spin (n,) +-1; arm [m] and xy (n rotor (x, y) [m],
     None: the X layout of ``arm``): the mixer (``ActuatorModel``; defaults: the shipped
     crazyflie21 file, :func:`options_for_vehicle` for another);
     contact_height [m], contact_speed [m/s], flight_rpm [rev/min], contact_margin [s]:
@@ -116,7 +119,7 @@ class RealDataOptions:
     faults: str = "repair"
     kf: float | None = None
     yaw_ratio: float = YAW_RATIO_CRAZYFLIE
-    rotor_inertia: float = 0.0
+    rotor_inertia: float | None = None
     spin: tuple[float, ...] = SPIN_CRAZYFLIE
     arm: float = CRAZYFLIE_ARM
     xy: tuple[tuple[float, float], ...] | None = None
@@ -394,7 +397,7 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     # "held", as the simulator's rotor log does), else sampled readings (micro-SD logs).
     held = log.measured is None and log.meta.actuation == "held"
     rotor_acc = rotor_acceleration(log.t, rpm, options.spin, held)
-    if options.rotor_inertia:
+    if options.rotor_inertia:  # None (not fixed) and 0 add nothing (rotor_acc may be NaN)
         torque[:, 2] += options.rotor_inertia * rotor_acc
     # Untrusted rows carry no input: their bins become NaN and are excluded below.
     wrench = np.column_stack([thrust, torque])

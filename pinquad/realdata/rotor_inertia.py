@@ -53,7 +53,8 @@ def yaw_band_stats(real: RealObservations, post, band: tuple[float, float] = (3.
         raise ValueError(f"{real.source}: no rotor acceleration; expected measured rotor speeds")
     bs = RealMStep(band, real.rotor_acc).band_stats(post, real.obs, real.log.meta.gravity)
     t = bs.t.copy()
-    t[:, 2] -= real.options.rotor_inertia * bs.e[:, 0]
+    if real.options.rotor_inertia:
+        t[:, 2] -= real.options.rotor_inertia * bs.e[:, 0]
     return replace(bs, t=t)
 
 

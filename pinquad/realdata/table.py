@@ -51,8 +51,8 @@ class TableJob:
 def run_table_job(job: TableJob) -> RealIdentification | str:
     """Load one flight and identify it (a worker of ``python -m pinquad.realdata``); a
     log that cannot be identified gives the reason as a string instead. J_r: fitted per
-    flight if ``job.fit_rotor_inertia`` and ``job.options.rotor_inertia`` is 0, else the
-    options' fixed value."""
+    flight if ``job.fit_rotor_inertia`` and ``job.options.rotor_inertia`` is None, else the
+    options' fixed value (0 included)."""
     try:
         kf = job.kf if job.kf is not None else thrust_coefficient(job.stand)
         real = load_real(job.path, job.options, kf)
