@@ -189,14 +189,13 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
     after = heldout_rms(res_tr, pi_tr, coeffs_tr, test, window)
     if cfg.full_refit:
         # warm start from the training-block refit, whose parameters already carry the
-        # effects (its EM started from the joint fit's wrench noise, not the base fit's,
-        # inflated by the missing effect). From there the mass and inertia move by
-        # < 1e-5 (relative) over an EM pass that still takes ~80 E-steps for its
-        # log-likelihood's creep of a few nats in the noise levels; the joint refinement
-        # alone (one E-step per update of coefficients and parameters, until the
-        # coefficients settle) reaches the same estimates within a small fraction of
-        # their standard errors (docs/benchmark.md, "Discovery in a minute"). A gyro
-        # offset has no joint refinement: one EM pass.
+        # effects (restart_em guards against a base fit's noise inflated by a missing
+        # effect). From there the mass and inertia move by < 1e-5 (relative) over an EM
+        # pass that still takes ~80 E-steps for its log-likelihood's creep of a few
+        # nats in the noise levels; the joint refinement alone (one E-step per update of
+        # coefficients and parameters, until the coefficients settle) reaches the same
+        # estimates within a small fraction of their standard errors (docs/benchmark.md,
+        # "Discovery in a minute"). A gyro offset has no joint refinement: one EM pass.
         passes = 1 if "gyro_bias" in selected or not cfg.joint_iterations else 0
         th_f, post_f, coeffs_f = refit(obs, th_tr, post_tr, selected, smoother,
                                        replace(cfg, refit_passes=passes, restart_em=False),

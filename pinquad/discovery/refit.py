@@ -219,9 +219,8 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
     theta = theta.with_noise(replace(theta.noise, wrench=wrench))
     if cfg.restart_em:
         # EM from the paper's data-driven warm-up (fixed Q0/R0) at the joint fit's mass
-        # and inertia, as the base EM started; the default keeps the base fit's
-        # measurement noise with the joint fit's wrench noise above, which converges in
-        # fewer E-steps to the same estimates (DiscoveryConfig)
+        # and inertia, as the base EM started, so the refit does not inherit the base
+        # fit's noise levels, inflated by the effect it lacked
         theta = initial_theta(obs, theta.mass, theta.inertia, theta.gravity)
     gyro = "gyro_bias" in coeffs and "gyro" in obs.channels
     if gyro and gyro_bias_used is not None:

@@ -36,13 +36,13 @@ class DiscoveryConfig:
     max_effects: stop after this many; candidates: effect names searched;
     refit_passes: coefficient/EM alternations of the refit; em_iterations: E-steps per EM
     run of the refit (at most; the compiled E-step covers ``QuadSSM`` and ``EffectSSM``);
-    restart_em: start the refit EM from the paper's warm-up (fixed Q0/R0); the default
-    (False) starts it from the base fit's measurement noise with the wrench noise of the
-    joint fit of (pi, c) at the base posterior, which carries the effects (the base fit's
-    own wrench noise, inflated by the effect it lacked, once left a 10-E-step refit's
-    held-out force residual at 2.4x a clean flight's; the joint fit's does not, and the
-    refit's EM runs to convergence: 119 instead of 174 E-steps on the benchmark's log,
-    docs/benchmark.md "Discovery in a minute");
+    restart_em: start the refit EM from the paper's warm-up (fixed Q0/R0) rather than
+    the base fit's noise, which absorbed the missing effect (a refit that kept it and ran
+    10 E-steps left drag flights' held-out force residual at 2.4x a clean flight's; one
+    that kept the base fit's measurement noise with the joint fit's wrench noise took 119
+    instead of 174 E-steps on the benchmark's log but left the refit inertia of the
+    discovery Monte Carlo worse, e.g. ground effect's I_zz 3.48 % RMS instead of 2.61 %:
+    docs/benchmark.md, "Discovery in a minute");
     full_refit: also refit on all transitions for the reported estimates (else the
     training-block refit is reported); refit_em: False skips the EM refit (mass and
     coefficients fitted on the base posterior's force rows with the base inertia held:
@@ -67,7 +67,7 @@ class DiscoveryConfig:
     candidates: tuple[str, ...] = EFFECT_NAMES
     refit_passes: int = 2
     em_iterations: int = 100
-    restart_em: bool = False
+    restart_em: bool = True
     full_refit: bool = True
     refit_em: bool = True
     joint_iterations: int = 60
