@@ -53,7 +53,9 @@ EFFECTS_VEHICLE = "crazyflie21"
 ``[aero]``; the discovery Monte Carlo flies it), and whose footprint a log that names no
 vehicle is read with."""
 _EFFECTS_AERO = load_vehicle(EFFECTS_VEHICLE).aero
-assert _EFFECTS_AERO.drag is not None, f"pinquad/data/{EFFECTS_VEHICLE}.toml: [aero] needs drag"
+if _EFFECTS_AERO.drag is None:
+    raise ValueError(f"pinquad/data/{EFFECTS_VEHICLE}.toml: [aero] needs drag (the simulator's "
+                     "default drag)")
 SIMULATED_DRAG: tuple[float, float, float] = tuple(float(v) for v in _EFFECTS_AERO.drag)  # type: ignore[assignment]
 """The simulator's default linear rotor drag D (3,) [N s/m]: ``crazyflie21.toml``
 ``[aero] drag`` (Foerster's k_aero times the summed hover rotor speed)."""

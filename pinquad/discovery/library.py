@@ -32,6 +32,7 @@ from scipy.signal import lfilter
 
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.effect_vocabulary import COEFFICIENT_NAMES, ground_effect_gain
+from pinquad.models.ssm import Observations
 
 Array = NDArray[np.float64]
 
@@ -55,6 +56,14 @@ class TransitionData:
     dt: float
     ground_radius: float
     samples: Array | None = None
+
+    @classmethod
+    def of(cls, obs: Observations, x_now: Array, idx: NDArray[np.int64]) -> TransitionData:
+        """The transitions idx (K,) of ``obs`` at the states x_now (K, 12): the logged
+        inputs of those steps, the whole input history, the vehicle's ground-effect radius
+        and the log's samples, as ``obs`` carries them."""
+        return cls(x=x_now, inputs=obs.inputs[idx], applied_history=obs.inputs, index=idx,
+                   dt=obs.dt, ground_radius=obs.ground_radius, samples=obs.samples)
 
 
 def lagged_inputs(inputs: Array, time_constant: float, dt: float) -> Array:

@@ -84,9 +84,7 @@ def effect_mstep(coefficients: dict[str, Array]):
         out = regressor_mstep(post, obs, theta, stats=stats)
         new = out.theta
         idx = np.flatnonzero(transition_mask(obs))
-        data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
-                              index=idx, dt=obs.dt, ground_radius=obs.ground_radius,
-                              samples=obs.samples)
+        data = TransitionData.of(obs, post.mean[idx], idx)
         force = sum(np.einsum("kap,p->ka", wrench_features(e, data), coefficients[e])
                     for e in wrench_effects)[:, 0:2]
         y_pi = new.mass * body_regressor(post.mean[idx], post.mean[idx + 1], obs.dt,

@@ -70,9 +70,7 @@ def compute_residuals(obs: Observations, post: Posterior, gravity: float, block_
     block = steps_block[idx]
     # the covariance part of E[Y^T Y], summed per block from the per-transition terms
     corr = group_sums(covariance_terms(post, obs, gravity), block, n_blocks)
-    data = TransitionData(x=post.mean[idx], inputs=obs.inputs[idx], applied_history=obs.inputs,
-                          index=idx, dt=obs.dt, ground_radius=obs.ground_radius,
-                          samples=obs.samples)
+    data = TransitionData.of(obs, post.mean[idx], idx)
     gyro_res = np.full((obs.n, 3), np.nan)
     if "gyro" in obs.channels:
         i = obs.channels.index("gyro")

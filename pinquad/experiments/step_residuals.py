@@ -71,9 +71,7 @@ def wrench_residuals(obs: Observations, post: Posterior, gravity: float, pi: Arr
     rho[:, 2] -= obs.inputs[idx, 0]
     rho[:, 3:6] -= obs.inputs[idx, 1:4]
     coeffs = coefficients or {}
-    data = TransitionData(x=x_now, inputs=obs.inputs[idx], applied_history=obs.inputs,
-                          index=idx, dt=obs.dt, ground_radius=obs.ground_radius,
-                          samples=obs.samples)
+    data = TransitionData.of(obs, x_now, idx)
     for name, c in coeffs.items():
         if name not in NON_WRENCH_EFFECTS:
             rho -= np.einsum("kap,p->ka", wrench_features(name, data), np.asarray(c))
