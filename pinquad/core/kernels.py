@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 _TWO_PI = 2.0 * math.pi
@@ -53,19 +52,33 @@ def rotation_derivatives(phi, theta, psi, rot, d_rot):
     sf, cf = math.sin(phi), math.cos(phi)
     st, ct = math.sin(theta), math.cos(theta)
     sp, cp = math.sin(psi), math.cos(psi)
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cf, -sf], [0.0, sf, cf]])
-    ry = np.array([[ct, 0.0, st], [0.0, 1.0, 0.0], [-st, 0.0, ct]])
-    rz = np.array([[cp, -sp, 0.0], [sp, cp, 0.0], [0.0, 0.0, 1.0]])
-    drx = np.array([[0.0, 0.0, 0.0], [0.0, -sf, -cf], [0.0, cf, -sf]])
-    dry = np.array([[-st, 0.0, ct], [0.0, 0.0, 0.0], [-ct, 0.0, -st]])
-    drz = np.array([[-sp, -cp, 0.0], [cp, -sp, 0.0], [0.0, 0.0, 0.0]])
-    zy = rz @ ry
-    rot[:, :] = zy @ rx
-    d0 = zy @ drx
-    d1 = rz @ dry @ rx
-    d2 = drz @ ry @ rx
-    for r in range(3):
-        for c in range(3):
-            d_rot[r, c, 0] = d0[r, c]
-            d_rot[r, c, 1] = d1[r, c]
-            d_rot[r, c, 2] = d2[r, c]
+    # written out (no temporaries): a 3 x 3 product allocated per call cost the
+    # compiled M-step most of its time
+    rotation_of_angles(phi, theta, psi, rot)
+    d_rot[0, 0, 0] = 0.0
+    d_rot[0, 1, 0] = cf * st * cp + sf * sp
+    d_rot[0, 2, 0] = -sf * st * cp + cf * sp
+    d_rot[1, 0, 0] = 0.0
+    d_rot[1, 1, 0] = cf * st * sp - sf * cp
+    d_rot[1, 2, 0] = -sf * st * sp - cf * cp
+    d_rot[2, 0, 0] = 0.0
+    d_rot[2, 1, 0] = cf * ct
+    d_rot[2, 2, 0] = -sf * ct
+    d_rot[0, 0, 1] = -st * cp
+    d_rot[0, 1, 1] = sf * ct * cp
+    d_rot[0, 2, 1] = cf * ct * cp
+    d_rot[1, 0, 1] = -st * sp
+    d_rot[1, 1, 1] = sf * ct * sp
+    d_rot[1, 2, 1] = cf * ct * sp
+    d_rot[2, 0, 1] = -ct
+    d_rot[2, 1, 1] = -sf * st
+    d_rot[2, 2, 1] = -cf * st
+    d_rot[0, 0, 2] = -ct * sp
+    d_rot[0, 1, 2] = -sf * st * sp - cf * cp
+    d_rot[0, 2, 2] = -cf * st * sp + sf * cp
+    d_rot[1, 0, 2] = ct * cp
+    d_rot[1, 1, 2] = sf * st * cp - cf * sp
+    d_rot[1, 2, 2] = cf * st * cp + sf * sp
+    d_rot[2, 0, 2] = 0.0
+    d_rot[2, 1, 2] = 0.0
+    d_rot[2, 2, 2] = 0.0

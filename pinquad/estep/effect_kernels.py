@@ -11,7 +11,6 @@ Q is QuadSSM's (``quad_kernels.process_cov_quad``).
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from pinquad.core.kernels import rotation
@@ -20,12 +19,11 @@ from pinquad.models.kernel import STATE_DIM as _N
 
 
 @njit(cache=True)
-def effect_dynamics(x, dt, mass, drag, wind, x_next, jac):
+def effect_dynamics(x, dt, mass, drag, wind, x_next, jac, rot, f_b):
     """Add EffectSSM's lateral body forces (module docstring) to ``transition_quad``'s
-    x_next (12,) and jac (12, 12): dt [s], mass [kg], drag D (3,), wind (3,)."""
-    rot = np.empty((3, 3))
+    x_next (12,) and jac (12, 12): dt [s], mass [kg], drag D (3,), wind (3,); rot (3, 3)
+    and f_b (3,): scratch (the caller's, so that a step allocates nothing)."""
     rotation(x, rot)
-    f_b = np.empty(3)
     for j in range(3):
         v_b = rot[0, j] * x[3] + rot[1, j] * x[4] + rot[2, j] * x[5]
         w_b = rot[0, j] * wind[0] + rot[1, j] * wind[1] + rot[2, j] * wind[2]

@@ -50,11 +50,13 @@ def cholesky(a, p, low):
             return False
         d = math.sqrt(d)
         low[j, j] = d
+        # one division per column, not per entry (divisions dominated the factor)
+        d_inv = 1.0 / d
         for i in range(j + 1, p):
             s = a[i, j]
             for m in range(j):
                 s -= low[i, m] * low[j, m]
-            low[i, j] = s / d
+            low[i, j] = s * d_inv
     return True
 
 
@@ -64,7 +66,8 @@ def chol_solve(low, p, b):
 
     Row-oriented substitution: every update is a whole row of b (12 contiguous numbers),
     which the compiler vectorises; per entry the arithmetic is that of column-wise
-    forward/back substitution.
+    forward/back substitution, except that a row is scaled by the reciprocal of its
+    pivot (one division a row instead of one an entry; it changes the last bit).
     """
     ncol = b.shape[1]
     for i in range(p):
@@ -72,17 +75,17 @@ def chol_solve(low, p, b):
             lim = low[i, m]
             for c in range(ncol):
                 b[i, c] -= lim * b[m, c]
-        d = low[i, i]
+        d_inv = 1.0 / low[i, i]
         for c in range(ncol):
-            b[i, c] /= d
+            b[i, c] *= d_inv
     for i in range(p - 1, -1, -1):
         for m in range(i + 1, p):
             lmi = low[m, i]
             for c in range(ncol):
                 b[i, c] -= lmi * b[m, c]
-        d = low[i, i]
+        d_inv = 1.0 / low[i, i]
         for c in range(ncol):
-            b[i, c] /= d
+            b[i, c] *= d_inv
 
 
 @njit(cache=True)

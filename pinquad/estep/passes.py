@@ -142,6 +142,8 @@ def forward_into(desc, x0, p0, ys, store, work):
     jac = np.empty((_N, _N))
     q = np.empty((_N, _N))
     x_next = np.empty(_N)
+    rot = np.empty((3, 3))
+    f_body = np.empty(3)
     loglik = 0.0
     for k in range(n_steps):
         if store:
@@ -180,9 +182,10 @@ def forward_into(desc, x0, p0, ys, store, work):
                     for c in range(_N):
                         w_mat[a, c] -= lab * w_mat[b, c]
                 d = low[a, a]
-                w = w / d
+                d_inv = 1.0 / d
+                w = w * d_inv
                 for c in range(_N):
-                    w_mat[a, c] /= d
+                    w_mat[a, c] *= d_inv
                 white[a] = w
                 quad += w * w
                 logdet += math.log(d)
@@ -207,7 +210,7 @@ def forward_into(desc, x0, p0, ys, store, work):
             if kind == FULL:
                 process_cov_full(mean, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q)
             else:
-                process_cov_quad(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q)
+                process_cov_quad(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q, rot)
             if resets[k]:
                 for i in range(_N):
                     q[i, i] += reset_var[i]
@@ -219,7 +222,7 @@ def forward_into(desc, x0, p0, ys, store, work):
                 if kind == FULL:
                     full_dynamics(mean, u, dt, gravity, m_inv, first_moment, i_o, x_next, jac)
                 elif kind == EFFECT:
-                    effect_dynamics(mean, dt, mass, drag, wind, x_next, jac)
+                    effect_dynamics(mean, dt, mass, drag, wind, x_next, jac, rot, f_body)
             _f_times(kind, jac, cov, fp)
             if store:
                 copy_mat(fp, fps[k])
@@ -273,16 +276,16 @@ def backward_into(work, post):
         for c in range(_N):
             mean[k, c] = f_mean[k, c] + acc[c]
         # C = Ps G^T, into cross[k]; diff = C - F P
+        # (a scalar sum per entry: accumulating into ck row by row kept every partial
+        # sum in memory, since ck may alias ps, and took half the pass)
         ck = cross[k]
         for r in range(_N):
             for c in range(_N):
-                ck[r, c] = 0.0
-            for j in range(_N):
-                s = ps[r, j]
-                for c in range(_N):
-                    ck[r, c] += s * gain_t[j, c]
-            for c in range(_N):
-                diff[r, c] = ck[r, c] - fp[r, c]
+                s = 0.0
+                for j in range(_N):
+                    s += ps[r, j] * gain_t[j, c]
+                ck[r, c] = s
+                diff[r, c] = s - fp[r, c]
         # P^s_k = P + G diff (symmetric: lower triangle, mirrored)
         out = cov[k]
         for r in range(_N):

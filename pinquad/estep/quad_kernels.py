@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from pinquad.core.kernels import rotation
@@ -166,12 +165,12 @@ def process_cov_start(use_fixed, fixed_q, q_kin, q):
 
 
 @njit(cache=True)
-def process_cov_quad(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q):
+def process_cov_quad(x, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q, g):
     """Q (12, 12) of QuadSSM's flight process covariance at x (no reset term): fixed, or
-    structured from q_kin (6,), S_f = s_f (3,) and q_tau (3, 3) (module docstring)."""
+    structured from q_kin (6,), S_f = s_f (3,) and q_tau (3, 3) (module docstring); g
+    (3, 3): scratch (the caller's, so that a step allocates nothing)."""
     if process_cov_start(use_fixed, fixed_q, q_kin, q):
         return
-    g = np.empty((3, 3))
     rotation(x, g)
     for r in range(3):
         for c in range(3):
