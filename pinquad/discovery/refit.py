@@ -232,8 +232,10 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
                                                      coeffs["gyro_bias"])
         corr = replace(corrected_observations(obs, post.mean, coeffs),
                        exclude=exclude)
+        # one over-relaxation factor per parameter: the force noise creeps down from the
+        # warm-up's inflated start while the measurement noise has settled
         em = run_em(corr, theta, smoother, effect_mstep(coeffs), max_iterations=cfg.em_iterations,
-                    tol=1e-5, tol_loglik=1e-7, model_factory=factory)
+                    tol=1e-5, tol_loglik=1e-7, model_factory=factory, per_parameter=True)
         b_used = coeffs.get("gyro_bias")
         theta, post = em.theta, em.posterior
         coeffs, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train,
