@@ -31,9 +31,13 @@ def rotation(x, rot):
 def rotation_of_angles(phi, theta, psi, rot):
     """R = Rz(psi) Ry(theta) Rx(phi) (3, 3) into rot, as conventions.rotation_from_euler
     (also the compiled M-step's)."""
-    sf, cf = math.sin(phi), math.cos(phi)
-    st, ct = math.sin(theta), math.cos(theta)
-    sp, cp = math.sin(psi), math.cos(psi)
+    _rotation_of_trig(math.sin(phi), math.cos(phi), math.sin(theta), math.cos(theta),
+                      math.sin(psi), math.cos(psi), rot)
+
+
+@njit(cache=True)
+def _rotation_of_trig(sf, cf, st, ct, sp, cp, rot):
+    """R = Rz(psi) Ry(theta) Rx(phi) (3, 3) into rot from the angles' sines and cosines."""
     rot[0, 0] = ct * cp
     rot[0, 1] = sf * st * cp - cf * sp
     rot[0, 2] = cf * st * cp + sf * sp
@@ -54,7 +58,7 @@ def rotation_derivatives(phi, theta, psi, rot, d_rot):
     sp, cp = math.sin(psi), math.cos(psi)
     # written out (no temporaries): a 3 x 3 product allocated per call cost the
     # compiled M-step most of its time
-    rotation_of_angles(phi, theta, psi, rot)
+    _rotation_of_trig(sf, cf, st, ct, sp, cp, rot)
     d_rot[0, 0, 0] = 0.0
     d_rot[0, 1, 0] = cf * st * cp + sf * sp
     d_rot[0, 2, 0] = -sf * st * cp + cf * sp

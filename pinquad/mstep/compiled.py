@@ -29,7 +29,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.core.kernels import rotation_derivatives, rotation_of_angles, wrap
+from pinquad.core.kernels import rotation_derivatives, wrap
 from pinquad.models.ssm import Observations
 from pinquad.mstep.stats import QuadraticSums, transition_mask
 
@@ -44,7 +44,6 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
     b = np.zeros((6, 4))
     c = np.zeros(6)
     rot = np.empty((3, 3))
-    rot_scratch = np.empty((3, 3))
     d_rot = np.empty((3, 3, 3))
     acc = np.empty(3)
     y = np.empty((6, 4))
@@ -60,7 +59,8 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
         k = idx[j]
         x0 = mean[k]
         x1 = mean[k + 1]
-        rotation_of_angles(x0[6], x0[7], x0[8], rot)
+        # R and dR/dTheta_m from one evaluation of the angles' sines and cosines
+        rotation_derivatives(x0[6], x0[7], x0[8], rot, d_rot)
         for i in range(3):
             acc[i] = (x1[3 + i] - x0[3 + i]) / dt
         acc[2] += gravity
@@ -89,8 +89,6 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
                 for q in range(4):
                     a[r, p, q] += y[r, q] * yp
             c[r] += tau[r] * tau[r]
-        # dR/dTheta_m, analytic (the rotation it also returns is not used: rot above)
-        rotation_derivatives(x0[6], x0[7], x0[8], rot_scratch, d_rot)
         # d(R^T acc)/dTheta_m = (dR/dTheta_m)^T acc; d/dv_k = -R^T/dt; d/dv_{k+1} = R^T/dt
         for i in range(3):
             for m in range(3):
