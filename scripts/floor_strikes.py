@@ -12,21 +12,13 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from flightgen import FlightSpec, generate, write_csv
+from pinquad.experiments.discovery_mc_flightgen import true_contact_transitions
 from pinquad.experiments.recorded import LogOptions, identify_log, run_discovery
 from pinquad.io.read import read_log
 
 SEEDS = (1, 2, 3, 4)
 RATE = 100
-
-
-def true_contact_transitions(flight, n_rows: int, step: int) -> np.ndarray:
-    """(n_rows - 1,) bool: a transition k -> k+1 touches the floor at any integrator step."""
-    touched = flight.in_contact[: (n_rows - 1) * step].reshape(n_rows - 1, step).any(axis=1)
-    touched |= flight.in_contact[step: n_rows * step: step][: n_rows - 1]
-    return touched
 
 
 def main() -> None:
@@ -43,8 +35,7 @@ def main() -> None:
             path = write_csv(flight, Path(tmp) / f"strikes_{seed}.csv")
             result = identify_log(read_log(path), LogOptions(msteps=("regressor",),
                                                              information=False))
-            step = int(round(1.0 / (RATE * spec.dt)))
-            truth = true_contact_transitions(flight, result.obs.n, step)
+            truth = true_contact_transitions(flight, result.obs.n)
             found = result.obs.exclude[: result.obs.n - 1]
             outcome = run_discovery(result)
             selected = outcome.result.selected if outcome.result is not None else outcome.error

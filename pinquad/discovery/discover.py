@@ -21,13 +21,17 @@ sums from the posterior including its covariances, as in ``regressor_mstep``);
 ``gyro_bias`` is the mean of e_k.
 
 Validation (no reward for extra parameters): the flight is cut into blocks of
-``block_seconds``; even blocks train, odd blocks are held out. A candidate is selected
-when, fitted on the training blocks together with the effects already selected,
+``block_seconds``; even blocks train, odd blocks are held out, and then the other way
+round (two folds, ``DiscoveryConfig.two_fold``). A candidate is selected when, fitted on
+each fold's training blocks together with the effects already selected,
 
 * its held-out residual sum of squares on the rows it explains (each row scaled by the
-  training variance) falls by at least ``min_heldout_gain`` (relative), and
-* it passes BIC on the training blocks (2 dJ > p log n) and improves the held-out
-  Gaussian log-likelihood.
+  training variance), summed over the folds, falls by at least ``min_heldout_gain``
+  (relative), and
+* it passes BIC on the training blocks (the folds' 2 dJ - p log n summed, > 0) and
+  improves the held-out Gaussian log-likelihood (summed over the folds).
+
+The refit still trains on the even blocks and reports the residual on the odd ones.
 
 Every model the selection compares, the base one included, also carries two nuisance
 columns with fitted coefficients (``residuals.sampling_columns``): half the change of
@@ -72,7 +76,7 @@ from pinquad.discovery.result import (
     DiscoveryResult,
 )
 from pinquad.discovery.selection import (
-    base_fit,
+    base_fits,
     estimate_coefficients,
     jackknife,
     score_candidate,
@@ -120,7 +124,7 @@ def select_effects(obs: Observations, theta: Theta, posterior: Posterior,
     scores: list[CandidateScore] = []
     for rnd in range(cfg.max_effects):
         todo = [c for c in cfg.candidates if c not in selected]
-        base = (base_fit(res0, selected, pi0, cfg, train)
+        base = (base_fits(res0, selected, pi0, cfg, train)
                 if any(c != "gyro_bias" for c in todo) else None)
         round_scores = [score_candidate(res0, selected, c, pi0, rnd, cfg, train, base)
                         for c in todo]

@@ -38,7 +38,7 @@ from estimators.protocol import Posterior
 from pinquad.discovery.discover import Selection
 from pinquad.discovery.residuals import compute_residuals
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
-from pinquad.discovery.selection import base_fit, score_candidate
+from pinquad.discovery.selection import base_fits, score_candidate
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.sim.shadow import ShadowSettings, shadow_flight
@@ -141,7 +141,7 @@ def score_shadow(job: ShadowScoring) -> tuple[list[float], list[bool]]:
     res = compute_residuals(job.obs, post, theta.gravity, cfg.block_seconds)
     train = np.arange(res.n_blocks) % 2 == 0
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
-    base = (base_fit(res, [], pi0, cfg, train) if any(e != "gyro_bias" for e in job.effects)
+    base = (base_fits(res, [], pi0, cfg, train) if any(e != "gyro_bias" for e in job.effects)
             else None)
     scores = [score_candidate(res, [], e, pi0, 0, cfg, train, base) for e in job.effects]
     return [s.gain for s in scores], [bool(s.passed) for s in scores]

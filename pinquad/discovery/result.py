@@ -57,7 +57,12 @@ class DiscoveryConfig:
     not 2, the torque rows: docs/discovery.md, "Actuation between samples", says why; ()
     for none, the default: a log whose input was held over each interval, as pinquad's
     simulator's, has no such change; ``experiments.recorded.discovery_config`` turns them
-    on for sampled logs).
+    on for sampled logs);
+    two_fold: score each candidate on both folds (even blocks train and odd are held
+    out, then the other way round) and sum the evidence (``selection.score_candidate``);
+    False: the even-block fold alone, as before 2026-11-26 (an effect whose signal sat
+    in the odd blocks, such as a flight's one low pass over the floor, failed BIC on the
+    training blocks while its held-out gain was 45-84 %).
     """
 
     block_seconds: float = 2.0
@@ -73,6 +78,7 @@ class DiscoveryConfig:
     joint_iterations: int = 60
     joint_tol: float = 1e-3
     sampling_nuisance: tuple[int, ...] = ()
+    two_fold: bool = True
 
 
 DEFAULT_CONFIG = DiscoveryConfig()
@@ -85,7 +91,8 @@ class CandidateScore:
 
     gain: relative held-out SSE reduction on its rows [-]; d_loglik_heldout: held-out
     Gaussian log-likelihood gain [nats]; d_bic: training 2 dJ - p log n (> 0 passes);
-    coefficients: fitted on the training blocks.
+    coefficients: fitted on the training blocks. With ``DiscoveryConfig.two_fold`` each
+    is over both folds (the SSEs and the gains summed, the coefficients averaged).
     """
 
     effect: str

@@ -194,56 +194,100 @@ def gyro_fit(res: Residuals, train_steps: NDArray[np.bool_]) -> tuple[Array, Arr
     return bias, sse0, sse1
 
 
-def base_fit(res: Residuals, current: Sequence[str], pi0: Array, cfg: DiscoveryConfig,
-             train: NDArray[np.bool_]) -> ModelFit:
-    """The fit of the effects ``current`` alone that ``score_candidate`` compares each
-    candidate with (the same for every candidate of a round: fit it once)."""
-    return fit_model(res, current, train, pi0, window_steps(cfg, res.data.dt),
-                     sampling=cfg.sampling_nuisance)
+def folds(train: NDArray[np.bool_], cfg: DiscoveryConfig) -> tuple[NDArray[np.bool_], ...]:
+    """The training blocks of each fold the selection scores on: ``train``, then (with
+    ``cfg.two_fold``) its complement, so every block is held out once."""
+    return (train, ~train) if cfg.two_fold else (train,)
 
 
-def score_candidate(res: Residuals, current: Sequence[str], cand: str, pi0: Array, rnd: int,
-                    cfg: DiscoveryConfig, train: NDArray[np.bool_],
-                    base: ModelFit | None = None) -> CandidateScore:
-    """Test adding ``cand`` to the effects ``current`` (module docstring); base: their
-    ``base_fit`` when already computed (else fitted here)."""
-    if cand == "gyro_bias":
-        train_steps = train[res.gyro_block]
-        bias, sse0, sse1 = gyro_fit(res, train_steps)
-        ok = ~np.isnan(res.gyro_res)
-        tr = ok & train_steps[:, None]
-        var0 = np.array([np.mean(res.gyro_res[tr[:, i], i] ** 2) for i in range(3)])
-        var1 = np.array([np.var(res.gyro_res[tr[:, i], i]) for i in range(3)])
-        n_tr = tr.sum(axis=0)
-        n_te = (ok & ~train_steps[:, None]).sum(axis=0)
-        window = window_steps(cfg, res.data.dt)
-        steps = np.arange(res.gyro_res.shape[0])
-        te_steps = ~train_steps
-        w0 = np.array([window_rms(res.gyro_res[te_steps, i], res.gyro_block[te_steps],
-                                   steps[te_steps], window) for i in range(3)])
-        w1 = np.array([window_rms(res.gyro_res[te_steps, i] - bias[i], res.gyro_block[te_steps],
-                                   steps[te_steps], window) for i in range(3)])
-        gain = 1.0 - float(np.sum(w1**2) / np.sum(w0**2))
-        d_bic = float(np.sum(n_tr * np.log(var0 / var1)) - 3 * math.log(max(n_tr.sum(), 2)))
-        ll0 = -0.5 * np.sum(sse0 / var0 + n_te * np.log(var0))
-        ll1 = -0.5 * np.sum(sse1 / var1 + n_te * np.log(var1))
-        passed = gain >= cfg.min_heldout_gain and d_bic > 0 and ll1 > ll0
-        return CandidateScore(cand, rnd, gain, float(ll1 - ll0), d_bic, tuple(bias), passed)
+def base_fits(res: Residuals, current: Sequence[str], pi0: Array, cfg: DiscoveryConfig,
+             train: NDArray[np.bool_]) -> tuple[ModelFit, ...]:
+    """The fits of the effects ``current`` alone, one per fold (``folds``), that
+    ``score_candidate`` compares each candidate with (the same for every candidate of a
+    round: fit them once)."""
+    window = window_steps(cfg, res.data.dt)
+    return tuple(fit_model(res, current, fold, pi0, window, sampling=cfg.sampling_nuisance)
+                 for fold in folds(train, cfg))
+
+
+@dataclass(frozen=True)
+class FoldScore:
+    """One fold's test of a candidate: heldout_with / heldout_without: the held-out
+    windowed SSE on the candidate's rows with and without it, each row scaled by the
+    training variance [-]; d_loglik: held-out Gaussian log-likelihood gain [nats];
+    d_bic: training 2 dJ - p log n; coefficients (p,) fitted on the fold's training
+    blocks."""
+
+    heldout_with: float
+    heldout_without: float
+    d_loglik: float
+    d_bic: float
+    coefficients: Array
+
+
+def _gyro_fold(res: Residuals, train: NDArray[np.bool_], cfg: DiscoveryConfig) -> FoldScore:
+    train_steps = train[res.gyro_block]
+    bias, sse0, sse1 = gyro_fit(res, train_steps)
+    ok = ~np.isnan(res.gyro_res)
+    tr = ok & train_steps[:, None]
+    var0 = np.array([np.mean(res.gyro_res[tr[:, i], i] ** 2) for i in range(3)])
+    var1 = np.array([np.var(res.gyro_res[tr[:, i], i]) for i in range(3)])
+    n_tr = tr.sum(axis=0)
+    n_te = (ok & ~train_steps[:, None]).sum(axis=0)
+    window = window_steps(cfg, res.data.dt)
+    steps = np.arange(res.gyro_res.shape[0])
+    te_steps = ~train_steps
+    w0 = np.array([window_rms(res.gyro_res[te_steps, i], res.gyro_block[te_steps],
+                               steps[te_steps], window) for i in range(3)])
+    w1 = np.array([window_rms(res.gyro_res[te_steps, i] - bias[i], res.gyro_block[te_steps],
+                               steps[te_steps], window) for i in range(3)])
+    d_bic = float(np.sum(n_tr * np.log(var0 / var1)) - 3 * math.log(max(n_tr.sum(), 2)))
+    ll0 = -0.5 * np.sum(sse0 / var0 + n_te * np.log(var0))
+    ll1 = -0.5 * np.sum(sse1 / var1 + n_te * np.log(var1))
+    return FoldScore(float(np.sum(w1**2)), float(np.sum(w0**2)), float(ll1 - ll0), d_bic, bias)
+
+
+def _wrench_fold(res: Residuals, current: Sequence[str], cand: str, pi0: Array,
+                 cfg: DiscoveryConfig, train: NDArray[np.bool_], base: ModelFit | None
+                 ) -> FoldScore:
     window = window_steps(cfg, res.data.dt)
     if base is None:
-        base = base_fit(res, current, pi0, cfg, train)
+        base = fit_model(res, current, train, pi0, window, sampling=cfg.sampling_nuisance)
     ext = fit_model(res, [*current, cand], train, pi0, window, sampling=cfg.sampling_nuisance)
     rows = list(SPECS[cand].rows)
     w = 1.0 / base.train_var_window[rows]
-    gain = 1.0 - float(np.sum(ext.heldout_sse_window[rows] * w)
-                       / np.sum(base.heldout_sse_window[rows] * w))
     p = SPECS[cand].n_coefficients
     d_bic = 2.0 * (base.fit.objective - ext.fit.objective) - p * math.log(base.fit.n)
     d_ll = (_heldout_loglik(ext.heldout_sse, ext.n_test, ext.fit)
             - _heldout_loglik(base.heldout_sse, base.n_test, base.fit))
-    passed = gain >= cfg.min_heldout_gain and d_bic > 0 and d_ll > 0
-    return CandidateScore(cand, rnd, gain, float(d_ll), float(d_bic),
-                          tuple(float(v) for v in ext.coefficients[cand]), passed)
+    return FoldScore(float(np.sum(ext.heldout_sse_window[rows] * w)),
+                     float(np.sum(base.heldout_sse_window[rows] * w)), float(d_ll),
+                     float(d_bic), np.asarray(ext.coefficients[cand], dtype=float))
+
+
+def score_candidate(res: Residuals, current: Sequence[str], cand: str, pi0: Array, rnd: int,
+                    cfg: DiscoveryConfig, train: NDArray[np.bool_],
+                    base: tuple[ModelFit, ...] | None = None) -> CandidateScore:
+    """Test adding ``cand`` to the effects ``current`` (module docstring of ``discover``),
+    two-fold: fitted on ``train`` and tested on the rest, then the other way round
+    (``folds``), the evidence summed over the folds, gain = 1 - sum_f SSE_f(with) /
+    sum_f SSE_f(without), d_loglik = sum_f, d_bic = sum_f, coefficients the folds' mean.
+    An effect whose signal sits in a few blocks (one low pass over the floor) is then
+    judged on it whichever fold holds it. base: ``base_fits``'s fits when already
+    computed (else fitted here)."""
+    fold_trains = folds(train, cfg)
+    bases = base if base is not None else (None,) * len(fold_trains)
+    parts = [_gyro_fold(res, f, cfg) if cand == "gyro_bias"
+             else _wrench_fold(res, current, cand, pi0, cfg, f, b)
+             for f, b in zip(fold_trains, bases, strict=True)]
+    without = sum(q.heldout_without for q in parts)
+    gain = 1.0 - sum(q.heldout_with for q in parts) / without if without > 0 else math.nan
+    d_ll = float(sum(q.d_loglik for q in parts))
+    d_bic = float(sum(q.d_bic for q in parts))
+    coefs = np.mean([q.coefficients for q in parts], axis=0)
+    passed = bool(gain >= cfg.min_heldout_gain and d_bic > 0 and d_ll > 0)
+    return CandidateScore(cand, rnd, float(gain), d_ll, d_bic,
+                          tuple(float(v) for v in coefs), passed)
 
 
 def estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],

@@ -32,8 +32,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
-from flightgen import CRAZYFLIE, Effects, FlightSpec, generate, write_csv
+from flightgen import CRAZYFLIE, Effects, Flight, FlightSpec, generate, write_csv
 from flightgen.trajectory import excursion
 from pinquad.experiments.discovery_mc import in_order
 from pinquad.experiments.headline import headline
@@ -42,8 +43,13 @@ from pinquad.io.read import read_log
 from pinquad.sim import effects as sim_effects
 
 FG_CONDITIONS: tuple[str, ...] = ("none", "drag", "ground_effect", "com_offset", "wind",
-                                  "motor_lag", "gyro_bias")
-"""Conditions: no effect, or one effect at its ``pinquad.sim.effects`` default."""
+                                  "motor_lag", "gyro_bias", "floor_strikes")
+"""Conditions: no effect, one effect at its ``pinquad.sim.effects`` default, or
+``floor_strikes``: no effect, but a floor that the flight takes off from, strikes twice
+and lands on, with no contact column in the log (issue 22: nothing may be selected for
+the contact, and the contact transitions must be found from the data)."""
+
+FLOOR_CONDITION = "floor_strikes"
 
 LOG_RATES: tuple[int, ...] = (100, 250, 500)
 PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
@@ -59,13 +65,15 @@ def injected(condition: str) -> dict[str, float]:
     """Coefficient name -> injected value of ``condition`` (``pinquad.sim.effects``
     defaults: drag D = (0.0062, 0.0062, 0.0070) N s/m, k_ge = 1, CoM (3, -2) mm, wind
     (10, -6) mN, motor lag 30 ms, gyro bias (0.03, -0.02, 0.015) rad/s); {} for none."""
-    return {} if condition == "none" else sim_effects.injected_coefficients(condition)
+    if condition in ("none", FLOOR_CONDITION):
+        return {}
+    return sim_effects.injected_coefficients(condition)
 
 
 def flightgen_effects(condition: str) -> Effects:
     """The ``flightgen.Effects`` of ``condition`` (same meanings and units, DESIGN 4.4)."""
     values = list(injected(condition).values())
-    if condition == "none":
+    if not values:
         return Effects()
     arg: float | tuple[float, ...] = values[0] if len(values) == 1 else tuple(values)
     return Effects(**{condition: arg})
@@ -77,7 +85,9 @@ def flight_spec(condition: str, seed: int, index: int, log_rate: int,
     instead, when given: the benchmark's 60 s log); every other flight is aggressive
     (6 m/s^2 peak reference acceleration, else 1.5); trajectories alternate sums of sines
     and minimum-snap splines in pairs; the hover point puts the reference's lowest point
-    at ``LOWEST_PASS``; no floor."""
+    at ``LOWEST_PASS``; no floor. ``floor_strikes``: the same flight about a 1 m hover
+    (flightgen keeps its excursion within 0.6-1.4 m), taking off from the floor, dipping
+    5 cm into it twice and landing on it (``flightgen.Floor``'s contact)."""
     dt = 0.0005
     if duration is None:
         duration = (30.0, 40.0, 20.0)[index % 3]
@@ -85,6 +95,10 @@ def flight_spec(condition: str, seed: int, index: int, log_rate: int,
     # the reference's excursion is the first thing flightgen.generate draws from the
     # seed's generator, so a fresh generator of the same seed reproduces it
     t = np.arange(int(round(duration / dt)) + 1) * dt
+    if condition == FLOOR_CONDITION:
+        return FlightSpec(duration=duration, trajectory=kind, aggressive=aggressive,
+                          log_rate=log_rate, dt=dt, seed=seed, vehicle=CRAZYFLIE,
+                          start_on_floor=True, land=True, floor_strikes=2)
     lowest = float(excursion(t, kind, aggressive, np.random.default_rng(seed))[0, :, 2].min())
     return FlightSpec(duration=duration, trajectory=kind, aggressive=aggressive,
                       log_rate=log_rate, dt=dt, seed=seed, vehicle=CRAZYFLIE,
@@ -108,7 +122,10 @@ class FlightgenCase:
     null_rejected: effects the uncalibrated selection chose that the null calibration
     (``pinquad.discovery.null``, 19 shadow flights) rejected; verdicts: parameter ->
     the reported estimate's verdict (``offline --log``'s headline; empty in runs made
-    before it was recorded)."""
+    before it was recorded); contact_true / contact_found / contact_missed /
+    contact_off: transitions that touch the floor in the truth, found from the data
+    among them, missed, and found where the vehicle was off the floor (all 0 on flights
+    without a floor)."""
 
     condition: str
     log_rate: int
@@ -126,6 +143,10 @@ class FlightgenCase:
     seconds: float
     null_rejected: tuple[str, ...] = ()
     verdicts: dict[str, str] | None = None
+    contact_true: int = 0
+    contact_found: int = 0
+    contact_missed: int = 0
+    contact_off: int = 0
 
     def to_json(self) -> dict:
         d = dict(self.__dict__)
@@ -134,6 +155,15 @@ class FlightgenCase:
         d["final_err"] = list(self.final_err)
         d["null_rejected"] = list(self.null_rejected)
         return d
+
+
+def true_contact_transitions(flight: Flight, n_rows: int) -> NDArray[np.bool_]:
+    """(n_rows - 1,) bool: log transition k -> k+1 touches the floor at any integrator
+    step within it or at its end (``Flight.in_contact``, truth only)."""
+    step = int(round(1.0 / (flight.spec.log_rate * flight.spec.dt)))
+    touched = flight.in_contact[: (n_rows - 1) * step].reshape(n_rows - 1, step).any(axis=1)
+    touched |= flight.in_contact[step: n_rows * step: step][: n_rows - 1]
+    return touched
 
 
 def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
@@ -147,6 +177,8 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
                                                      max_iterations=100, information=True))
     outcome = run_discovery(result)
     judged = headline(result, outcome).final.verdict
+    truth_contact = true_contact_transitions(flight, result.obs.n)
+    found = np.asarray(result.obs.exclude[: result.obs.n - 1], dtype=bool)
     section = discovery_section(outcome)
     truth = np.r_[CRAZYFLIE.mass, np.diag(CRAZYFLIE.inertia_matrix)]
     run = result.runs[0]
@@ -167,7 +199,9 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
                          tuple((base / truth - 1.0).tolist()),
                          tuple((final / truth - 1.0).tolist()), time.perf_counter() - t0,
                          () if outcome.null is None else tuple(outcome.null.rejected),
-                         {p.name: p.verdict for p in judged.parameters})
+                         {p.name: p.verdict for p in judged.parameters},
+                         int(truth_contact.sum()), int((found & truth_contact).sum()),
+                         int((truth_contact & ~found).sum()), int((found & ~truth_contact).sum()))
 
 
 @dataclass(frozen=True)
@@ -235,7 +269,12 @@ def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
             row["final_rms_rel_err"] = dict(zip(PARAMS,
                                                 np.sqrt(np.mean(final**2, axis=0)).tolist(),
                                                 strict=True))
-            if cond != "none":
+            if cond == FLOOR_CONDITION:
+                row["contact"] = {k: sum(getattr(c, f"contact_{k}") for c in cs)
+                                  for k in ("true", "found", "missed", "off")}
+                row["contact_all_found"] = sum(c.contact_missed == 0 and c.contact_true > 0
+                                               for c in cs)
+            elif cond != "none":
                 errs = [c.coef_rel_err for c in cs]
                 row["named"] = sum(cond in c.selected for c in cs)
                 row["exact"] = sum(c.selected == (cond,) for c in cs)

@@ -18,7 +18,7 @@ def flightgen_mc_markdown(rows: list[dict]) -> str:
             "rejected by the null (flights: effects) |")
     lines = [head, "|" + "---|" * 11]
     for r in rows:
-        if r["condition"] == "none":
+        if "named" not in r:  # no effect injected: clean or floor-strike flights
             named = exact = within = err = gain = ""
         else:
             named, exact = f"{r['named']}/{r['n']}", f"{r['exact']}/{r['n']}"
@@ -38,6 +38,19 @@ def flightgen_mc_markdown(rows: list[dict]) -> str:
         cells = [f"{_pct(r['base_rms_rel_err'][p])} -> {_pct(r['final_rms_rel_err'][p])}"
                  for p in ("mass", "I_xx", "I_yy", "I_zz")]
         lines.append(f"| {r['log_rate']} Hz | {r['condition']} | " + " | ".join(cells) + " |")
+    floor = [r for r in rows if "contact" in r]
+    if floor:
+        lines += ["", "Floor strikes without a contact column (take-off, two strikes, landing): "
+                  "transitions touching the floor in the truth, found from the data, missed, "
+                  "found off the floor (summed over the flights):", "",
+                  "| log rate | n | nothing selected | selected | true | found | missed | "
+                  "found off the floor | flights with every contact found |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for r in floor:
+            c = r["contact"]
+            lines.append(f"| {r['log_rate']} Hz | {r['n']} | {r['nothing_selected']}/{r['n']} | "
+                         f"{', '.join(r['extra_selected']) or '-'} | {c['true']} | {c['found']} | "
+                         f"{c['missed']} | {c['off']} | {r['contact_all_found']}/{r['n']} |")
     judged = [r for r in rows if r.get("judged")]
     if judged:
         lines += ["", "Verdicts of the reported estimates: parameters more than 10 % from the "

@@ -1,0 +1,56 @@
+"""The flightgen discovery Monte Carlo's floor-strike condition: its flights and how
+they are counted (the runs themselves: ``python -m pinquad.discovery --generator
+flightgen --conditions floor_strikes``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pinquad.experiments import discovery_mc_flightgen as fgmc
+from pinquad.report.discovery_mc_flightgen import flightgen_mc_markdown
+
+
+def _case(condition: str, seed: int, selected=(), contact=(0, 0, 0, 0)) -> fgmc.FlightgenCase:
+    return fgmc.FlightgenCase(condition, 100, seed, seed % 1000, 30.0, True, "sines",
+                              tuple(selected), {}, math.nan, math.nan, (0.0,) * 4, (0.0,) * 4,
+                              1.0, (), {"mass": "trusted"}, *contact)
+
+
+def test_floor_strike_flights_touch_the_floor_and_carry_no_effect():
+    spec = fgmc.flight_spec(fgmc.FLOOR_CONDITION, 7000, 0, 100)
+    assert spec.start_on_floor and spec.land and spec.floor_strikes == 2
+    assert spec.floor is not None
+    assert fgmc.injected(fgmc.FLOOR_CONDITION) == {}
+    clean = fgmc.flight_spec("none", 0, 0, 100)
+    assert clean.floor is None and not clean.start_on_floor
+    # the seeds of the other conditions did not move when the condition was added
+    assert fgmc.case_seed(0, "gyro_bias", 3) == 6003
+    assert fgmc.case_seed(0, fgmc.FLOOR_CONDITION, 3) == 7003
+
+
+def test_floor_rows_count_contact_against_the_truth():
+    cases = [_case(fgmc.FLOOR_CONDITION, 7000, (), (388, 382, 6, 60)),
+             _case(fgmc.FLOOR_CONDITION, 7001, ("ground_effect",), (390, 390, 0, 70)),
+             _case("none", 1)]
+    rows = {r["condition"]: r for r in fgmc.summarize(cases)}
+    floor = rows[fgmc.FLOOR_CONDITION]
+    assert floor["contact"] == {"true": 778, "found": 772, "missed": 6, "off": 130}
+    assert floor["contact_all_found"] == 1
+    assert floor["nothing_selected"] == 1 and floor["extra_selected"] == ["ground_effect"]
+    assert "named" not in floor and "contact" not in rows["none"]
+    text = flightgen_mc_markdown(list(rows.values()))
+    assert "| 100 Hz | 2 | 1/2 | ground_effect | 778 | 772 | 6 | 130 | 1/2 |" in text
+
+
+def test_true_contact_transitions_mark_every_log_interval_that_touches():
+    class Flight:  # the two attributes true_contact_transitions reads
+        class spec:
+            log_rate, dt = 100, 0.0025  # 4 integrator steps per log row
+        in_contact = np.zeros(40, dtype=bool)
+
+    Flight.in_contact[9] = True  # inside transition 2 -> 3
+    Flight.in_contact[20] = True  # the end of transition 4 -> 5 (row 5's instant)
+    marked = fgmc.true_contact_transitions(Flight, 10)
+    assert np.flatnonzero(marked).tolist() == [2, 4, 5]
