@@ -50,7 +50,8 @@ def test_plus_quad_from_its_file_identified_from_its_rotor_speeds(tmp_path):
     """One short seeded flight (two of the paper's waypoints at 0.3 scale, seed 0),
     logged with rpm_1..rpm_4, identified from the CSV through the file's mixer and kf:
     mass and every inertia entry within the bounds pinquad's offline experiment meets
-    (0.065 %, 3 %; measured -0.02 %, -0.27 / -2.22 / +2.25 %). Before the take-off's
+    (0.065 %, 3 %; measured -0.02 %, +0.04 / -1.84 / -0.43 % with the 0-45 Hz band,
+    -0.28 / -2.22 / -0.49 % with the earlier 0.2-45 Hz). Before the take-off's
     stopped-rotor bins became resets this flight's I_yy and I_zz were inside only the
     paper's wider sensor-B ranges (docs/vehicles.md)."""
     spec = load_vehicle(str(QUAD))

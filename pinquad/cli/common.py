@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from pinquad.cli.help import positive_int
@@ -84,3 +85,11 @@ def add_backend_arguments(parser: argparse.ArgumentParser, jobs_default: int,
 def backend_from_args(args: argparse.Namespace) -> Backend:
     """The Backend that ``add_backend_arguments``' options name."""
     return Backend(jobs=args.jobs, scheduler=args.scheduler, cluster_workers=args.cluster)
+
+
+def check_band(parser: argparse.ArgumentParser, band: Sequence[float] | None) -> None:
+    """Exit 2 through ``parser.error`` unless ``band`` (``--band LO HI`` [Hz]) has
+    0 <= LO < HI (LO = 0: the torque rows are low-pass filtered only)."""
+    if band is not None and not 0.0 <= band[0] < band[1]:
+        parser.error(f"--band LO HI: expected 0 <= LO < HI [Hz] (LO = 0: low-pass only); "
+                     f"got {band[0]:g} {band[1]:g}")

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.cli.batch import BATCH_EXIT_CODES, is_batch, run_batch
-from pinquad.cli.common import add_backend_arguments, backend_from_args
+from pinquad.cli.common import add_backend_arguments, backend_from_args, check_band
 from pinquad.cli.file_vehicle import run_file_vehicle
 from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
 from pinquad.core.execution import open_executor
@@ -111,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                    help="torque band [Hz] of the inertia M-step on a rotor-speed log "
                         "(default 3-8 Hz, the measured Crazyflie flights'; a simulated "
-                        "vehicle file's cycles: 0.2-45 Hz)")
+                        "vehicle file's cycles: 0-45 Hz; LO = 0 filters low-pass only)")
     p.add_argument("--max-iterations", type=positive_int, default=100,
                    help="E-steps at most per EM run")
     add_backend_arguments(p, os.cpu_count() or 1,
@@ -268,7 +268,9 @@ def _identify_and_report(args: argparse.Namespace, log: FlightLog, options: LogO
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    check_band(parser, args.band)
     try:
         if args.log is not None and is_batch(args.log):
             return run_batch(args, run_log, backend_from_args(args),

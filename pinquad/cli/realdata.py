@@ -17,7 +17,7 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
-from pinquad.cli.common import add_backend_arguments, backend_from_args
+from pinquad.cli.common import add_backend_arguments, backend_from_args, check_band
 from pinquad.cli.help import non_negative_int
 from pinquad.core.execution import open_executor
 from pinquad.core.vehicle_file import load_vehicle
@@ -90,6 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "with every rotor speed measured; a vehicle file's: every log); "
                              "run whatever --only says")
     args = parser.parse_args(argv)
+    check_band(parser, args.band)
     shipped = args.vehicle == "crazyflie21"
     try:
         vehicle = args.vehicle if shipped else vehicle_file_named(args.vehicle, Path.cwd(),

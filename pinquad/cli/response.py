@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from pinquad.cli.common import output_problem
+from pinquad.cli.common import check_band, output_problem
 from pinquad.cli.measured import (
     add_measured_log_arguments,
     measured_logs,
@@ -93,6 +93,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="sensor set of the simulated flights (with --simulate; B, the default, "
                         "logs the pose the measured-flight pipeline needs)")
     args = p.parse_args(argv)
+    check_band(p, args.band)
     if (code := output_problem(args.out, directory=False)) is not None:
         return code
     if args.simulate is not None:

@@ -95,8 +95,9 @@ class LogOptions:
             raise ValueError(f"M-steps must be some of {', '.join(MSTEPS)}; got {self.msteps}")
         if self.max_iterations < 1:
             raise ValueError(f"max_iterations must be at least 1; got {self.max_iterations}")
-        if not 0.0 < self.band[0] < self.band[1]:
-            raise ValueError(f"torque band must be 0 < LO < HI [Hz]; got {self.band}")
+        if not 0.0 <= self.band[0] < self.band[1]:
+            raise ValueError(f"torque band must be 0 <= LO < HI [Hz] (LO = 0: low-pass "
+                             f"only); got {self.band}")
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from scipy.signal import butter, sosfiltfilt
 
 from estimators.ekf import predict, update
+from pinquad.core.filters import band_sos
 from pinquad.core.params import VEHICLES
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.estep.fast_smoother import Innovations, innovations_quad
@@ -365,9 +366,7 @@ def torque_share(obs: Observations, mean: Array, inertia: Array,
         tau = tau - np.cross(np.asarray(com, dtype=float), thrust)
     u = (tau - np.cross(omega[:-1], omega[:-1] @ inertia.T)) @ np.linalg.inv(inertia).T
     if band is not None:
-        nyquist = 0.5 / obs.dt
-        sos = butter(2, [band[0] / nyquist, min(band[1] / nyquist, 0.99)], btype="band",
-                     output="sos")
+        sos = band_sos(band, 1.0 / obs.dt, top=0.495)
         accel, u = sosfiltfilt(sos, accel, axis=0), sosfiltfilt(sos, u, axis=0)
     used = mstep_transitions(obs) & np.isfinite(accel).all(axis=1) & np.isfinite(u).all(axis=1)
     out = np.full(3, np.nan)

@@ -11,8 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import sosfiltfilt
 
+from pinquad.core.filters import band_sos
 from pinquad.models.ssm import Observations, Theta
 from pinquad.mstep.stats import QuadraticSums, transition_mask
 from pinquad.mstep.updates import (
@@ -183,13 +184,14 @@ class RealMStep:
         z = torque_features(mean[:-1], obs.inputs[:-1, 0])
         fs = 1.0 / obs.dt
         lo, hi = self.band
-        sos = butter(2, [lo, min(hi, 0.45 * fs)], btype="band", fs=fs, output="sos")
+        sos = band_sos(self.band, fs)
 
         def bp(v: Array) -> Array:
             return sosfiltfilt(sos, v, axis=0)
 
         use = transition_mask(obs)
-        margin = int(math.ceil(0.5 / lo / obs.dt))
+        # the filter's transients last about half a period of its lowest corner
+        margin = int(math.ceil(0.5 / (lo if lo > 0 else min(hi, 0.45 * fs)) / obs.dt))
         bad = ~use
         bad[:margin] = bad[-margin:] = True
         near = np.convolve(bad.astype(float), np.ones(2 * margin + 1), mode="same") > 0

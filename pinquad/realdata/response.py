@@ -45,8 +45,9 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import butter, csd, sosfiltfilt, welch
+from scipy.signal import csd, sosfiltfilt, welch
 
+from pinquad.core.filters import band_sos
 from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_MASS
 from pinquad.identification.identify import identify
 from pinquad.models.sources import observations
@@ -129,8 +130,7 @@ def unexplained_torque(acc: Array, tau: Array, inertia: Array, dt: float,
     model does not have (disturbances: air, rotor aerodynamics, anything unmodelled) are
     against the rotor torque: in closed loop the controller answers them, and where they
     dominate |H| follows the controller rather than the inertia (module docstring)."""
-    sos = butter(2, [band[0], min(band[1], 0.45 / dt)], btype="band", fs=1.0 / dt,
-                 output="sos")
+    sos = band_sos(band, 1.0 / dt)
     left = sosfiltfilt(sos, np.asarray(inertia) * acc - tau, axis=0)
     have = sosfiltfilt(sos, tau, axis=0)
     return np.sqrt(np.mean(left**2, axis=0) / np.mean(have**2, axis=0))

@@ -1,0 +1,21 @@
+"""The zero-phase torque-band filter shared by the measured-flight M-step and the
+verdict's torque share."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import butter
+
+Array = NDArray[np.float64]
+
+
+def band_sos(band: tuple[float, float], fs: float, top: float = 0.45, order: int = 2) -> Array:
+    """Second-order sections of a Butterworth filter of ``order`` passing ``band`` =
+    (lo, hi) [Hz] at the sample rate ``fs`` [Hz]: band-pass, or low-pass when lo = 0;
+    hi is capped at ``top`` * fs (below the Nyquist frequency 0.5 fs)."""
+    lo, hi = band
+    hi = min(hi, top * fs)
+    if lo > 0:
+        return butter(order, [lo, hi], btype="band", fs=fs, output="sos")
+    return butter(order, hi, btype="low", fs=fs, output="sos")
