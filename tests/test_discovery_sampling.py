@@ -28,7 +28,7 @@ def test_a_clean_100_hz_flightgen_flight_selects_nothing(tmp_path):
                                                      max_iterations=100, information=False))
     start = discovery_start(result.runs[0])
     cfg = discovery_config(result.kind, result.log.meta.actuation)
-    assert cfg.sampling_nuisance == (0, 1)
+    assert cfg.sampling_nuisance == (0,)
     assert discovery_config(result.kind, "held").sampling_nuisance == ()
     found = discover(start.obs, start.theta, start.posterior, cfg=cfg)
     assert found.selected == (), [(s.effect, s.gain) for s in found.scores]

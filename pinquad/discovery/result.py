@@ -62,7 +62,14 @@ class DiscoveryConfig:
     out, then the other way round) and sum the evidence (``selection.score_candidate``);
     False: the even-block fold alone, as before 2026-11-26 (an effect whose signal sat
     in the odd blocks, such as a flight's one low pass over the floor, failed BIC on the
-    training blocks while its held-out gain was 45-84 %).
+    training blocks while its held-out gain was 45-84 %);
+    min_lag_intervals: a ``motor_lag`` whose time constant is below this many log
+    intervals dt is not selected. Over one interval a first-order lag of tau << dt only
+    moves the interval's mean input by about -(tau / dt) (u_{k+1} - u_k): a small
+    multiple of the input's change across the interval, which the input's unknown
+    course between two logged samples gives as well, so the log cannot tell such a lag
+    from how its actuation was sampled (on flightgen's floor-strike and clean flights a
+    0.16-0.7 ms "lag" at 4-10 ms intervals passed every other test).
     """
 
     block_seconds: float = 2.0
@@ -79,6 +86,7 @@ class DiscoveryConfig:
     joint_tol: float = 1e-3
     sampling_nuisance: tuple[int, ...] = ()
     two_fold: bool = True
+    min_lag_intervals: float = 0.25
 
 
 DEFAULT_CONFIG = DiscoveryConfig()
