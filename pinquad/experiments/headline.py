@@ -19,7 +19,11 @@ from pinquad.experiments.recorded import (
     discovery_start,
     input_reading,
 )
-from pinquad.identification.fisher import observed_information, standard_errors
+from pinquad.identification.fisher import (
+    STDERR_UNAVAILABLE,
+    observed_information,
+    standard_errors,
+)
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import (
     EstimateVerdict,
@@ -109,7 +113,8 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     if run.full is not None:
         s = np.asarray(run.full.stderr_inertia)
         products = np.array([s[0, 1], s[0, 2], s[1, 2]])
-    return judge(run.mass, run.inertia, run.stderr, ev, _range(result), products)
+    return judge(run.mass, run.inertia, run.stderr, ev, _range(result), products,
+                 missing_stderr=run.stderr_problem)
 
 
 def _base(result: LogResult, verdict: EstimateVerdict) -> Estimate:
@@ -131,8 +136,10 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
     ev = replace(data_evidence(obs, theta, found.posterior.mean, _band(run), model,
                                _actuation(result)),
                  input_alternative=result.input_alternative)
+    missing = run.stderr_problem
     if discovery_config(result.kind).refit_em:
         stderr = standard_errors(observed_information(obs, theta, loglik_quad))
+        missing = STDERR_UNAVAILABLE
         note = ("observed information of the EKF likelihood on the observations with the "
                 "selected effects' thrust and torque folded in (body x/y forces of drag or "
                 "wind are not in this likelihood)")
@@ -140,7 +147,8 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
         stderr = base.stderr
         note = ("the base fit's (discovery keeps the base inertia and refits the mass on the "
                 "base posterior's force rows)")
-    verdict = judge(found.mass, found.inertia, stderr, ev, _range(result))
+    verdict = judge(found.mass, found.inertia, stderr, ev, _range(result),
+                    missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,
                     f"base model plus {', '.join(found.selected)} (discovery's refit)", verdict)
 

@@ -13,7 +13,11 @@ from estimators.iterated import smooth as iterated_smooth
 from estimators.protocol import Posterior
 from pinquad.estep.fast_smoother import loglik_quad, smooth_quad
 from pinquad.identification.em import EMResult, Smoother, initial_theta, run_em
-from pinquad.identification.fisher import observed_information, standard_errors
+from pinquad.identification.fisher import (
+    STDERR_UNAVAILABLE,
+    observed_information,
+    standard_errors,
+)
 from pinquad.identification.full_inertia import FullIdentification
 from pinquad.identification.verdict import EstimateVerdict
 from pinquad.models.ssm import Observations, Theta
@@ -69,7 +73,8 @@ class Identification:
     a ``pinquad.realdata`` RealIdentification, a layer above this one) when the flight
     is a rotor-speed log; verdict: whether the log carries each estimate
     (``pinquad.identification.verdict``; set by ``pinquad.identify`` and the recorded-log
-    report, None where nobody judged it).
+    report, None where nobody judged it); stderr_problem: why standard errors that were
+    asked for are missing (``fisher.STDERR_UNAVAILABLE``), else None.
     """
 
     mstep: str
@@ -93,6 +98,7 @@ class Identification:
     full: FullIdentification | None = field(default=None, repr=False)
     measured: object | None = field(default=None, repr=False)
     verdict: EstimateVerdict | None = field(default=None, repr=False, compare=False)
+    stderr_problem: str | None = None
 
     @property
     def iterations(self) -> int:
@@ -158,6 +164,8 @@ def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, e
         decreases=res.decreases, seconds=time.perf_counter() - t0, info_truth=info_truth,
         theta=res.theta, failure=res.failure or unmoved,
         notes=() if unmoved is None else (unmoved,),
+        stderr_problem=(STDERR_UNAVAILABLE if information and mstep == "regressor"
+                        and not np.all(np.isfinite(stderr)) else None),
     )
     return out, res.posterior
 

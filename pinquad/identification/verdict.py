@@ -242,14 +242,17 @@ def _judge(name: str, value: float, se: float, checks: dict[str, list[str]]) -> 
 
 def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
           vrange: VehicleRange | None, stderr_products: Array | None = None,
-          thresholds: VerdictThresholds = DEFAULT_THRESHOLDS) -> EstimateVerdict:
+          thresholds: VerdictThresholds = DEFAULT_THRESHOLDS,
+          missing_stderr: str | None = None) -> EstimateVerdict:
     """The verdict of one estimate (module docstring).
 
     mass [kg]; inertia (3, 3) [kg m^2]; stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not
     computed, no identifiability check by standard error); evidence: torque shares and
     innovation consistency; vrange: the vehicle's range (None: positivity and the
     triangle inequality only); stderr_products (3,) of [I_xy, I_xz, I_yz] when the
-    products of inertia were estimated (their parameters are judged too).
+    products of inertia were estimated (their parameters are judged too);
+    missing_stderr: the standard errors were asked for, and a NaN one is then "not
+    identifiable" for this reason (a number without its uncertainty is not trusted).
     """
     th = thresholds
     inertia = np.asarray(inertia, dtype=float).reshape(3, 3)
@@ -267,6 +270,8 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
                          f"({vrange.source})")
     ident = [] if vrange is None else _range_check("mass", stderr[0], *vrange.mass, 1e3, "g", th)
     ident += _input_check("mass", 0, mass, stderr[0], evidence, 1e3, "g", th)
+    if missing_stderr and not np.isfinite(stderr[0]):
+        ident.append(missing_stderr)
     params.append(_judge("mass", mass, stderr[0], {
         NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th),
         IMPLAUSIBLE: bad_value}))
@@ -296,6 +301,8 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         ident = [] if vrange is None else _range_check(
             name, stderr[i + 1], vrange.inertia_lo[i], vrange.inertia_hi[i], 1e6, "e-6 kg m^2", th)
         ident += _input_check(name, i + 1, value, stderr[i + 1], evidence, 1e6, "e-6 kg m^2", th)
+        if missing_stderr and not np.isfinite(stderr[i + 1]):
+            ident.append(missing_stderr)
         if np.isfinite(excitation[i]) and excitation[i] < th.min_torque_excitation:
             ident.insert(0, f"the logged torques about body {name[-1]} are {excitation[i]:.2f}x "
                             f"the size of the process noise's ({evidence.excitation_band}; at "

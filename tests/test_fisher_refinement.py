@@ -1,0 +1,68 @@
+"""The observed information when central differences break down (fisher.observed_information)
+and the verdict of an estimate whose standard error was asked for and is missing."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from pinquad.identification import fisher
+from pinquad.identification.fisher import (
+    STDERR_UNAVAILABLE,
+    observed_information,
+    standard_errors,
+)
+from pinquad.identification.verdict import NOT_IDENTIFIABLE, TRUSTED, VerdictEvidence, judge
+from pinquad.models.ssm import Theta
+
+THETA = Theta(0.035, np.diag([16.6e-6, 16.7e-6, 29.3e-6]), None, 9.81)
+SE_REL = np.array([1e-4, 2e-4, 3e-4, 4e-4])  # relative standard errors of the fake likelihood
+OBS = SimpleNamespace(ys=np.zeros((1, 1)))  # the fake likelihoods below read only theta
+
+
+@pytest.fixture(autouse=True)
+def bare_model(monkeypatch):
+    """The model handed to the likelihood is just its parameters."""
+    monkeypatch.setattr(fisher, "QuadSSM", lambda obs, theta: SimpleNamespace(theta=theta))
+
+
+def _phi(model) -> np.ndarray:
+    th = model.theta
+    return np.log(np.r_[th.mass, np.diag(th.inertia)]) - np.log(
+        np.r_[THETA.mass, np.diag(THETA.inertia)])
+
+
+def _peaked(model, ys) -> float:
+    """A quadratic log-likelihood in log-parameters with a cliff: beyond 0.1 % the filter
+    'breaks down' (raises), as the 250 Hz floor-strike flight's did at 0.2 %."""
+    phi = _phi(model)
+    if np.any(np.abs(phi) > 1e-3):
+        raise np.linalg.LinAlgError("Matrix is not positive definite")
+    return float(-0.5 * np.sum((phi / SE_REL) ** 2))
+
+
+def test_a_step_that_breaks_the_filter_is_refined_until_the_curvature_is_measured():
+    info = observed_information(OBS, THETA, _peaked)
+    se = standard_errors(info) / np.r_[THETA.mass, np.diag(THETA.inertia)]
+    np.testing.assert_allclose(se, SE_REL, rtol=1e-6)
+
+
+def test_no_refinement_without_a_curvature_gives_nan_not_an_exception():
+    def rough(model, ys) -> float:  # jumps of thousands of nats: no step finds a maximum
+        return float(np.sin(1e7 * np.sum(_phi(model))) * 1e3)
+
+    se = standard_errors(observed_information(OBS, THETA, rough))
+    assert np.all(np.isnan(se))
+
+
+def test_a_missing_standard_error_that_was_asked_for_is_not_trusted():
+    inertia = np.diag([16.6e-6, 16.7e-6, 29.3e-6])
+    se = np.array([np.nan, 1e-7, np.nan, 1e-7])
+    quiet = judge(0.035, inertia, se, VerdictEvidence(), None)
+    asked = judge(0.035, inertia, se, VerdictEvidence(), None, missing_stderr=STDERR_UNAVAILABLE)
+    assert quiet.get("mass").verdict == TRUSTED  # not computed: no check by standard error
+    assert asked.get("mass").verdict == NOT_IDENTIFIABLE
+    assert asked.get("mass").reasons == (STDERR_UNAVAILABLE,)
+    assert asked.get("I_xx").verdict == TRUSTED and asked.get("I_yy").verdict == NOT_IDENTIFIABLE
