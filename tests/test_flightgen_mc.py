@@ -54,3 +54,22 @@ def test_true_contact_transitions_mark_every_log_interval_that_touches():
     Flight.in_contact[20] = True  # the end of transition 4 -> 5 (row 5's instant)
     marked = fgmc.true_contact_transitions(Flight, 10)
     assert np.flatnonzero(marked).tolist() == [2, 4, 5]
+
+
+def test_flightgen_runs_merge_and_a_wrong_kind_of_file_is_an_input_error(tmp_path, capsys):
+    from pinquad.cli import discovery
+
+    first, second = tmp_path / "a", tmp_path / "b"
+    for d in (first, second):
+        d.mkdir()
+    fgmc.append_case(first, _case(fgmc.FLOOR_CONDITION, 7000, (), (388, 382, 6, 60)))
+    fgmc.append_case(first, _case(fgmc.FLOOR_CONDITION, 7001, ("motor_lag",), (390, 390, 0, 70)))
+    # a later run's case of the same condition, rate and seed replaces the earlier one
+    fgmc.append_case(second, _case(fgmc.FLOOR_CONDITION, 7001, (), (390, 390, 0, 70)))
+    code = discovery.main(["--generator", "flightgen", "--merge", str(first / "cases.jsonl"),
+                           str(second / "cases.jsonl"), "--out", str(tmp_path / "merged")])
+    assert code == 0
+    assert "| 100 Hz | 2 | 2/2 | - | 778 | 772 | 6 | 130 | 1/2 |" in capsys.readouterr().out
+    assert (tmp_path / "merged" / "discovery_mc_flightgen.md").exists()
+    assert discovery.main(["--merge", str(first / "cases.jsonl")]) == 2
+    assert "--generator flightgen" in capsys.readouterr().err

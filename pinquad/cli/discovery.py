@@ -65,6 +65,8 @@ def main(argv: list[str] | None = None) -> int:
     discovery_mc.md and cases.jsonl to ``--out``. Returns the exit code."""
     args = build_parser().parse_args(argv)
     if args.merge:
+        if args.generator == "flightgen":
+            return merge_flightgen(args.merge, args.out)
         return merge(args.merge, args.out)
     if args.seeds < 1 or args.laps < 1:
         print("error: --seeds and --laps must be at least 1", file=sys.stderr)
@@ -176,8 +178,10 @@ def merge(paths: list[Path], out: Path | None) -> int:
     for p in paths:
         try:
             read = read_cases(p)
-        except (OSError, ValueError) as exc:
-            print(f"error: {p}: cannot read a discovery_mc.json ({exc})", file=sys.stderr)
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            print(f"error: {p}: cannot read a discovery_mc.json or cases.jsonl of pinquad's "
+                  f"simulator ({type(exc).__name__}: {exc}; a flightgen run's cases are merged "
+                  f"with --generator flightgen)", file=sys.stderr)
             return 2
         for case in read:
             cases[(case.condition, case.seed)] = case
@@ -202,6 +206,44 @@ def merge(paths: list[Path], out: Path | None) -> int:
                           {"summary": summary, "merged_from": [str(p) for p in paths],
                            "cases": [c.to_json() for c in ordered]})
         (out / "discovery_mc.md").write_text("# Effect discovery Monte Carlo\n\n" + table + "\n")
+        print(f"written to {out}")
+    return 0
+
+
+def merge_flightgen(paths: list[Path], out: Path | None) -> int:
+    """``--generator flightgen --merge``: summarise several flightgen runs' cases
+    (cases.jsonl or discovery_mc_flightgen.json) together, a later file's case replacing
+    an earlier one of the same condition, log rate and seed; print the tables and, with
+    ``out``, write them there. Returns the exit code."""
+    cases: dict[tuple[str, int, int], fgmc.FlightgenCase] = {}
+    for p in paths:
+        try:
+            read = fgmc.read_cases(p)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            print(f"error: {p}: cannot read a flightgen Monte Carlo's cases.jsonl or "
+                  f"discovery_mc_flightgen.json ({type(exc).__name__}: {exc})", file=sys.stderr)
+            return 2
+        for case in read:
+            cases[(case.condition, case.log_rate, case.seed)] = case
+    ordered = sorted(cases.values(), key=lambda c: (c.log_rate,
+                                                    fgmc.FG_CONDITIONS.index(c.condition), c.seed))
+    table = flightgen_mc_markdown(fgmc.summarize(ordered))
+    for rate in fgmc.LOG_RATES:
+        for cond in fgmc.FG_CONDITIONS:
+            seeds = [c.seed for c in ordered if c.condition == cond and c.log_rate == rate]
+            if seeds:
+                print(f"{rate} Hz {cond}: {len(seeds)} seeds {seeds[0]}..{seeds[-1]}")
+    print(table)
+    if out is not None:
+        if (code := output_problem(out, directory=True)) is not None:
+            return code
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(out / "discovery_mc_flightgen.json",
+                          {"rows": fgmc.summarize(ordered),
+                           "merged_from": [str(p) for p in paths],
+                           "cases": [c.to_json() for c in ordered]})
+        (out / "discovery_mc_flightgen.md").write_text(
+            "# Effect discovery Monte Carlo on flightgen flights\n\n" + table + "\n")
         print(f"written to {out}")
     return 0
 

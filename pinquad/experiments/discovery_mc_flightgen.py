@@ -286,15 +286,19 @@ def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
 
 
 def read_cases(path: Path) -> list[FlightgenCase]:
-    """The cases of a ``cases.jsonl`` written by ``append_case``."""
+    """The cases of a ``cases.jsonl`` written by ``append_case``, or of a run's
+    ``discovery_mc_flightgen.json`` (its ``cases``)."""
+    text = Path(path).read_text()
+    if Path(path).suffix == ".json":
+        records = json.loads(text)["cases"]
+    else:
+        records = [json.loads(line) for line in text.splitlines() if line.strip()]
     out = []
-    for line in path.read_text().splitlines():
-        if line.strip():
-            d = json.loads(line)
-            d["selected"] = tuple(d["selected"])
-            d["base_err"], d["final_err"] = tuple(d["base_err"]), tuple(d["final_err"])
-            d["null_rejected"] = tuple(d.get("null_rejected", ()))
-            out.append(FlightgenCase(**d))
+    for d in records:
+        d["selected"] = tuple(d["selected"])
+        d["base_err"], d["final_err"] = tuple(d["base_err"]), tuple(d["final_err"])
+        d["null_rejected"] = tuple(d.get("null_rejected", ()))
+        out.append(FlightgenCase(**d))
     return out
 
 
