@@ -163,12 +163,16 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
     window = window_steps(cfg, obs.dt)
     before, selected, scores = sel.before, list(sel.selected), sel.scores
+    folds_text = ("summed over two folds (even blocks train and odd are held out, then the "
+                  "other way round)" if cfg.two_fold else "on the even-block fold")
     validation = (f"{cfg.block_seconds:g}-s blocks of the flight alternate: even blocks train "
-                  f"(selection fits, refit M-step), odd blocks are held out (never in a refit "
+                  f"(refit M-step), odd blocks are held out (never in a refit "
                   f"M-step); RMS per axis of {cfg.window_seconds:g}-s means of the residual on the "
                   f"held-out blocks; before: base model (EM on all data); after: refit on the "
-                  f"training blocks plus the identified effects. Selection: held-out SSE gain "
-                  f">= {cfg.min_heldout_gain:g}, BIC on training and held-out likelihood gain.")
+                  f"training blocks plus the identified effects. Selection, {folds_text}: "
+                  f"held-out SSE gain >= {cfg.min_heldout_gain:g}, BIC on training and held-out "
+                  f"likelihood gain; a motor lag under {cfg.min_lag_intervals:g} log intervals "
+                  f"is not selected.")
     if not selected:
         return DiscoveryResult((), {}, {}, tuple(scores), before, dict(before), theta.mass,
                                np.asarray(theta.inertia), theta, posterior, validation)

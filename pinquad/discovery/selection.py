@@ -201,7 +201,7 @@ def folds(train: NDArray[np.bool_], cfg: DiscoveryConfig) -> tuple[NDArray[np.bo
 
 
 def base_fits(res: Residuals, current: Sequence[str], pi0: Array, cfg: DiscoveryConfig,
-             train: NDArray[np.bool_]) -> tuple[ModelFit, ...]:
+              train: NDArray[np.bool_]) -> tuple[ModelFit, ...]:
     """The fits of the effects ``current`` alone, one per fold (``folds``), that
     ``score_candidate`` compares each candidate with (the same for every candidate of a
     round: fit them once)."""
