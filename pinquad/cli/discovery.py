@@ -160,14 +160,20 @@ def run_flightgen(args: argparse.Namespace) -> int:
     table = flightgen_mc_markdown(rows)
     print(table)
     print(f"\n{len(cases)} flights in {seconds:.0f} s")
+    _write_flightgen(out, rows, table, cases, {"seconds": seconds, "base_seed": args.base_seed,
+                                               "seeds_per_condition": args.seeds})
+    return 0
+
+
+def _write_flightgen(out: Path, rows: list[dict], table: str,
+                     cases: list[fgmc.FlightgenCase], extra: dict) -> None:
+    """A flightgen run's (or merge's) discovery_mc_flightgen.json (rows, ``extra``, cases)
+    and .md (the tables) in ``out``."""
     atomic_write_json(out / "discovery_mc_flightgen.json",
-                      {"rows": rows, "seconds": seconds, "base_seed": args.base_seed,
-                       "seeds_per_condition": args.seeds,
-                       "cases": [c.to_json() for c in cases]})
+                      {"rows": rows, **extra, "cases": [c.to_json() for c in cases]})
     (out / "discovery_mc_flightgen.md").write_text(
         "# Effect discovery Monte Carlo on flightgen flights\n\n" + table + "\n")
     print(f"written to {out}")
-    return 0
 
 
 def merge(paths: list[Path], out: Path | None) -> int:
@@ -227,7 +233,8 @@ def merge_flightgen(paths: list[Path], out: Path | None) -> int:
             cases[(case.condition, case.log_rate, case.seed)] = case
     ordered = sorted(cases.values(), key=lambda c: (c.log_rate,
                                                     fgmc.FG_CONDITIONS.index(c.condition), c.seed))
-    table = flightgen_mc_markdown(fgmc.summarize(ordered))
+    rows = fgmc.summarize(ordered)
+    table = flightgen_mc_markdown(rows)
     for rate in fgmc.LOG_RATES:
         for cond in fgmc.FG_CONDITIONS:
             seeds = [c.seed for c in ordered if c.condition == cond and c.log_rate == rate]
@@ -238,13 +245,7 @@ def merge_flightgen(paths: list[Path], out: Path | None) -> int:
         if (code := output_problem(out, directory=True)) is not None:
             return code
         out.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(out / "discovery_mc_flightgen.json",
-                          {"rows": fgmc.summarize(ordered),
-                           "merged_from": [str(p) for p in paths],
-                           "cases": [c.to_json() for c in ordered]})
-        (out / "discovery_mc_flightgen.md").write_text(
-            "# Effect discovery Monte Carlo on flightgen flights\n\n" + table + "\n")
-        print(f"written to {out}")
+        _write_flightgen(out, rows, table, ordered, {"merged_from": [str(p) for p in paths]})
     return 0
 
 

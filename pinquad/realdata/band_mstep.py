@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import sosfiltfilt
 
-from pinquad.core.filters import band_sos
+from pinquad.core.filters import band_sos, passband
 from pinquad.models.ssm import Observations, Theta
 from pinquad.mstep.stats import QuadraticSums, transition_mask
 from pinquad.mstep.updates import (
@@ -183,7 +183,7 @@ class RealMStep:
         tau = obs.inputs[:-1, 1:4]
         z = torque_features(mean[:-1], obs.inputs[:-1, 0])
         fs = 1.0 / obs.dt
-        lo, hi = self.band
+        lo, hi = passband(self.band, fs)
         sos = band_sos(self.band, fs)
 
         def bp(v: Array) -> Array:
@@ -191,7 +191,7 @@ class RealMStep:
 
         use = transition_mask(obs)
         # the filter's transients last about half a period of its lowest corner
-        margin = int(math.ceil(0.5 / (lo if lo > 0 else min(hi, 0.45 * fs)) / obs.dt))
+        margin = int(math.ceil(0.5 / (lo if lo > 0 else hi) / obs.dt))
         bad = ~use
         bad[:margin] = bad[-margin:] = True
         near = np.convolve(bad.astype(float), np.ones(2 * margin + 1), mode="same") > 0
