@@ -4,11 +4,13 @@ base fit (pinquad.sim.shadow) and the calibration of selected effects against th
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from flightgen import Effects, FlightSpec, generate, write_csv
-from pinquad.discovery.null import NullSettings, calibrate
+from pinquad.discovery.null import NullSettings, calibrate, plausible_null
 from pinquad.discovery.residuals import compute_residuals
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import score_candidate
@@ -73,6 +75,28 @@ def test_real_drag_beats_the_null_and_a_clean_flights_chance_gain_does_not(clean
                       {"drag": _drag_gain(clean_start)}, CFG, settings, "sampled")
     assert clean.rejected == ("drag",) and clean.p_value["drag"] > 0.05
     assert clean.null_gains["drag"].shape == (19,)
+
+
+def test_an_implausible_base_fit_is_flown_at_its_nearest_plausible_inertia(clean_start):
+    """A base model that cannot explain its log (a CoM offset on flightgen's 500 Hz flights)
+    drove the inertia to 1e-7 or 1e77 kg m^2; the shadow flights of such a fit broke down
+    and every effect lost to their NaN gains (CoM offset unnamed on 2 of 10 flights)."""
+    theta = clean_start.theta
+    lo, hi = np.array([4e-6, 4e-6, 7e-6]), np.array([66e-6, 67e-6, 117e-6])
+    assert plausible_null(theta, (lo, hi)) is theta  # a plausible fit is flown as fitted
+    wild = replace(theta, inertia=np.diag([3e-7, 1e-1, 20e-6]))
+    assert np.allclose(np.diag(plausible_null(wild, (lo, hi)).inertia), [4e-6, 67e-6, 20e-6])
+    assert plausible_null(wild, None) is wild
+    settings = NullSettings(replicates=2, seed=0, alpha=0.3)
+    cal = calibrate(clean_start.obs, wild, clean_start.posterior, {"drag": 0.5}, CFG, settings,
+                    "sampled", inertia_bounds=(lo, hi))
+    assert np.allclose(cal.flown_inertia, [4e-6, 67e-6, 20e-6])
+    assert np.all(np.isfinite(cal.null_gains["drag"])) and cal.tracking_rms < 0.1
+    assert "nearest point in that range, diag (4, 67, 20) e-6" in cal.to_report()[
+        "shadow_inertia_note"]
+    plain = calibrate(clean_start.obs, theta, clean_start.posterior, {"drag": 0.5}, CFG,
+                      settings, "sampled", inertia_bounds=(lo, hi))
+    assert plain.flown_inertia is None and plain.to_report()["shadow_inertia_note"] is None
 
 
 def test_too_few_replicates_for_the_asked_level_are_refused():

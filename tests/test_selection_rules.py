@@ -21,6 +21,8 @@ import pytest
 
 from flightgen import generate, write_csv
 from pinquad.discovery.discover import select_effects
+from pinquad.discovery.result import DiscoveryConfig
+from pinquad.discovery.selection import shortest_lag
 from pinquad.experiments.discovery_mc_flightgen import flight_spec
 from pinquad.experiments.recorded import (
     LogOptions,
@@ -66,8 +68,15 @@ def test_a_lag_shorter_than_the_log_resolves_is_not_an_effect(tmp_path_factory):
     assert cfg.min_lag_intervals == 0.25
     kept = select_effects(start.obs, start.theta, start.posterior, cfg)
     loose = select_effects(start.obs, start.theta, start.posterior,
-                           replace(cfg, min_lag_intervals=0.0))
+                           replace(cfg, min_lag_intervals=0.0, min_lag_seconds=0.0))
     assert loose.selected == ("motor_lag",)
     lag = next(s for s in loose.scores if s.effect == "motor_lag" and s.passed).coefficients[0]
     assert 0.0 < lag < 0.25 * start.obs.dt
     assert kept.selected == ()
+
+
+def test_the_shortest_lag_is_a_quarter_interval_or_two_milliseconds_whichever_is_longer():
+    cfg = DiscoveryConfig()
+    assert shortest_lag(cfg, 0.01) == pytest.approx(0.0025)  # 100 Hz: a quarter interval
+    assert shortest_lag(cfg, 0.002) == pytest.approx(0.002)  # 500 Hz: 2 ms, not 0.5 ms
+    assert shortest_lag(replace(cfg, min_lag_seconds=0.0), 0.002) == pytest.approx(0.0005)

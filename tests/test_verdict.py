@@ -180,9 +180,12 @@ def test_torques_no_larger_than_the_noise_make_that_inertia_not_identifiable():
     assert [p.verdict for p in verdict.parameters] == [TRUSTED, NOT_IDENTIFIABLE, TRUSTED,
                                                          NOT_IDENTIFIABLE]
     assert "0.50x the size of the process noise's (0-50 Hz" in verdict.get("I_xx").reasons[0]
-    # at the threshold (2x) and NaN (not measured) judge nothing
-    edge = replace(quiet, torque_excitation=np.array([2.0, np.nan, 2.0]))
+    # at the threshold (3x) and NaN (not measured) judge nothing; under it, untrusted
+    edge = replace(quiet, torque_excitation=np.array([3.0, np.nan, 3.0]))
     assert judge(M, np.diag(J), SMALL_SE, edge, CF).overall == TRUSTED
+    below = replace(quiet, torque_excitation=np.array([2.49, np.nan, 2.9]))
+    assert [p.verdict for p in judge(M, np.diag(J), SMALL_SE, below, CF).parameters] == [
+        TRUSTED, NOT_IDENTIFIABLE, TRUSTED, NOT_IDENTIFIABLE]
 
 
 @pytest.fixture(scope="module")

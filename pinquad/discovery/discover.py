@@ -172,7 +172,7 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
                   f"training blocks plus the identified effects. Selection, {folds_text}: "
                   f"held-out SSE gain >= {cfg.min_heldout_gain:g}, BIC on training and held-out "
                   f"likelihood gain; a motor lag under {cfg.min_lag_intervals:g} log intervals "
-                  f"is not selected.")
+                  f"or {1e3 * cfg.min_lag_seconds:g} ms is not selected.")
     if not selected:
         return DiscoveryResult((), {}, {}, tuple(scores), before, dict(before), theta.mass,
                                np.asarray(theta.inertia), theta, posterior, validation)

@@ -22,6 +22,14 @@ directly, by a parametric bootstrap:
 A shadow flight contains no effect, so each replicate in which a candidate passes the
 selection's own tests is a measured false positive of the uncalibrated selection on
 flights like this one (``null_passes``).
+
+A base fit whose inertia lies outside what the vehicle can physically be (a base model
+that cannot explain the log, such as a centre of mass off the rotor plane's centre, can
+drive its inertia to 1e-8 or 1e80 kg m^2) is no null to fly: its shadow flights leave the
+path or break down, and every effect would lose to NaN gains. The shadow flights then
+fly, and are scored with, the nearest plausible base model: the inertia diagonal clipped
+into the vehicle's range (``plausible_null``). The null hypothesis stays "no effect, the
+base model with physically possible parameters"; the report says when it was clipped.
 """
 
 from __future__ import annotations
@@ -29,7 +37,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from concurrent.futures import Executor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -76,7 +84,9 @@ class NullCalibration:
     effect -> (replicates,) its gains on the shadow flights [-]; null_passes: effect ->
     shadow flights on which it passed the uncalibrated selection; p_value: effect -> p;
     kept / rejected: the effects that beat / did not beat the null; tracking_rms [m]:
-    RMS distance of the shadow flights from the log's smoothed path; seconds: wall time.
+    RMS distance of the shadow flights from the log's smoothed path; seconds: wall time;
+    flown_inertia (3,) [kg m^2] or None: the inertia diagonal the shadow flights flew
+    when the base fit's lay outside the vehicle's range (``plausible_null``), else None.
     """
 
     replicates: int
@@ -90,6 +100,7 @@ class NullCalibration:
     rejected: tuple[str, ...]
     tracking_rms: float
     seconds: float
+    flown_inertia: Array | None = None
 
     def to_report(self) -> dict:
         """The ``null_calibration`` entry of report.json's ``discovery`` section."""
@@ -111,6 +122,11 @@ class NullCalibration:
                 "the shadow flights strayed more than 10 cm (RMS) from the log's path: the "
                 "null is a flight unlike this one, read its p-values with care"),
             "seconds": self.seconds,
+            "shadow_inertia_note": (
+                None if self.flown_inertia is None else
+                "the base fit's inertia lies outside the vehicle's range; the shadow flights "
+                "fly its nearest point in that range, diag ("
+                + ", ".join(f"{1e6 * v:.3g}" for v in self.flown_inertia) + ") e-6 kg m^2"),
         }
 
 
@@ -147,17 +163,39 @@ def score_shadow(job: ShadowScoring) -> tuple[list[float], list[bool]]:
     return [s.gain for s in scores], [bool(s.passed) for s in scores]
 
 
+def plausible_null(theta: Theta, inertia_bounds: tuple[Array, Array] | None) -> Theta:
+    """The base fit the shadow flights fly: ``theta`` itself when its inertia diagonal
+    lies within ``inertia_bounds`` = (lo (3,), hi (3,)) [kg m^2] (or there are none), else
+    ``theta`` with the inertia diag(clip(diag I, lo, hi)) (products of inertia dropped:
+    they belong to the implausible tensor)."""
+    if inertia_bounds is None:
+        return theta
+    lo, hi = (np.asarray(b, dtype=float) for b in inertia_bounds)
+    diag = np.diag(np.asarray(theta.inertia, dtype=float))
+    if np.all(np.isfinite(diag)) and np.all((diag >= lo) & (diag <= hi)):
+        return theta
+    clipped = np.clip(np.nan_to_num(diag, nan=np.sqrt(lo * hi)), lo, hi)
+    return replace(theta, inertia=np.diag(clipped))
+
+
 def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: dict[str, float],
               cfg: DiscoveryConfig, settings: NullSettings = NullSettings(),
-              actuation: str = "held", executor: Executor | None = None) -> NullCalibration:
+              actuation: str = "held", executor: Executor | None = None,
+              inertia_bounds: tuple[Array, Array] | None = None) -> NullCalibration:
     """Calibrate effects against shadow flights of the base fit (``theta``, ``posterior``:
     the base EM result on ``obs``; module docstring). observed: effect -> its first-round
     held-out gain on the log (``first_round_gains``); actuation: the log's, ``held`` or
     ``sampled`` (``LogMeta.actuation``): the shadow flights are logged the same way;
     executor: where the shadow flights are smoothed and scored (``score_shadow``; None:
-    here, one after another). The flights themselves are flown here, in order, from one
-    Generator, so the answer does not depend on the executor."""
+    here, one after another); inertia_bounds: the vehicle's physically possible inertia
+    diagonal (lo (3,), hi (3,)) [kg m^2], into which an implausible base fit is clipped
+    before it is flown (``plausible_null``; None: flown as fitted). The flights themselves
+    are flown here, in order, from one Generator, so the answer does not depend on the
+    executor."""
     start = time.perf_counter()
+    flown = plausible_null(theta, inertia_bounds)
+    theta_is_fit = flown is theta
+    theta = flown
     observed = dict(observed)
     effects = list(observed)
     rng = np.random.default_rng(settings.seed)
@@ -186,7 +224,8 @@ def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: d
     tracking = float(np.sqrt(np.mean(sq_dist))) if sq_dist else float("nan")
     return NullCalibration(settings.replicates, settings.seed, settings.alpha, observed,
                            null_gains, passes, p_value, kept, rejected, tracking,
-                           time.perf_counter() - start)
+                           time.perf_counter() - start,
+                           None if theta_is_fit else np.diag(theta.inertia).copy())
 
 
 def combine(calibrations: Sequence[NullCalibration]) -> NullCalibration:
@@ -206,4 +245,6 @@ def combine(calibrations: Sequence[NullCalibration]) -> NullCalibration:
                            passes, p_value, tuple(e for c in calibrations for e in c.kept),
                            tuple(e for c in calibrations for e in c.rejected),
                            float(np.nanmax([c.tracking_rms for c in calibrations])),
-                           float(sum(c.seconds for c in calibrations)))
+                           float(sum(c.seconds for c in calibrations)),
+                           next((c.flown_inertia for c in calibrations
+                                 if c.flown_inertia is not None), None))

@@ -69,7 +69,14 @@ class DiscoveryConfig:
     multiple of the input's change across the interval, which the input's unknown
     course between two logged samples gives as well, so the log cannot tell such a lag
     from how its actuation was sampled (on flightgen's floor-strike and clean flights a
-    0.16-0.7 ms "lag" at 4-10 ms intervals passed every other test).
+    0.16-0.7 ms "lag" at 4-10 ms intervals passed every other test);
+    min_lag_seconds [s]: nor one below this time constant, at any log rate. A motor's
+    time constant is tens of milliseconds (the Crazyflie's 30 ms; small brushless motors
+    10-20 ms); a lag of a millisecond or two is the timing of the commands themselves: a
+    controller's zero-order hold (half its period: 0.25 ms at 2 kHz, 1 ms at 500 Hz) and
+    the radio or ESC update. On flightgen's 500 Hz logs, whose 2 kHz controller holds
+    each command for 0.5 ms, 0.3-0.8 ms "lags" passed every other test beside the
+    injected drag, ground effect or wind (added 2026-11-26 after those runs).
     """
 
     block_seconds: float = 2.0
@@ -87,6 +94,7 @@ class DiscoveryConfig:
     sampling_nuisance: tuple[int, ...] = ()
     two_fold: bool = True
     min_lag_intervals: float = 0.25
+    min_lag_seconds: float = 0.002
 
 
 DEFAULT_CONFIG = DiscoveryConfig()

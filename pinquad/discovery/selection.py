@@ -286,10 +286,16 @@ def score_candidate(res: Residuals, current: Sequence[str], cand: str, pi0: Arra
     d_bic = float(sum(q.d_bic for q in parts))
     coefs = np.mean([q.coefficients for q in parts], axis=0)
     passed = bool(gain >= cfg.min_heldout_gain and d_bic > 0 and d_ll > 0)
-    if cand == "motor_lag" and coefs[0] < cfg.min_lag_intervals * res.data.dt:
-        passed = False  # shorter than the log resolves (DiscoveryConfig.min_lag_intervals)
+    if cand == "motor_lag" and coefs[0] < shortest_lag(cfg, res.data.dt):
+        passed = False  # shorter than a motor's or than the log resolves
     return CandidateScore(cand, rnd, float(gain), d_ll, d_bic,
                           tuple(float(v) for v in coefs), passed)
+
+
+def shortest_lag(cfg: DiscoveryConfig, dt: float) -> float:
+    """The shortest motor lag [s] the selection names on a log of interval dt [s]:
+    max(min_lag_intervals dt, min_lag_seconds) (``DiscoveryConfig``)."""
+    return max(cfg.min_lag_intervals * dt, cfg.min_lag_seconds)
 
 
 def estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],

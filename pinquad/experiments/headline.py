@@ -18,6 +18,7 @@ from pinquad.experiments.recorded import (
     discovery_config,
     discovery_start,
     input_reading,
+    plausible_range,
 )
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
@@ -27,11 +28,9 @@ from pinquad.identification.fisher import (
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import (
     EstimateVerdict,
-    VehicleRange,
     VerdictEvidence,
     data_evidence,
     judge,
-    vehicle_range,
 )
 from pinquad.models.full import FullQuadSSM
 
@@ -76,15 +75,6 @@ class Headline:
         return self.final is not self.base
 
 
-def _range(result: LogResult) -> VehicleRange | None:
-    """The plausible range: the named vehicle's; a log that names none is judged on its
-    sidecar's guesses, never on the default ``paper`` vehicle's (a 33 g quad would be
-    "implausible" against a 0.18 kg one)."""
-    meta = result.log.meta
-    name = meta.vehicle if meta.vehicle_named else ""
-    return vehicle_range(name, meta.mass_guess, meta.inertia_guess)
-
-
 def _band(run: Identification) -> tuple[float, float] | None:
     """The measured-flight M-step reads the inertia from its torque band only."""
     return None if run.measured is None else tuple(run.measured.band)
@@ -113,7 +103,7 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     if run.full is not None:
         s = np.asarray(run.full.stderr_inertia)
         products = np.array([s[0, 1], s[0, 2], s[1, 2]])
-    return judge(run.mass, run.inertia, run.stderr, ev, _range(result), products,
+    return judge(run.mass, run.inertia, run.stderr, ev, plausible_range(result), products,
                  missing_stderr=run.stderr_problem)
 
 
@@ -147,7 +137,7 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
         stderr = base.stderr
         note = ("the base fit's (discovery keeps the base inertia and refits the mass on the "
                 "base posterior's force rows)")
-    verdict = judge(found.mass, found.inertia, stderr, ev, _range(result),
+    verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result),
                     missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,
                     f"base model plus {', '.join(found.selected)} (discovery's refit)", verdict)

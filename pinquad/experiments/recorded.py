@@ -47,6 +47,7 @@ from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
 from pinquad.identification.identify import Identification, identify
+from pinquad.identification.verdict import VehicleRange, vehicle_range
 from pinquad.io.logs import FlightLog
 from pinquad.io.sanity import check_log
 from pinquad.models.sources import floor_contact, interval_inputs, observations
@@ -459,6 +460,16 @@ def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:
     return open_executor(Backend(jobs=jobs)) if jobs > 1 else nullcontext()
 
 
+def plausible_range(result: LogResult) -> VehicleRange | None:
+    """What the log's vehicle can physically be (``identification.verdict.vehicle_range``):
+    the named vehicle's range; a log that names none is judged on its sidecar's guesses,
+    never on the default ``paper`` vehicle's (a 33 g quad would be "implausible" against
+    a 0.18 kg one)."""
+    meta = result.log.meta
+    name = meta.vehicle if meta.vehicle_named else ""
+    return vehicle_range(name, meta.mass_guess, meta.inertia_guess)
+
+
 def run_discovery(result: LogResult, null: NullSettings | None = None,
                   executor: Executor | None = None) -> DiscoveryOutcome:
     """Effect discovery on the reported run (``discover_calibrated``) with the settings
@@ -470,8 +481,10 @@ def run_discovery(result: LogResult, null: NullSettings | None = None,
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
     actuation = input_reading(result.kind, result.log)
+    vrange = plausible_range(result)
+    bounds = None if vrange is None else (vrange.inertia_lo, vrange.inertia_hi)
     return discover_calibrated(start, discovery_config(result.kind, actuation), null, actuation,
-                               executor)
+                               executor, bounds)
 
 
 def input_reading(kind: str, log: FlightLog) -> str:
@@ -484,7 +497,8 @@ def input_reading(kind: str, log: FlightLog) -> str:
 
 def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
                         null: NullSettings | None = None, actuation: str = "held",
-                        executor: Executor | None = None) -> DiscoveryOutcome:
+                        executor: Executor | None = None,
+                        inertia_bounds: tuple[Array, Array] | None = None) -> DiscoveryOutcome:
     """Effect discovery (``pinquad.discovery.discover``) from ``start`` with its selection
     calibrated against the null (``pinquad.discovery.null``; default ``NullSettings()``):
     an effect whose evidence does not beat the shadow flights of the base fit is dropped
@@ -493,8 +507,10 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
     actuation: the log's (``LogMeta.actuation``), how the shadow flights are logged.
     executor: worker processes that score the shadow flights and, beside them, refit the
     selection in advance (used when the null keeps it; otherwise the refit is redone on
-    the final selection); None: everything here, in turn. A numerical failure is reported
-    in the outcome, not raised."""
+    the final selection); None: everything here, in turn. inertia_bounds: the vehicle's
+    physically possible inertia diagonal (lo, hi) [kg m^2], into which the null clips an
+    implausible base fit (``null.plausible_null``). A numerical failure is reported in the
+    outcome, not raised."""
     null = NullSettings() if null is None else null
     calibrations: list[NullCalibration] = []
     obs, theta, post = start.obs, start.theta, start.posterior
@@ -510,7 +526,7 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
                 ahead = (sel, executor.submit(refit_selection, obs, theta, post, sel, None, cfg))
             gains = first_round_gains(sel)
             cal = calibrate(obs, theta, post, {e: gains[e] for e in fresh}, cfg, null,
-                            actuation, executor)
+                            actuation, executor, inertia_bounds)
             calibrations.append(cal)
             if not cal.rejected:
                 break

@@ -224,6 +224,8 @@ def null_lines(null: dict) -> list[str]:
              f"held-out gain beats them (p <= {null['alpha']:g})"]
     if null.get("shadow_tracking_rms_m", 0.0) > 0.1:
         lines.append(f"    note: {null['shadow_tracking_note']}")
+    if null.get("shadow_inertia_note"):
+        lines.append(f"    note: {null['shadow_inertia_note']}")
     for name, e in null["effects"].items():
         lines.append(f"    {name}: gain {100 * e['heldout_gain']:.1f} % vs null max "
                      f"{100 * e['null_gain_max']:.1f} % (passed the uncalibrated selection on "
