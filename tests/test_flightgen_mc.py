@@ -73,3 +73,24 @@ def test_flightgen_runs_merge_and_a_wrong_kind_of_file_is_an_input_error(tmp_pat
     assert (tmp_path / "merged" / "discovery_mc_flightgen.md").exists()
     assert discovery.main(["--merge", str(first / "cases.jsonl")]) == 2
     assert "--generator flightgen" in capsys.readouterr().err
+
+
+def test_coefficients_are_scored_against_their_printed_standard_errors():
+    drag = list(fgmc.injected("drag").values())  # D_x, D_y, D_z [N s/m]
+
+    def case(seed, coefs, se):
+        c = _case("drag", seed, ("drag",))
+        return fgmc.FlightgenCase(**{**c.__dict__, "coefficients": {"drag": coefs},
+                                     "coef_rel_err": 0.0, "coef_stderr": se})
+
+    off = [drag[0], drag[1], 1.133 * drag[2]]  # D_z 13.3 % high, like flight 1007
+    cases = [case(1000, drag, {"drag": [1e-5] * 3}),
+             case(1001, off, {"drag": [1e-5, 1e-5, 0.039 * drag[2]]}),  # 3.4 se: not covered
+             case(1002, off, {"drag": [1e-5, 1e-5, 0.07 * drag[2]]}),  # 1.9 se: covered
+             case(1003, drag, None)]  # a run from before the standard errors were kept
+    assert [fgmc.within_stderr(c, 2.0) for c in cases] == [True, False, True, None]
+    row = fgmc.summarize(cases)[0]
+    assert (row["coef_within_2se"], row["coef_with_stderr"]) == (2, 3)
+    assert "| 4/4 | 2/3 |" in flightgen_mc_markdown([row])
+    unnamed = fgmc.FlightgenCase(**{**cases[0].__dict__, "selected": (), "coefficients": {}})
+    assert fgmc.within_stderr(unnamed, 2.0) is False

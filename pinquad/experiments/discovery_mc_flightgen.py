@@ -125,7 +125,8 @@ class FlightgenCase:
     before it was recorded); contact_true / contact_found / contact_missed /
     contact_off: transitions that touch the floor in the truth, found from the data
     among them, missed, and found where the vehicle was off the floor (all 0 on flights
-    without a floor)."""
+    without a floor); coef_stderr: effect -> the standard errors discovery printed beside
+    its coefficients (block jackknife; None in runs made before they were recorded)."""
 
     condition: str
     log_rate: int
@@ -147,6 +148,7 @@ class FlightgenCase:
     contact_found: int = 0
     contact_missed: int = 0
     contact_off: int = 0
+    coef_stderr: dict[str, list[float]] | None = None
 
     def to_json(self) -> dict:
         d = dict(self.__dict__)
@@ -188,6 +190,8 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
              else base)
     coefs = {s["effect"]: [float(v) for v in s["coefficients"].values()]
              for s in section["selected"]}
+    stderr = {s["effect"]: [float(v) for v in s["stderr"].values()]
+              for s in section["selected"]}
     err, gain = math.nan, math.nan
     if condition in coefs:
         c0 = np.asarray(list(injected(condition).values()))
@@ -201,7 +205,8 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
                          () if outcome.null is None else tuple(outcome.null.rejected),
                          {p.name: p.verdict for p in judged.parameters},
                          int(truth_contact.sum()), int((found & truth_contact).sum()),
-                         int((truth_contact & ~found).sum()), int((found & ~truth_contact).sum()))
+                         int((truth_contact & ~found).sum()), int((found & ~truth_contact).sum()),
+                         stderr)
 
 
 @dataclass(frozen=True)
@@ -235,6 +240,20 @@ def run_cases(work: Sequence[FlightgenJob], executor: Executor) -> Iterator[Flig
 def _median_max(values: list[float]) -> tuple[float, float]:
     v = [x for x in values if math.isfinite(x)]
     return (float(np.median(v)), float(np.max(v))) if v else (math.nan, math.nan)
+
+
+def within_stderr(case: FlightgenCase, k: float) -> bool | None:
+    """Whether every coefficient of the injected effect lies within k of the standard
+    errors printed beside it, |c - c0| <= k se (False: the effect was not named); None
+    when the case has no standard errors recorded or no effect was injected."""
+    if case.coef_stderr is None or case.condition in ("none", FLOOR_CONDITION):
+        return None
+    if case.condition not in case.coefficients:
+        return False
+    c0 = np.asarray(list(injected(case.condition).values()))
+    c = np.asarray(case.coefficients[case.condition])
+    se = np.asarray(case.coef_stderr[case.condition])
+    return bool(np.all(np.abs(c - c0) <= k * se))
 
 
 def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
@@ -279,6 +298,9 @@ def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
                 row["named"] = sum(cond in c.selected for c in cs)
                 row["exact"] = sum(c.selected == (cond,) for c in cs)
                 row["coef_within_10pct"] = sum(math.isfinite(e) and e <= 0.10 for e in errs)
+                covered = [within_stderr(c, 2.0) for c in cs]
+                row["coef_with_stderr"] = sum(v is not None for v in covered)
+                row["coef_within_2se"] = sum(bool(v) for v in covered)
                 row["coef_err_median"], row["coef_err_max"] = _median_max(errs)
                 row["gain_median"] = _median_max([c.gain for c in cs])[0]
             rows.append(row)
