@@ -25,7 +25,7 @@ flights like this one (``null_passes``).
 
 A base fit whose inertia lies outside what the vehicle can physically be (a base model
 that cannot explain the log, such as a centre of mass off the rotor plane's centre, can
-drive its inertia to 1e-8 or 1e80 kg m^2) is no null to fly: its shadow flights leave the
+drive its inertia to 3e-7 or 1e77 kg m^2) is no null to fly: its shadow flights leave the
 path or break down, and every effect would lose to NaN gains. The shadow flights then
 fly, and are scored with, the nearest plausible base model: the inertia diagonal clipped
 into the vehicle's range (``plausible_null``). The null hypothesis stays "no effect, the
