@@ -85,7 +85,13 @@ def test_an_implausible_base_fit_is_flown_at_its_nearest_plausible_inertia(clean
     lo, hi = np.array([4e-6, 4e-6, 7e-6]), np.array([66e-6, 67e-6, 117e-6])
     assert plausible_null(theta, (lo, hi)) is theta  # a plausible fit is flown as fitted
     wild = replace(theta, inertia=np.diag([3e-7, 1e-1, 20e-6]))
-    assert np.allclose(np.diag(plausible_null(wild, (lo, hi)).inertia), [4e-6, 67e-6, 20e-6])
+    flown = plausible_null(wild, (lo, hi))
+    assert np.allclose(np.diag(flown.inertia), [4e-6, 67e-6, 20e-6])
+    # the torque noise never grows; where the inertia shrank, the angular-acceleration
+    # noise S / I^2 stays the fit's
+    s_tau, s_flown = theta.noise.wrench[3:6], flown.noise.wrench[3:6]
+    assert np.allclose(s_flown, s_tau * np.array([1.0, (67e-6 / 1e-1) ** 2, 1.0]))
+    assert np.array_equal(flown.noise.wrench[0:3], theta.noise.wrench[0:3])
     assert plausible_null(wild, None) is wild
     settings = NullSettings(replicates=2, seed=0, alpha=0.3)
     cal = calibrate(clean_start.obs, wild, clean_start.posterior, {"drag": 0.5}, CFG, settings,

@@ -166,8 +166,14 @@ def score_shadow(job: ShadowScoring) -> tuple[list[float], list[bool]]:
 def plausible_null(theta: Theta, inertia_bounds: tuple[Array, Array] | None) -> Theta:
     """The base fit the shadow flights fly: ``theta`` itself when its inertia diagonal
     lies within ``inertia_bounds`` = (lo (3,), hi (3,)) [kg m^2] (or there are none), else
-    ``theta`` with the inertia diag(clip(diag I, lo, hi)) (products of inertia dropped:
-    they belong to the implausible tensor)."""
+    ``theta`` with the inertia diag(J') = diag(clip(diag I, lo, hi)) (products of inertia
+    dropped: they belong to the implausible tensor) and the torque noise intensities
+    S'_tau,i = S_tau,i min((J'_i / I_ii)^2, 1) [N^2 m^2 s]: neither the torque noise nor
+    the angular-acceleration noise S_tau,i / I_ii^2 larger than the fit's. With the fit's
+    S_tau at an inertia 900 times smaller the shadow flights' filter broke down (flightgen
+    500 Hz flight 3003); with the fit's angular-acceleration noise at an inertia 14 times
+    larger they strayed 3.6 m from the path (flight 3007). A fixed process noise (the
+    paper's Q0) is kept."""
     if inertia_bounds is None:
         return theta
     lo, hi = (np.asarray(b, dtype=float) for b in inertia_bounds)
@@ -175,7 +181,14 @@ def plausible_null(theta: Theta, inertia_bounds: tuple[Array, Array] | None) -> 
     if np.all(np.isfinite(diag)) and np.all((diag >= lo) & (diag <= hi)):
         return theta
     clipped = np.clip(np.nan_to_num(diag, nan=np.sqrt(lo * hi)), lo, hi)
-    return replace(theta, inertia=np.diag(clipped))
+    noise = theta.noise
+    if noise.fixed_q is None:
+        wrench = np.asarray(noise.wrench, dtype=float).copy()
+        scale = np.where(np.isfinite(diag) & (diag > 0), clipped / np.where(diag > 0, diag, 1.0),
+                         1.0)
+        wrench[3:6] = wrench[3:6] * np.minimum(scale**2, 1.0)
+        noise = replace(noise, wrench=wrench)
+    return replace(theta, inertia=np.diag(clipped), noise=noise)
 
 
 def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: dict[str, float],
