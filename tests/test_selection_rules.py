@@ -17,9 +17,10 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
-from flightgen import generate, write_csv
+from flightgen import Effects, FlightSpec, generate, write_csv
 from pinquad.discovery.discover import select_effects
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import shortest_lag
@@ -80,3 +81,24 @@ def test_the_shortest_lag_is_a_quarter_interval_or_two_milliseconds_whichever_is
     assert shortest_lag(cfg, 0.01) == pytest.approx(0.0025)  # 100 Hz: a quarter interval
     assert shortest_lag(cfg, 0.002) == pytest.approx(0.002)  # 500 Hz: 2 ms, not 0.5 ms
     assert shortest_lag(replace(cfg, min_lag_seconds=0.0), 0.002) == pytest.approx(0.0005)
+
+
+def test_a_diverged_base_inertia_does_not_hide_an_effect_when_the_fits_start_plausibly(
+        tmp_path):
+    """flightgen's 500 Hz CoM-offset flights 3007 and 3009: in a one-BLAS-thread worker the
+    base EM diverged to ~4e77 kg m^2, the candidates' profiled fits started there and
+    overflowed, and nothing was selected. Here a short CoM-offset flight's base inertia
+    is blown up by 1e70 by hand."""
+    flight = generate(FlightSpec(duration=16, log_rate=100, seed=4, floor=None,
+                                 effects=Effects(com_offset=(0.003, -0.002))))
+    path = write_csv(flight, tmp_path / "com.csv")
+    result = identify_log(read_log(path), LogOptions(msteps=("regressor",), information=False))
+    start = discovery_start(result.runs[0])
+    cfg = discovery_config(result.kind, input_reading(result.kind, result.log))
+    wild = replace(start.theta, inertia=start.theta.inertia * 1e70)
+    assert "com_offset" not in select_effects(start.obs, wild, start.posterior, cfg).selected
+    plausible = select_effects(start.obs, wild, start.posterior, cfg,
+                               np.diag(start.theta.inertia))
+    assert plausible.selected[0] == "com_offset"
+    com = next(s for s in plausible.scores if s.effect == "com_offset" and s.passed)
+    assert com.coefficients == pytest.approx((0.003, -0.002), rel=0.02)

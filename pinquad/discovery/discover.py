@@ -110,16 +110,22 @@ class Selection:
 
 
 def select_effects(obs: Observations, theta: Theta, posterior: Posterior,
-                   cfg: DiscoveryConfig = DEFAULT_CONFIG) -> Selection:
+                   cfg: DiscoveryConfig = DEFAULT_CONFIG,
+                   start_inertia: NDArray[np.float64] | None = None) -> Selection:
     """The selection of ``discover`` (module docstring) on the base posterior alone: no
     E-step, so it costs a fraction of the refit that ``refit_selection`` runs on its
-    result (the null calibration needs only this)."""
+    result (the null calibration needs only this). start_inertia (3,) [kg m^2]: where the
+    candidates' profiled fits start their inertia instead of the base fit's (a base fit
+    diverged to 1e77 kg m^2 overflows them; ``null.plausible_null`` gives a plausible
+    start); the held-out RMS "before" stays the base fit's."""
     res0 = compute_residuals(obs, posterior, theta.gravity, cfg.block_seconds)
     train = np.arange(res0.n_blocks) % 2 == 0
     test = ~train
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
     window = window_steps(cfg, obs.dt)
     before = heldout_rms(res0, pi0, {}, test, window)
+    if start_inertia is not None:
+        pi0 = np.r_[theta.mass, np.asarray(start_inertia, dtype=float)]
     selected: list[str] = []
     scores: list[CandidateScore] = []
     for rnd in range(cfg.max_effects):

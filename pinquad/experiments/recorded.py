@@ -41,6 +41,7 @@ from pinquad.discovery.null import (
     calibrate,
     combine,
     first_round_gains,
+    plausible_null,
 )
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.discovery.staged import staged_start
@@ -509,13 +510,15 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
     selection in advance (used when the null keeps it; otherwise the refit is redone on
     the final selection); None: everything here, in turn. inertia_bounds: the vehicle's
     physically possible inertia diagonal (lo, hi) [kg m^2], into which the null clips an
-    implausible base fit (``null.plausible_null``). A numerical failure is reported in the
-    outcome, not raised."""
+    implausible base fit (``null.plausible_null``), and from which the selection's fits
+    then start. A numerical failure is reported in the outcome, not raised."""
     null = NullSettings() if null is None else null
     calibrations: list[NullCalibration] = []
     obs, theta, post = start.obs, start.theta, start.posterior
+    plausible = plausible_null(theta, inertia_bounds)
+    start_inertia = None if plausible is theta else np.diag(plausible.inertia)
     try:
-        sel = select_effects(obs, theta, post, cfg)
+        sel = select_effects(obs, theta, post, cfg, start_inertia)
         ahead: tuple[Selection, Future] | None = None
         while sel.selected and null.replicates:
             done = {e for c in calibrations for e in c.observed}
@@ -532,7 +535,7 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
                 break
             rejected = {e for c in calibrations for e in c.rejected}
             cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in rejected))
-            sel = select_effects(obs, theta, post, cfg)
+            sel = select_effects(obs, theta, post, cfg, start_inertia)
         if ahead is not None and ahead[0] is sel:
             found = ahead[1].result()
         else:
