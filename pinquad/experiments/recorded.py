@@ -511,12 +511,19 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
     the final selection); None: everything here, in turn. inertia_bounds: the vehicle's
     physically possible inertia diagonal (lo, hi) [kg m^2], into which the null clips an
     implausible base fit (``null.plausible_null``), and from which the selection's fits
-    then start. A numerical failure is reported in the outcome, not raised."""
+    and the refit then start. A numerical failure is reported in the outcome, not raised."""
     null = NullSettings() if null is None else null
     calibrations: list[NullCalibration] = []
     obs, theta, post = start.obs, start.theta, start.posterior
     plausible = plausible_null(theta, inertia_bounds)
     start_inertia = None if plausible is theta else np.diag(plausible.inertia)
+
+    def refit_from(sel: Selection) -> Theta:
+        # an implausible base fit is no start for the refit's EM either (flightgen 500 Hz
+        # flight 3007: from 4e77 kg m^2 the refit kept it and fitted a CoM offset of
+        # 1e-106 m); with nothing selected the base fit itself is the answer
+        return plausible if sel.selected else theta
+
     try:
         sel = select_effects(obs, theta, post, cfg, start_inertia)
         ahead: tuple[Selection, Future] | None = None
@@ -526,7 +533,8 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
             if not fresh:
                 break
             if executor is not None:
-                ahead = (sel, executor.submit(refit_selection, obs, theta, post, sel, None, cfg))
+                ahead = (sel, executor.submit(refit_selection, obs, refit_from(sel), post,
+                                              sel, None, cfg))
             gains = first_round_gains(sel)
             cal = calibrate(obs, theta, post, {e: gains[e] for e in fresh}, cfg, null,
                             actuation, executor, inertia_bounds)
@@ -539,7 +547,7 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
         if ahead is not None and ahead[0] is sel:
             found = ahead[1].result()
         else:
-            found = refit_selection(obs, theta, post, sel, None, cfg)
+            found = refit_selection(obs, refit_from(sel), post, sel, None, cfg)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return DiscoveryOutcome(None, f"discovery failed numerically: {exc}")
     return DiscoveryOutcome(found, null=combine(calibrations) if calibrations else None)
