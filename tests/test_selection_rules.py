@@ -22,11 +22,13 @@ import pytest
 
 from flightgen import Effects, FlightSpec, generate, write_csv
 from pinquad.discovery.discover import select_effects
+from pinquad.discovery.null import NullSettings
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import shortest_lag
 from pinquad.experiments.discovery_mc_flightgen import flight_spec
 from pinquad.experiments.recorded import (
     LogOptions,
+    discover_calibrated,
     discovery_config,
     discovery_start,
     identify_log,
@@ -102,3 +104,12 @@ def test_a_diverged_base_inertia_does_not_hide_an_effect_when_the_fits_start_pla
     assert plausible.selected[0] == "com_offset"
     com = next(s for s in plausible.scores if s.effect == "com_offset" and s.passed)
     assert com.coefficients == pytest.approx((0.003, -0.002), rel=0.02)
+    # the whole discovery (no null here) starts its refit there too: without it the refit
+    # kept the diverged inertia and printed a CoM offset of 1e-106 m
+    lo, hi = np.diag(start.theta.inertia) / 4, np.diag(start.theta.inertia) * 4
+    outcome = discover_calibrated(replace(start, theta=wild), cfg, NullSettings(replicates=0),
+                                  "sampled", None, (lo, hi))
+    found = outcome.result
+    assert found is not None and found.selected[0] == "com_offset"
+    assert found.coefficients["com_offset"] == pytest.approx((0.003, -0.002), rel=0.02)
+    assert np.all(np.diag(found.inertia) < hi * 10)
