@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from flightgen import Effects, FlightSpec, generate, write_csv
-from pinquad.discovery.null import NullSettings, calibrate, plausible_null
+from pinquad.discovery.null import NullSettings, calibrate, plausible_base_fit
 from pinquad.discovery.residuals import compute_residuals
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import score_candidate
@@ -83,16 +83,16 @@ def test_an_implausible_base_fit_is_flown_at_its_nearest_plausible_inertia(clean
     and every effect lost to their NaN gains (CoM offset unnamed on 2 of 10 flights)."""
     theta = clean_start.theta
     lo, hi = np.array([4e-6, 4e-6, 7e-6]), np.array([66e-6, 67e-6, 117e-6])
-    assert plausible_null(theta, (lo, hi)) is theta  # a plausible fit is flown as fitted
+    assert plausible_base_fit(theta, (lo, hi)) is theta  # a plausible fit is flown as fitted
     wild = replace(theta, inertia=np.diag([3e-7, 1e-1, 20e-6]))
-    flown = plausible_null(wild, (lo, hi))
+    flown = plausible_base_fit(wild, (lo, hi))
     assert np.allclose(np.diag(flown.inertia), [4e-6, 67e-6, 20e-6])
     # the torque noise never grows; where the inertia shrank, the angular-acceleration
     # noise S / I^2 stays the fit's
     s_tau, s_flown = theta.noise.wrench[3:6], flown.noise.wrench[3:6]
     assert np.allclose(s_flown, s_tau * np.array([1.0, (67e-6 / 1e-1) ** 2, 1.0]))
     assert np.array_equal(flown.noise.wrench[0:3], theta.noise.wrench[0:3])
-    assert plausible_null(wild, None) is wild
+    assert plausible_base_fit(wild, None) is wild
     settings = NullSettings(replicates=2, seed=0, alpha=0.3)
     cal = calibrate(clean_start.obs, wild, clean_start.posterior, {"drag": 0.5}, CFG, settings,
                     "sampled", inertia_bounds=(lo, hi))

@@ -116,7 +116,7 @@ def select_effects(obs: Observations, theta: Theta, posterior: Posterior,
     E-step, so it costs a fraction of the refit that ``refit_selection`` runs on its
     result (the null calibration needs only this). start_inertia (3,) [kg m^2]: where the
     candidates' profiled fits start their inertia instead of the base fit's (a base fit
-    diverged to 1e77 kg m^2 overflows them; ``null.plausible_null`` gives a plausible
+    diverged to 1e77 kg m^2 overflows them; ``null.plausible_base_fit`` gives a plausible
     start); the held-out RMS "before" stays the base fit's."""
     res0 = compute_residuals(obs, posterior, theta.gravity, cfg.block_seconds)
     train = np.arange(res0.n_blocks) % 2 == 0

@@ -28,7 +28,7 @@ that cannot explain the log, such as a centre of mass off the rotor plane's cent
 drive its inertia to 3e-7 or 1e77 kg m^2) is no null to fly: its shadow flights leave the
 path or break down, and every effect would lose to NaN gains. The shadow flights then
 fly, and are scored with, the nearest plausible base model: the inertia diagonal clipped
-into the vehicle's range (``plausible_null``). The null hypothesis stays "no effect, the
+into the vehicle's range (``plausible_base_fit``). The null hypothesis stays "no effect, the
 base model with physically possible parameters"; the report says when it was clipped.
 """
 
@@ -86,7 +86,7 @@ class NullCalibration:
     kept / rejected: the effects that beat / did not beat the null; tracking_rms [m]:
     RMS distance of the shadow flights from the log's smoothed path; seconds: wall time;
     flown_inertia (3,) [kg m^2] or None: the inertia diagonal the shadow flights flew
-    when the base fit's lay outside the vehicle's range (``plausible_null``), else None.
+    when the base fit's lay outside the vehicle's range (``plausible_base_fit``), else None.
     """
 
     replicates: int
@@ -163,9 +163,10 @@ def score_shadow(job: ShadowScoring) -> tuple[list[float], list[bool]]:
     return [s.gain for s in scores], [bool(s.passed) for s in scores]
 
 
-def plausible_null(theta: Theta, inertia_bounds: tuple[Array, Array] | None) -> Theta:
-    """The base fit the shadow flights fly: ``theta`` itself when its inertia diagonal
-    lies within ``inertia_bounds`` = (lo (3,), hi (3,)) [kg m^2] (or there are none), else
+def plausible_base_fit(theta: Theta, inertia_bounds: tuple[Array, Array] | None) -> Theta:
+    """The base fit the shadow flights fly, and the selection's fits and the refit start
+    from (``experiments.recorded.discover_calibrated``): ``theta`` itself when its inertia
+    diagonal lies within ``inertia_bounds`` = (lo (3,), hi (3,)) [kg m^2] (or there are none), else
     ``theta`` with the inertia diag(J') = diag(clip(diag I, lo, hi)) (products of inertia
     dropped: they belong to the implausible tensor) and the torque noise intensities
     S'_tau,i = S_tau,i min((J'_i / I_ii)^2, 1) [N^2 m^2 s]: neither the torque noise nor
@@ -184,9 +185,8 @@ def plausible_null(theta: Theta, inertia_bounds: tuple[Array, Array] | None) -> 
     noise = theta.noise
     if noise.fixed_q is None:
         wrench = np.asarray(noise.wrench, dtype=float).copy()
-        scale = np.where(np.isfinite(diag) & (diag > 0), clipped / np.where(diag > 0, diag, 1.0),
-                         1.0)
-        wrench[3:6] = wrench[3:6] * np.minimum(scale**2, 1.0)
+        ratio = np.divide(clipped, diag, out=np.ones(3), where=np.isfinite(diag) & (diag > 0))
+        wrench[3:6] = wrench[3:6] * np.minimum(ratio**2, 1.0)
         noise = replace(noise, wrench=wrench)
     return replace(theta, inertia=np.diag(clipped), noise=noise)
 
@@ -202,11 +202,11 @@ def calibrate(obs: Observations, theta: Theta, posterior: Posterior, observed: d
     executor: where the shadow flights are smoothed and scored (``score_shadow``; None:
     here, one after another); inertia_bounds: the vehicle's physically possible inertia
     diagonal (lo (3,), hi (3,)) [kg m^2], into which an implausible base fit is clipped
-    before it is flown (``plausible_null``; None: flown as fitted). The flights themselves
+    before it is flown (``plausible_base_fit``; None: flown as fitted). The flights themselves
     are flown here, in order, from one Generator, so the answer does not depend on the
     executor."""
     start = time.perf_counter()
-    flown = plausible_null(theta, inertia_bounds)
+    flown = plausible_base_fit(theta, inertia_bounds)
     theta_is_fit = flown is theta
     theta = flown
     observed = dict(observed)

@@ -246,11 +246,12 @@ def within_stderr(case: FlightgenCase, k: float) -> bool | None:
     """Whether every coefficient of the injected effect lies within k of the standard
     errors printed beside it, |c - c0| <= k se (False: the effect was not named); None
     when the case has no standard errors recorded or no effect was injected."""
-    if case.coef_stderr is None or case.condition in ("none", FLOOR_CONDITION):
+    truth = injected(case.condition)
+    if case.coef_stderr is None or not truth:
         return None
     if case.condition not in case.coefficients:
         return False
-    c0 = np.asarray(list(injected(case.condition).values()))
+    c0 = np.asarray(list(truth.values()))
     c = np.asarray(case.coefficients[case.condition])
     se = np.asarray(case.coef_stderr[case.condition])
     return bool(np.all(np.abs(c - c0) <= k * se))

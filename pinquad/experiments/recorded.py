@@ -41,7 +41,7 @@ from pinquad.discovery.null import (
     calibrate,
     combine,
     first_round_gains,
-    plausible_null,
+    plausible_base_fit,
 )
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.discovery.staged import staged_start
@@ -510,12 +510,12 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
     selection in advance (used when the null keeps it; otherwise the refit is redone on
     the final selection); None: everything here, in turn. inertia_bounds: the vehicle's
     physically possible inertia diagonal (lo, hi) [kg m^2], into which the null clips an
-    implausible base fit (``null.plausible_null``), and from which the selection's fits
+    implausible base fit (``null.plausible_base_fit``), and from which the selection's fits
     and the refit then start. A numerical failure is reported in the outcome, not raised."""
     null = NullSettings() if null is None else null
     calibrations: list[NullCalibration] = []
     obs, theta, post = start.obs, start.theta, start.posterior
-    plausible = plausible_null(theta, inertia_bounds)
+    plausible = plausible_base_fit(theta, inertia_bounds)
     start_inertia = None if plausible is theta else np.diag(plausible.inertia)
 
     def refit_from(sel: Selection) -> Theta:
