@@ -20,6 +20,7 @@ compared on every source at the true mass and inertia instead.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -28,11 +29,14 @@ import pytest
 from estimators.ekf import run_filter
 from estimators.protocol import Posterior
 from estimators.rts import smooth
+from pinquad.core.conventions import euler_rate_matrix_inv
 from pinquad.estep import fast_smoother as fs
 from pinquad.estep.fast_smoother import loglik_quad, posterior_arrays, smooth_quad
 from pinquad.estep.quad_kernels import f_times_quad, transition_kinematic, transition_quad
 from pinquad.identification.em import initial_theta
-from pinquad.models.kernel import kernel_description
+from pinquad.models.effect import EffectSSM
+from pinquad.models.full import FullQuadSSM
+from pinquad.models.kernel import kernel_description, reset_mask
 from pinquad.models.sources import observations
 from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta, kinematic_floor
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
@@ -321,3 +325,94 @@ def test_rejects_wrongly_shaped_measurements(flight):
     model = QuadSSM(obs, _theta(obs, "structured"))
     with pytest.raises(ValueError, match="expected"):
         smooth_quad(model, obs.ys[:, :6])
+
+
+def _continuous_models(obs: Observations, theta: Theta) -> dict[str, QuadSSM]:
+    """Every kind the kernels cover, on a continuous flight (trapezoid positions): the
+    plain model, drag and wind, and the ten-parameter model with a CoM offset."""
+    flowing = replace(obs, continuous=True)
+    offset = replace(theta, com=np.array([0.004, -0.003, 0.002]))
+    return {"quad": QuadSSM(flowing, theta),
+            "effect": EffectSSM(flowing, theta, drag=np.array([0.02, 0.03, 0.0]),
+                                wind=np.array([0.01, -0.02])),
+            "full": FullQuadSSM(flowing, offset)}
+
+
+@pytest.mark.parametrize("name", ["quad", "effect", "full"])
+def test_continuous_positions_match_generic_smoother(flight, name):
+    """On a continuous flight (``Observations.continuous``) the compiled pass gives the
+    generic smoother's posterior for every kind, without falling back to it (no
+    warning), and the trapezoid changes the answer (it is applied)."""
+    obs = _observations(flight, "C")
+    theta = _theta(obs, "structured")
+    model = _continuous_models(obs, theta)[name]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fast = smooth_quad(model, obs.ys)
+    _assert_same_posterior(fast, smooth(model, obs.ys))
+    euler = type(model)(obs, model.theta) if name != "effect" else EffectSSM(
+        obs, theta, drag=model.drag, wind=model.wind[:2])
+    assert np.max(np.abs(smooth_quad(euler, obs.ys).mean[:, 3:6] - fast.mean[:, 3:6])) > 1e-4
+
+
+def test_continuous_step_moves_constant_rates_exactly():
+    """A body whose rates are constant over the interval: with a constant acceleration
+    p_{k+1} = p_k + dt v_k + dt^2 a / 2 (explicit Euler leaves out the last term); and the
+    Jacobian of the whole continuous step (every row, every kind) equals central
+    differences of the transition (the entries EffectSSM leaves out of its Jacobian
+    aside)."""
+    dt, mass = 0.01, 0.03
+    t = np.arange(3) * dt
+    obs = Observations(t=t, dt=dt, inputs=np.tile([0.5, 2e-5, -1e-5, 3e-6], (3, 1)),
+                       channels=("pos",), ys=np.zeros((3, 3)), x0=np.zeros(12),
+                       p0=np.ones(12), continuous=True)
+    noise = NoiseModel(wrench=np.full(6, 1e-6), q_kin=kinematic_floor(dt), meas=np.ones(3))
+    theta = Theta(mass=mass, inertia=np.diag([1.6e-5, 1.6e-5, 2.9e-5]), noise=noise)
+    level = replace(obs, inputs=np.tile([0.5, 0.0, 0.0, 0.0], (3, 1)))
+    x = np.zeros(12)
+    x[3:6] = [0.4, -0.2, 0.3]
+    nxt, _ = QuadSSM(level, theta).transition(x, 0)
+    expect = x[0:3] + dt * x[3:6] + np.array([0.0, 0.0, 0.5 * dt * dt * (0.5 / mass - 9.81)])
+    np.testing.assert_allclose(nxt[0:3], expect, rtol=0, atol=1e-15)
+    rng = np.random.default_rng(11)
+    for name, model in _continuous_models(obs, theta).items():
+        x = rng.normal(scale=0.3, size=12)
+        _, jac = model.transition(x, 0)
+        eps = 1e-6
+        numeric = np.empty((12, 12))
+        for c in range(12):
+            step = np.zeros(12)
+            step[c] = eps
+            numeric[:, c] = (model.transition(x + step, 0)[0]
+                             - model.transition(x - step, 0)[0]) / (2 * eps)
+        if name == "effect":
+            # EffectSSM leaves the drag and wind forces' attitude dependence out of its
+            # Jacobian (as on an Euler step): those entries are not compared
+            jac[0:6, 6:9] = numeric[0:6, 6:9]
+        np.testing.assert_allclose(jac, numeric, rtol=1e-6, atol=1e-8)
+
+
+def test_continuous_noise_is_the_integrated_noise(flight):
+    """Q of a continuous flight: the position rows carry (dt / 2) Q_v. and (dt^2 / 3) Q_vv
+    of the velocity noise, the Euler rows (dt / 2) E^{-1} Q_w. and (dt^2 / 3) E^{-1} Q_ww
+    E^{-T} of the rate noise; Q stays symmetric positive semi-definite, and the velocity
+    and rate blocks are the Euler model's."""
+    obs = _observations(flight, "C")
+    theta = _theta(obs, "structured")
+    x = obs.x0 + 0.1
+    k = int(np.flatnonzero(~reset_mask(obs))[-2])  # a flight step (a reset widens Q after)
+    q_euler = QuadSSM(obs, theta).process_cov(x, k)
+    q = QuadSSM(replace(obs, continuous=True), theta).process_cov(x, k)
+    dt = obs.dt
+    e_inv = euler_rate_matrix_inv(x[6:9])
+    for block in (slice(3, 6), slice(9, 12)):
+        np.testing.assert_array_equal(q[block, block], q_euler[block, block])
+    np.testing.assert_allclose(q[0:3, 3:6], 0.5 * dt * q_euler[3:6, 3:6], rtol=1e-14)
+    np.testing.assert_allclose(q[0:3, 0:3], q_euler[0:3, 0:3] + dt * dt / 3 * q_euler[3:6, 3:6],
+                               rtol=1e-14)
+    np.testing.assert_allclose(q[6:9, 9:12], 0.5 * dt * e_inv @ q_euler[9:12, 9:12], rtol=1e-12)
+    np.testing.assert_allclose(
+        q[6:9, 6:9], q_euler[6:9, 6:9] + dt * dt / 3 * e_inv @ q_euler[9:12, 9:12] @ e_inv.T,
+        rtol=1e-12)
+    np.testing.assert_allclose(q, q.T, rtol=0, atol=1e-14 * np.abs(q).max())
+    assert np.linalg.eigvalsh(q).min() >= -1e-12 * np.abs(q).max()

@@ -151,7 +151,7 @@ def test_identify_gets_the_mass_of_a_flightgen_crazyflie(crazyflie_identificatio
     assert crazyflie_identification.mass == pytest.approx(CRAZYFLIE.mass, rel=0.02)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 22: I_xx 15.5, I_yy 15.7, I_zz 31.3 e-6 vs "
+@pytest.mark.xfail(strict=True, reason="issue 22: I_xx 16.3, I_yy 16.4, I_zz 32.7 e-6 vs "
                    "16.6, 16.7, 29.3 e-6 kg m^2 on a 10 s 500 Hz flightgen log")
 def test_identify_gets_the_inertia_of_a_flightgen_crazyflie(crazyflie_identification):
     found = np.diag(crazyflie_identification.inertia)

@@ -28,7 +28,8 @@ _PROBE = np.array([0.3, -0.2, 0.5, 0.4, -0.5, 0.6, 0.2, -0.3, 0.4, 0.5, -0.6, 0.
 # The methods (and the module functions they call) that define what a QuadSSM computes;
 # the agreement check is a guard against this code drifting from the kernels, so its
 # verdict holds for as long as none of these objects is replaced.
-MODEL_METHODS = ("initial", "transition", "process_cov", "measure", "meas_cov", "residual")
+MODEL_METHODS = ("initial", "transition", "euler_step", "body_acceleration", "process_cov",
+                 "measure", "meas_cov", "residual")
 _checked: dict[tuple, bool] = {}
 
 
@@ -81,14 +82,16 @@ def agrees_with_model(model: QuadSSM, desc: KernelDescription) -> bool:
 
 def code_key(model: QuadSSM, desc: KernelDescription) -> tuple | None:
     """Identity of the code behind ``model`` and of the kernel variant it needs (channels,
-    fixed or structured Q, kinematic or dynamic, resets, drag, wind); None when an
+    fixed or structured Q, continuous or Euler positions, kinematic or dynamic, resets,
+    drag, wind); None when an
     instance overrides a method (then every call is checked)."""
     if any(name in vars(model) for name in MODEL_METHODS):
         return None
     cls = type(model)
     return (cls, cls.__init__, *(getattr(cls, name) for name in MODEL_METHODS),
-            ssm.state_derivative_and_jacobian, ssm.wrap_angle, model.obs.channels,
-            desc.use_fixed, desc.kind == KINEMATIC, bool(desc.resets.any()),
+            ssm.state_derivative_and_jacobian, ssm.wrap_angle, ssm.continuous_step,
+            ssm.kinematic_noise, model.obs.channels, desc.use_fixed,
+            desc.continuous, desc.kind == KINEMATIC, bool(desc.resets.any()),
             bool(desc.drag.any()), bool(desc.wind.any()))
 
 

@@ -22,10 +22,11 @@ from pinquad.models.kernel import STATE_DIM as _N
 
 
 @njit(cache=True)
-def full_dynamics(x, u, dt, gravity, m_inv, h, i_o, x_next, jac):
+def full_dynamics(x, u, dt, gravity, m_inv, h, i_o, x_next, jac, accel, d_accel):
     """Replace the velocity and rate rows of ``transition_quad``'s x_next (12,) and jac
     (12, 12) by those of FullQuadSSM (module docstring): u (4,) = [F, M], dt [s],
-    gravity [m/s^2], m_inv = M_O^-1 (6, 6), h = m c (3,), i_o = I_O (3, 3)."""
+    gravity [m/s^2], m_inv = M_O^-1 (6, 6), h = m c (3,), i_o = I_O (3, 3); writes a_O
+    (3,) [m/s^2] into accel and d a_O / d omega (3, 3) into d_accel."""
     wx, wy, wz = x[9], x[10], x[11]
     w = np.array([wx, wy, wz])
     iw = i_o @ w
@@ -49,6 +50,10 @@ def full_dynamics(x, u, dt, gravity, m_inv, h, i_o, x_next, jac):
     siw = np.array([[0.0, -iw[2], iw[1]], [iw[2], 0.0, -iw[0]], [-iw[1], iw[0], 0.0]])
     d_bias[3:6, :] = sw @ i_o - siw
     d_acc = -(m_inv @ d_bias)
+    for r in range(3):
+        accel[r] = acc[r]
+        for c in range(3):
+            d_accel[r, c] = d_acc[r, c]
     rot = np.empty((3, 3))
     d_rot = np.empty((3, 3, 3))
     rotation_derivatives(x[6], x[7], x[8], rot, d_rot)

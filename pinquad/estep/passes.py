@@ -16,7 +16,9 @@ Forward pass (``estimators.ekf``), steps k = 0 .. N-1, prior (m^-_0, P^-_0) = (x
         log p(y) += -1/2 (|white|^2 + 2 sum log L_ii + |o| log 2 pi)
     predict (the model's transition and Q at the filtered mean, by ``desc.kind``:
     ``quad_kernels`` for QUAD and KINEMATIC, with ``full_kernels``' dynamic rows and Q
-    for FULL, with ``effect_kernels``' forces for EFFECT):
+    for FULL, with ``effect_kernels``' forces for EFFECT; on a continuous flight the
+    kinematic rows by their mean rates, ``quad_kernels.continuous_rows`` and
+    ``kinematic_noise``):
         m^-_{k+1} = m_k + dt f(m_k, u_k),  F_k = I + dt df/dx (m_k, u_k)
         P^-_{k+1} = F_k P_k F_k^T + Q_k(m_k)      (symmetrised; F P and F (F P)^T skip
                                                    the entries outside F's block pattern)
@@ -48,7 +50,10 @@ from pinquad.estep.effect_kernels import effect_dynamics, f_times_effect
 from pinquad.estep.full_kernels import f_times_full, full_dynamics, process_cov_full
 from pinquad.estep.linalg import chol_solve, cholesky, copy_mat, copy_vec, symmetrise
 from pinquad.estep.quad_kernels import (
+    continuous_rows,
+    f_times_dense_rows,
     f_times_quad,
+    kinematic_noise,
     process_cov_quad,
     transition_kinematic,
     transition_quad,
@@ -97,15 +102,18 @@ def posterior_arrays(n_steps: int) -> PosteriorArrays:
 
 
 @njit(cache=True)
-def _f_times(kind, f, p, out):
+def _f_times(kind, continuous, f, p, out):
     """out = F p (12, 12) with the block pattern of the Jacobian F of a model of this
-    kind (entries outside the pattern are exact zeros and are skipped)."""
+    kind (entries outside the pattern are exact zeros and are skipped; a continuous
+    flight's position and velocity rows are summed over every column)."""
     if kind == FULL:
         f_times_full(f, p, out)
     elif kind == EFFECT:
         f_times_effect(f, p, out)
     else:
         f_times_quad(f, p, out)
+    if continuous:
+        f_times_dense_rows(f, p, out, 0, 6)
 
 
 @njit(cache=True)
@@ -125,7 +133,7 @@ def forward_into(desc, x0, p0, ys, store, work):
     fixed_q, q_kin, s_f, q_tau = desc.fixed_q, desc.q_kin, desc.s_f, desc.q_tau
     resets, reset_var = desc.resets, desc.reset_var
     m_inv, first_moment, i_o, s_wrench = desc.m_inv, desc.first_moment, desc.i_o, desc.s_wrench
-    drag, wind = desc.drag, desc.wind
+    drag, wind, continuous = desc.drag, desc.wind, desc.continuous
     n_steps, m = ys.shape
     mean = x0.copy()
     cov = p0.copy()
@@ -144,6 +152,12 @@ def forward_into(desc, x0, p0, ys, store, work):
     x_next = np.empty(_N)
     rot = np.empty((3, 3))
     f_body = np.empty(3)
+    # a continuous flight's scratch (quad_kernels.continuous_rows, kinematic_noise)
+    accel = np.zeros(3)
+    d_accel = np.zeros((3, 3))
+    s33 = np.empty((6, 3, 3))
+    d_rot = np.empty((2, 3, 3, 3))
+    rows_3x12 = np.empty((3, _N))
     loglik = 0.0
     for k in range(n_steps):
         if store:
@@ -211,6 +225,9 @@ def forward_into(desc, x0, p0, ys, store, work):
                 process_cov_full(mean, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q)
             else:
                 process_cov_quad(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q, rot)
+            flowing = continuous and kind != KINEMATIC  # the warm-up's rates are constant
+            if flowing and not use_fixed:
+                kinematic_noise(mean, dt, q, s33[0], rows_3x12, s33[1])
             if resets[k]:
                 for i in range(_N):
                     q[i, i] += reset_var[i]
@@ -220,17 +237,22 @@ def forward_into(desc, x0, p0, ys, store, work):
                 u = inputs[k]
                 transition_quad(mean, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
                 if kind == FULL:
-                    full_dynamics(mean, u, dt, gravity, m_inv, first_moment, i_o, x_next, jac)
-                elif kind == EFFECT:
-                    effect_dynamics(mean, dt, mass, drag, wind, x_next, jac, rot, f_body)
-            _f_times(kind, jac, cov, fp)
+                    full_dynamics(mean, u, dt, gravity, m_inv, first_moment, i_o, x_next, jac,
+                                  accel, d_accel)
+                else:
+                    accel[2] = u[0] / mass
+                    if kind == EFFECT:
+                        effect_dynamics(mean, dt, mass, drag, wind, x_next, jac, rot, f_body)
+                if flowing:
+                    continuous_rows(mean, dt, accel, d_accel, x_next, jac, s33, d_rot, rows_3x12)
+            _f_times(kind, flowing, jac, cov, fp)
             if store:
                 copy_mat(fp, fps[k])
             # F P F^T = F (F P)^T (P symmetric)
             for r in range(_N):
                 for c in range(_N):
                     fp_t[r, c] = fp[c, r]
-            _f_times(kind, jac, fp_t, new_cov)
+            _f_times(kind, flowing, jac, fp_t, new_cov)
             for r in range(_N):
                 for c in range(_N):
                     new_cov[r, c] += q[r, c]

@@ -12,6 +12,11 @@ QuadSSM (``pinquad.vehicle.model.state_derivative_and_jacobian``), explicit Eule
 
 KinematicSSM: p' = v, v' = 0, Theta' = E^{-1} omega, omega' = 0, Q = diag(fixed_q).
 
+On a continuous flight (``KernelDescription.continuous``) ``continuous_rows`` and
+``kinematic_noise`` then move the kinematic rows by their mean rates over the interval, as
+``pinquad.models.continuous``'s ``continuous_step`` and ``kinematic_noise`` do, and
+``f_times_dense_rows`` gives their product rows (which reach every column).
+
 The kernels take the few constants they use (``passes.forward_into`` unpacks them from the
 model's :class:`~pinquad.models.kernel.KernelDescription`) and write into given arrays:
 x_next (12,), jac (12, 12), q (12, 12).
@@ -23,7 +28,7 @@ import math
 
 from numba import njit
 
-from pinquad.core.kernels import rotation
+from pinquad.core.kernels import rotation, rotation_derivatives
 from pinquad.estep.linalg import fill
 from pinquad.models.kernel import STATE_DIM as _N
 
@@ -210,3 +215,144 @@ def f_times_quad(f, p, out):
         f9, f10, f11 = f[r, 9], f[r, 10], f[r, 11]
         for c in range(_N):
             out[r, c] = f9 * p[9, c] + f10 * p[10, c] + f11 * p[11, c]
+
+
+
+@njit(cache=True)
+def continuous_rows(x, dt, accel, d_accel, x_next, jac, s33, d_rot, d_rates):
+    """continuous.continuous_step in place: the kinematic rows of an explicit-Euler step
+    x_next (12,), jac (12, 12) moved by their mean rates over the interval (the attitude by
+    the mean body rate, the thrust acceleration accel = a_b (3,) [m/s^2] (d_accel = d a_b /
+    d omega (3, 3)) by the mean of R_k and R_{k+1}, the position by the mean velocity;
+    dt [s]). s33 (6, 3, 3), d_rot (2, 3, 3, 3), d_rates (3, 12): scratch (the caller's, so
+    that a step allocates nothing)."""
+    half = 0.5 * dt
+    e_inv, d_theta, rot0, rot1, turn0, turn1 = s33[0], s33[1], s33[2], s33[3], s33[4], s33[5]
+    for r in range(3):
+        for c in range(_N):
+            d_rates[r, c] = 0.5 * jac[9 + r, c]
+        d_rates[r, 9 + r] += 0.5
+    wx = 0.5 * (x[9] + x_next[9])
+    wy = 0.5 * (x[10] + x_next[10])
+    wz = 0.5 * (x[11] + x_next[11])
+    sf, cf = math.sin(x[6]), math.cos(x[6])
+    st, ct = math.sin(x[7]), math.cos(x[7])
+    tt = st / ct
+    a = sf * wy + cf * wz
+    b = cf * wy - sf * wz
+    fill(d_theta, 0.0)
+    d_theta[0, 0] = tt * b
+    d_theta[0, 1] = a / (ct * ct)
+    d_theta[1, 0] = -sf * wy - cf * wz
+    d_theta[2, 0] = b / ct
+    d_theta[2, 1] = a * st / (ct * ct)
+    euler_rate_inverse(sf, cf, st, ct, e_inv)
+    x_next[6] = x[6] + dt * (wx + tt * a)
+    x_next[7] = x[7] + dt * b
+    x_next[8] = x[8] + dt * (a / ct)
+    for r in range(3):
+        for c in range(_N):
+            acc = 0.0
+            for j in range(3):
+                acc += e_inv[r, j] * d_rates[j, c]
+            jac[6 + r, c] = dt * acc
+        for c in range(3):
+            jac[6 + r, 6 + c] += dt * d_theta[r, c]
+        jac[6 + r, 6 + r] += 1.0
+    rotation_derivatives(x[6], x[7], x[8], rot0, d_rot[0])
+    rotation_derivatives(x_next[6], x_next[7], x_next[8], rot1, d_rot[1])
+    for r in range(3):
+        acc = 0.0
+        for j in range(3):
+            acc += (rot1[r, j] - rot0[r, j]) * accel[j]
+        x_next[3 + r] += half * acc
+        for k in range(3):
+            t0 = 0.0
+            t1 = 0.0
+            for j in range(3):
+                t0 += d_rot[0, r, j, k] * accel[j]
+                t1 += d_rot[1, r, j, k] * accel[j]
+            turn0[r, k] = t0
+            turn1[r, k] = t1
+    for r in range(3):
+        for c in range(_N):
+            acc = 0.0
+            for k in range(3):
+                acc += turn1[r, k] * jac[6 + k, c]
+            jac[3 + r, c] += half * acc
+        for c in range(3):
+            jac[3 + r, 6 + c] -= half * turn0[r, c]
+            acc = 0.0
+            for j in range(3):
+                acc += (rot1[r, j] - rot0[r, j]) * d_accel[j, c]
+            jac[3 + r, 9 + c] += half * acc
+    for r in range(3):
+        x_next[r] = x[r] + half * (x[3 + r] + x_next[3 + r])
+        for c in range(_N):
+            jac[r, c] = half * jac[3 + r, c]
+        jac[r, r] += 1.0
+        jac[r, 3 + r] += half
+
+
+@njit(cache=True)
+def euler_rate_inverse(sf, cf, st, ct, e_inv):
+    """E^{-1}(Theta) (3, 3) into e_inv from the sines and cosines of roll and pitch
+    (Euler rates = E^{-1} body rates; ``conventions.euler_rate_matrix_inv``)."""
+    tt = st / ct
+    fill(e_inv, 0.0)
+    e_inv[0, 0] = 1.0
+    e_inv[0, 1] = sf * tt
+    e_inv[0, 2] = cf * tt
+    e_inv[1, 1] = cf
+    e_inv[1, 2] = -sf
+    e_inv[2, 1] = sf / ct
+    e_inv[2, 2] = cf / ct
+
+
+@njit(cache=True)
+def kinematic_noise(x, dt, q, e_inv, share, own):
+    """continuous.kinematic_noise in place on q (12, 12) at x (12,): the position rows'
+    share of the velocity noise, then the Euler rows' share of the rate noise through
+    E^{-1}(Theta) (dt [s]); e_inv (3, 3), share (3, 12), own (3, 3): scratch."""
+    half = 0.5 * dt
+    third = dt * dt / 3.0
+    euler_rate_inverse(math.sin(x[6]), math.cos(x[6]), math.sin(x[7]), math.cos(x[7]), e_inv)
+    for block in range(2):
+        rows = 0 if block == 0 else 6
+        driver = 3 if block == 0 else 9
+        for i in range(3):
+            for c in range(_N):
+                acc = 0.0
+                for j in range(3):
+                    g = (1.0 if i == j else 0.0) if block == 0 else e_inv[i, j]
+                    acc += g * q[driver + j, c]
+                share[i, c] = half * acc
+        for i in range(3):
+            for j in range(3):
+                acc = 0.0
+                for a in range(3):
+                    ga = (1.0 if i == a else 0.0) if block == 0 else e_inv[i, a]
+                    for b in range(3):
+                        gb = (1.0 if j == b else 0.0) if block == 0 else e_inv[j, b]
+                        acc += ga * q[driver + a, driver + b] * gb
+                own[i, j] = q[rows + i, rows + j] + third * acc
+        for i in range(3):
+            for c in range(_N):
+                q[rows + i, c] = share[i, c]
+                q[c, rows + i] = share[i, c]
+        for i in range(3):
+            for j in range(3):
+                q[rows + i, rows + j] = own[i, j]
+
+
+@njit(cache=True)
+def f_times_dense_rows(f, p, out, first, last):
+    """Rows first..last-1 of out = F p summed over every column of F (after a
+    block-pattern product: on a continuous flight the position and velocity rows reach
+    every column the rows that drive them reach)."""
+    for r in range(first, last):
+        for c in range(_N):
+            acc = 0.0
+            for j in range(_N):
+                acc += f[r, j] * p[j, c]
+            out[r, c] = acc

@@ -43,8 +43,8 @@ class EffectSSM(QuadSSM):
         """[w_x, w_y, 0] (3,) [N], the wind force in the world frame; a copy."""
         return self._wind.copy()
 
-    def transition(self, x: Array, k: int) -> tuple[Array, Array]:
-        nxt, jac = super().transition(x, k)
+    def euler_step(self, x: Array, k: int) -> tuple[Array, Array]:
+        nxt, jac = super().euler_step(x, k)
         dt, m = self.obs.dt, self.body.mass
         rot = rotation_from_euler(x[6:9])
         f_b = -self._drag * (rot.T @ x[3:6]) + rot.T @ self._wind

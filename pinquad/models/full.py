@@ -85,7 +85,13 @@ class FullQuadSSM(QuadSSM):
                             skew(w) @ i_o - skew(i_w)])
         return self._m_inv @ (tau - bias), -self._m_inv @ d_bias
 
-    def transition(self, x: Array, k: int) -> tuple[Array, Array]:
+    def body_acceleration(self, x: Array, k: int) -> tuple[Array, Array]:
+        """a_O (3,) [m/s^2], the body-frame acceleration of O the inputs and the rates
+        give (module docstring), and d a_O / d omega (3, 3)."""
+        acc, d_acc = self._accelerations(x, self.obs.inputs[k])
+        return acc[0:3], d_acc[0:3]
+
+    def euler_step(self, x: Array, k: int) -> tuple[Array, Array]:
         u = self.obs.inputs[k]
         # the kinematic rows (p' = v, Theta' = E^{-1} omega) and their Jacobian are the
         # diagonal model's; the dynamic rows are replaced

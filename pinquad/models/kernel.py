@@ -54,7 +54,10 @@ class KernelDescription(NamedTuple):
     (3, 3) (FULL: s_wrench = S (6,) and m_inv instead of s_f and q_tau);
     resets (N,) bool: transitions whose Q gets diag(reset_var) (12,) added;
     m_inv (6, 6), first_moment (3,) [kg m], i_o (3, 3) [kg m^2]: FULL's M_O^-1, h, I_O;
-    drag (3,) [N s/m], wind (3,) [N, world]: EFFECT's lateral forces (z entries 0).
+    drag (3,) [N s/m], wind (3,) [N, world]: EFFECT's lateral forces (z entries 0);
+    continuous: the kinematic rows advance by their mean rates over each interval and a
+    structured Q carries their share of the noise (``Observations.continuous``,
+    ``models.continuous``).
     """
 
     kind: int
@@ -80,6 +83,7 @@ class KernelDescription(NamedTuple):
     s_wrench: Array
     drag: Array
     wind: Array
+    continuous: bool
 
 
 def kernel_kind(model: object) -> int | None:
@@ -134,7 +138,8 @@ def kernel_description(model: object) -> KernelDescription | None:
         m_inv=np.ascontiguousarray(m_inv, dtype=float),
         first_moment=np.ascontiguousarray(first_moment, dtype=float),
         i_o=np.ascontiguousarray(i_o, dtype=float),
-        s_wrench=np.ascontiguousarray(nz.wrench, dtype=float), drag=drag, wind=wind)
+        s_wrench=np.ascontiguousarray(nz.wrench, dtype=float), drag=drag, wind=wind,
+        continuous=bool(obs.continuous))
 
 
 def reset_mask(obs: Observations) -> NDArray[np.bool_]:

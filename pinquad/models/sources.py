@@ -128,7 +128,8 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     ``contact.rows``; without it, the log's contact flags, else none (the data-based
     detection needs a mass guess: pass ``floor_contact(log, mass_guess)``). The inputs are
     what each transition applies (``interval_inputs`` by ``log.meta.actuation``); a
-    sampled log's rows themselves are kept as ``samples``.
+    sampled log's rows themselves are kept as ``samples``, and its flight is continuous
+    (``Observations.continuous``).
     """
     if log.thrust is None or log.torque is None:
         raise ValueError("the log has no thrust/torque actuation; convert rotor speeds first")
@@ -166,6 +167,8 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     samples = logged.copy() if log.meta.actuation == "sampled" else None
     # the ground-effect radius of the vehicle the log names (a log naming none: the default)
     radius = vehicle_ground_radius(log.meta.vehicle if log.meta.vehicle_named else None)
+    # a sampled log is a faster controller's record of a continuous flight; a held one is
+    # pinquad's simulator, which moves by explicit Euler at the log's step
     return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
                         p0=p0, exclude=exclude, resets=resets, ground_radius=radius,
-                        samples=samples)
+                        samples=samples, continuous=log.meta.actuation == "sampled")

@@ -4,12 +4,21 @@ Transition (explicit Euler of the paper's model, inputs u_k = [F, M] from the lo
 
     x_{k+1} = x_k + dt f(x_k, u_k; m, I) + w_k
 
+except on a continuous flight (``Observations.continuous``), where the kinematic rows
+advance by the mean of their rates over the interval (``models.continuous``):
+
+    Theta_{k+1} = Theta_k + dt E^{-1}(Theta_k) (omega_k + omega_{k+1}) / 2,
+    v_{k+1} = v_k + dt [(R_k + R_{k+1}) a_b / 2 - g e3],  a_b = [0, 0, F / m] (body),
+    p_{k+1} = p_k + dt (v_k + v_{k+1}) / 2
+
 Process noise, structured as the paper's SDE (noise on the applied wrench, intensity
 S = diag(S_f (3), S_tau (3)) [N^2 s, (N m)^2 s], body frame) plus small kinematic terms:
 
     Cov(w_k) = blockdiag(q_pos I3, dt (R/m) S_f (R/m)^T, q_euler I3, dt I^{-1} S_tau I^{-1})
 
-or, for the paper's own configuration, a fixed diagonal ``fixed_q`` (Q0 = 0.0707 I).
+or, for the paper's own configuration, a fixed diagonal ``fixed_q`` (Q0 = 0.0707 I). On a
+continuous flight the structured covariance also carries the position's share of the
+velocity noise, the Euler rows theirs of the rate noise (``continuous.kinematic_noise``).
 On a transition marked in ``Observations.resets`` (touch-down on the floor: an impulse
 the model does not have stops and levels the vehicle within a step) the covariance is
 widened by diag(RESET_VAR), so that the smoother does not carry the flight dynamics
@@ -27,8 +36,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.conventions import wrap_angle
+from pinquad.core.conventions import euler_rate_matrix_inv, wrap_angle
 from pinquad.core.effect_vocabulary import DEFAULT_GROUND_RADIUS
+from pinquad.models.continuous import continuous_step, kinematic_noise
 from pinquad.vehicle.model import RigidBodyParams, state_derivative_and_jacobian
 
 Array = NDArray[np.float64]
@@ -98,7 +108,11 @@ class Observations:
     and torques [N m] at each row's instant when ``inputs`` are their interval means (a
     ``sampled`` log, ``models.sources.interval_inputs``), None when the inputs are held
     over each interval (the motor lag of discovery is discretised on the samples then:
-    ``discovery.library.applied_lag``).
+    ``discovery.library.applied_lag``); continuous: the vehicle moved continuously
+    between rows (a recorded flight, or a simulator finer than its log), so the attitude,
+    the thrust direction and the position advance by their mean rates over each interval
+    (``models.continuous``); False for pinquad's own simulator, which moves by explicit
+    Euler at the log's step, as the model then does.
     """
 
     t: Array
@@ -112,6 +126,7 @@ class Observations:
     resets: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     ground_radius: float = DEFAULT_GROUND_RADIUS
     samples: Array | None = None
+    continuous: bool = False
 
     @property
     def n(self) -> int:
@@ -156,12 +171,29 @@ class QuadSSM:
         return self.obs.x0, np.diag(self.obs.p0)
 
     def transition(self, x: Array, k: int) -> tuple[Array, Array]:
+        """(x_{k+1}, F_k): ``euler_step``, with the kinematic rows by their mean rates
+        over the interval on a continuous flight (``continuous.continuous_step``)."""
+        nxt, jac = self.euler_step(x, k)
+        if self.obs.continuous:
+            accel, d_accel = self.body_acceleration(x, k)
+            return continuous_step(x, self.obs.dt, nxt, jac, accel, d_accel)
+        return nxt, jac
+
+    def body_acceleration(self, x: Array, k: int) -> tuple[Array, Array]:
+        """a_b (3,) [m/s^2], the body-frame acceleration the inputs give at x (here the
+        thrust's [0, 0, F / m]), and d a_b / d omega (3, 3) [m/s]."""
+        return np.array([0.0, 0.0, float(self.obs.inputs[k, 0]) / self.body.mass]), np.zeros((3, 3))
+
+    def euler_step(self, x: Array, k: int) -> tuple[Array, Array]:
+        """x_k + dt f(x_k, u_k) (12,) and its Jacobian I + dt df/dx (12, 12)."""
         f, jac = state_derivative_and_jacobian(x, self.obs.inputs[k], self.body)
         dt = self.obs.dt
         return x + dt * f, self._eye + dt * jac
 
     def process_cov(self, x: Array, k: int) -> Array:
         q = self._flight_process_cov(x)
+        if self.obs.continuous and self._fixed_q is None:
+            q = kinematic_noise(q, self.obs.dt, euler_rate_matrix_inv(x[6:9]))
         return q + self._reset_q if self.is_reset(k) else q
 
     def is_reset(self, k: int) -> bool:
@@ -208,9 +240,13 @@ class KinematicSSM(QuadSSM):
     transition without forces (p' = v, v' = 0, Theta' = E^{-1} omega, omega' = 0) and the
     paper's process covariance, so the first posterior follows the data rather than a
     dynamic model evaluated at a guess that may be two orders of magnitude off (with
-    m0 = 0.001 kg the force term alone is ~1800 m/s^2 and the EKF diverges)."""
+    m0 = 0.001 kg the force term alone is ~1800 m/s^2 and the EKF diverges). Its rates
+    are constant over each interval, so a continuous flight moves it the same way."""
 
     def transition(self, x: Array, k: int) -> tuple[Array, Array]:
+        return self.euler_step(x, k)
+
+    def euler_step(self, x: Array, k: int) -> tuple[Array, Array]:
         dt = self.obs.dt
         phi, theta = float(x[6]), float(x[7])
         wx, wy, wz = float(x[9]), float(x[10]), float(x[11])

@@ -34,7 +34,6 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.core.conventions import (
-    euler_rate_matrix_inv,
     rotation_and_derivatives,
     rotation_from_euler,
     wrap_angle,
@@ -390,28 +389,6 @@ def measurement_variances(post: Posterior, obs: Observations, previous: Array) -
     for i in range(obs.ys.shape[1]):
         if ok[:, i].any():
             out[i] = max(float(np.mean(res[ok[:, i], i] ** 2 + var[ok[:, i], i])), 1e-12)
-    return out
-
-
-def kinematic_variances(post: Posterior, obs: Observations) -> Array:
-    """Per-step variances of p_{k+1} - p_k - dt v_k and Theta_{k+1} - Theta_k -
-    dt E^{-1} omega_k (first order), floored at 1e-14."""
-    use = np.flatnonzero(transition_mask(obs))
-    mu0, mu1 = post.mean[use], post.mean[use + 1]
-    dt = obs.dt
-    out = np.empty(6)
-    r_pos = mu1[:, 0:3] - mu0[:, 0:3] - dt * mu0[:, 3:6]
-    # Var(p1 - p0 - dt v0) = P1 + P0 + dt^2 Pv0 - C - C^T - ... (position rows)
-    p0, p1, c = post.cov[use], post.cov[use + 1], post.cross_cov[use]
-    for i in range(3):
-        var = (p1[:, i, i] + p0[:, i, i] + dt**2 * p0[:, 3 + i, 3 + i]
-               - 2 * c[:, i, i] + 2 * dt * c[:, i, 3 + i] - 2 * dt * p0[:, i, 3 + i])
-        out[i] = max(float(np.mean(r_pos[:, i] ** 2 + var)), 1e-14)
-    rates = np.einsum("kij,kj->ki", euler_rate_matrix_inv(mu0[:, 6:9]), mu0[:, 9:12])
-    r_eul = np.asarray(wrap_angle(mu1[:, 6:9] - mu0[:, 6:9])) - dt * rates
-    for i in range(3):
-        var = p1[:, 6 + i, 6 + i] + p0[:, 6 + i, 6 + i] - 2 * c[:, 6 + i, 6 + i]
-        out[3 + i] = max(float(np.mean(r_eul[:, i] ** 2 + np.maximum(var, 0.0))), 1e-14)
     return out
 
 

@@ -543,10 +543,11 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
             x0[sl] = blk[np.argmax(ok)]
     # the ground-effect radius from the vehicle's geometry (the rotor footprint) unless given
     footprint = float(np.max(np.hypot(actuator.positions[:, 0], actuator.positions[:, 1])))
+    # a measured flight moves continuously between bins (Observations.continuous)
     obs = Observations(t=grid - grid[0], dt=dt, inputs=inputs, channels=options.channels,
                        ys=ys, x0=x0, p0=p0, exclude=exclude, resets=resets,
                        ground_radius=footprint if options.ground_radius is None
-                       else options.ground_radius)
+                       else options.ground_radius, continuous=True)
     if obs.n < 3 or int((~exclude[:n_tr]).sum()) < 10:
         why = "; ".join(e.reason for e in exclusions if e.transitions)
         raise ValueError(f"{source}: only {int((~exclude[:n_tr]).sum())} usable transitions "
