@@ -94,8 +94,8 @@ def test_realdiscovery_drag_split_finds_drag(tmp_path, capsys):
     coef = np.asarray(drag["coefficients"]["drag"])
     assert coef.shape == (3,) and np.all(coef[:2] > 0.0)  # drag opposes horizontal motion
     # Trained on the fast flights, the drag term lowers the horizontal force residual on
-    # both held-out flights by at least 20 % (the README: 34-38 % on jana03, 24-31 % on
-    # jana10; measured 34 / 38 % and 31 / 24 %). A lower bound that the refit mass alone
+    # both held-out flights by at least 20 % (the README: 33-36 % on jana03, 24-31 % on
+    # jana10; measured 33 / 36 % and 31 / 24 %). A lower bound that the refit mass alone
     # cannot reach: scored without the trained drag the residual falls by less.
     for name in drag["test"]:
         rms = drag["target"]["test_rms"][name]
