@@ -75,6 +75,17 @@ def _observations(flight, source: str) -> Observations:
     return replace(obs, ys=ys)
 
 
+def test_only_a_sampled_log_is_a_continuous_flight(flight):
+    """pinquad's simulator writes held logs and moves by explicit Euler: their
+    observations keep the Euler kinematics; the same log read as sampled (a faster
+    controller's record of a continuous flight) moves continuously."""
+    log = flight_log(flight["B"]).slice(0, N_STEPS)
+    assert log.meta.actuation == "held"
+    assert not observations(log, "B").continuous
+    sampled = replace(log, meta=replace(log.meta, actuation="sampled"))
+    assert observations(sampled, "B").continuous
+
+
 @pytest.mark.parametrize("source", ["A", "B", "C"])
 def test_each_source_carries_its_channels(flight, source):
     """The comparisons below are only as good as their data: each source's log holds

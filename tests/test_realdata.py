@@ -86,6 +86,8 @@ def test_resampling_to_100hz_and_ground_contact():
     real = build_observations(raw, RealDataOptions(), kf)
     obs = real.obs
     assert obs.dt == 0.01 and obs.n == 400
+    # a measured flight moves continuously between its bins (models.continuous)
+    assert obs.continuous
     np.testing.assert_allclose(np.diff(obs.t), 0.01, atol=1e-12)
     # inputs: mean over [t_k, t_k + dt) of the 2 ms wrench samples
     thrust, torque = ActuatorModel(kf=real.kf.kf).wrench(raw.log.rpm)
