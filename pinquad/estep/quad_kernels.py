@@ -217,7 +217,6 @@ def f_times_quad(f, p, out):
             out[r, c] = f9 * p[9, c] + f10 * p[10, c] + f11 * p[11, c]
 
 
-
 @njit(cache=True)
 def continuous_rows(x, dt, accel, d_accel, x_next, jac, s33, d_rot, d_rates):
     """continuous.continuous_step in place: the kinematic rows of an explicit-Euler step

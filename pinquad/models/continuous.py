@@ -17,8 +17,9 @@ aggressive flights"). In the order each row needs the next one's result:
     p_{k+1}     = p_k + dt (v_k + v_{k+1}) / 2
 
 a_b (3,) [m/s^2]: the body-frame acceleration the model's wrench gives (a quadcopter's
-[0, 0, F / m]); forces the Euler step adds besides (gravity, drag, wind) stay at t_k. A body
-whose rates are constant over the interval moves exactly so.
+[0, 0, F / m]); forces the Euler step adds besides (gravity, drag, wind) stay at t_k. Under a
+constant acceleration the position moves exactly so; the attitude and the thrust
+direction are right to second order in dt, where explicit Euler is right to first.
 
 The process noise gets the matching shares (``kinematic_noise``). ``pinquad.estep``'s
 kernels compute the same (``quad_kernels.continuous_rows``).
