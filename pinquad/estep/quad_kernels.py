@@ -309,39 +309,44 @@ def euler_rate_inverse(sf, cf, st, ct, e_inv):
 
 
 @njit(cache=True)
-def kinematic_noise(x, dt, q, e_inv, share, own):
+def kinematic_noise(x, dt, q, gain, share, own):
     """continuous.kinematic_noise in place on q (12, 12) at x (12,): the position rows'
     share of the velocity noise, then the Euler rows' share of the rate noise through
-    E^{-1}(Theta) (dt [s]); e_inv (3, 3), share (3, 12), own (3, 3): scratch."""
+    E^{-1}(Theta) (dt [s]); gain (3, 3), share (3, 12), own (3, 3): scratch."""
+    fill(gain, 0.0)
+    for i in range(3):
+        gain[i, i] = 1.0
+    _integrated_share(q, 0, 3, gain, dt, share, own)
+    euler_rate_inverse(math.sin(x[6]), math.cos(x[6]), math.sin(x[7]), math.cos(x[7]), gain)
+    _integrated_share(q, 6, 9, gain, dt, share, own)
+
+
+@njit(cache=True)
+def _integrated_share(q, rows, driver, gain, dt, share, own):
+    """Rows rows..rows+2 of q (12, 12) driven by rows driver..driver+2 through gain A
+    (3, 3): Cov(r, r) += (dt^2 / 3) A Q_ss A^T, Cov(r, j) = (dt / 2) A Q_sj (j outside r)."""
     half = 0.5 * dt
     third = dt * dt / 3.0
-    euler_rate_inverse(math.sin(x[6]), math.cos(x[6]), math.sin(x[7]), math.cos(x[7]), e_inv)
-    for block in range(2):
-        rows = 0 if block == 0 else 6
-        driver = 3 if block == 0 else 9
-        for i in range(3):
-            for c in range(_N):
-                acc = 0.0
-                for j in range(3):
-                    g = (1.0 if i == j else 0.0) if block == 0 else e_inv[i, j]
-                    acc += g * q[driver + j, c]
-                share[i, c] = half * acc
-        for i in range(3):
+    for i in range(3):
+        for c in range(_N):
+            acc = 0.0
             for j in range(3):
-                acc = 0.0
-                for a in range(3):
-                    ga = (1.0 if i == a else 0.0) if block == 0 else e_inv[i, a]
-                    for b in range(3):
-                        gb = (1.0 if j == b else 0.0) if block == 0 else e_inv[j, b]
-                        acc += ga * q[driver + a, driver + b] * gb
-                own[i, j] = q[rows + i, rows + j] + third * acc
-        for i in range(3):
-            for c in range(_N):
-                q[rows + i, c] = share[i, c]
-                q[c, rows + i] = share[i, c]
-        for i in range(3):
-            for j in range(3):
-                q[rows + i, rows + j] = own[i, j]
+                acc += gain[i, j] * q[driver + j, c]
+            share[i, c] = half * acc
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for a in range(3):
+                for b in range(3):
+                    acc += gain[i, a] * q[driver + a, driver + b] * gain[j, b]
+            own[i, j] = q[rows + i, rows + j] + third * acc
+    for i in range(3):
+        for c in range(_N):
+            q[rows + i, c] = share[i, c]
+            q[c, rows + i] = share[i, c]
+    for i in range(3):
+        for j in range(3):
+            q[rows + i, rows + j] = own[i, j]
 
 
 @njit(cache=True)

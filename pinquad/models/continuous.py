@@ -30,27 +30,25 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.conventions import rotation_and_derivatives
+from pinquad.core.conventions import euler_rate_matrix_inv, rotation_and_derivatives
 
 Array = NDArray[np.float64]
 
 
 def euler_rates(euler: Array, rates: Array) -> tuple[Array, Array, Array]:
     """Theta' = E^{-1}(Theta) omega (3,) [rad/s], its derivative by Theta (3, 3) at fixed
-    omega, and E^{-1}(Theta) (3, 3), for Euler angles euler (3,) [rad] and body rates
-    rates (3,) [rad/s] (roll-pitch-yaw, as ``vehicle.model.state_derivative_and_jacobian``)."""
+    omega, and E^{-1}(Theta) (3, 3) (``conventions.euler_rate_matrix_inv``), for Euler
+    angles euler (3,) [rad] and body rates rates (3,) [rad/s]."""
+    e_inv = euler_rate_matrix_inv(euler)
     sf, cf = np.sin(euler[0]), np.cos(euler[0])
     st, ct = np.sin(euler[1]), np.cos(euler[1])
-    tt = st / ct
-    wx, wy, wz = rates
+    _, wy, wz = rates
     a = sf * wy + cf * wz
     b = cf * wy - sf * wz
-    theta_dot = np.array([wx + tt * a, b, a / ct])
-    d_theta = np.array([[tt * b, a / (ct * ct), 0.0],
+    d_theta = np.array([[st / ct * b, a / (ct * ct), 0.0],
                         [-sf * wy - cf * wz, 0.0, 0.0],
                         [b / ct, a * st / (ct * ct), 0.0]])
-    e_inv = np.array([[1.0, sf * tt, cf * tt], [0.0, cf, -sf], [0.0, sf / ct, cf / ct]])
-    return theta_dot, d_theta, e_inv
+    return e_inv @ rates, d_theta, e_inv
 
 
 def continuous_step(x: Array, dt: float, x_next: Array, jac: Array, accel: Array,
