@@ -22,8 +22,9 @@ from pinquad.core.effect_vocabulary import EFFECT_NAMES
 from pinquad.core.params import CRAZYFLIE21, PAPER_INITIAL_MASS, PAPER_SCENARIO
 from pinquad.discovery.discover import base_heldout_rms, discover
 from pinquad.discovery.library import SPECS
-from pinquad.discovery.refit import corrected_observations
+from pinquad.discovery.refit import corrected_observations, model_factory
 from pinquad.discovery.result import DiscoveryConfig
+from pinquad.estep.fast_smoother import loglik_quad
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.identification.identify import get_smoother
 from pinquad.models.effect import EffectSSM
@@ -285,6 +286,28 @@ def test_gyro_bias_seeded_refit():
     for axis in ("att_rate_x", "att_rate_y", "att_rate_z"):
         assert out.rms_after[axis] < 0.5 * out.rms_before[axis], (axis, out.rms_before[axis],
                                                                  out.rms_after[axis])
+    # standard errors: the jackknife holds the smoothed rates fixed, though an E-step at
+    # another offset moves them by most of the difference; the likelihood's information
+    # does not, and the reported one is the larger (discovery.uncertainty)
+    jack, info = out.stderr_jackknife["gyro_bias"], out.stderr_information["gyro_bias"]
+    np.testing.assert_array_equal(out.stderr["gyro_bias"], np.fmax(jack, info))
+    assert np.all(info > 5 * jack), (info, jack)
+    err = out.coefficients["gyro_bias"] - truth
+    assert np.all(np.abs(err) <= 2 * out.stderr["gyro_bias"]), (err, out.stderr["gyro_bias"])
+    # the information is the log-likelihood's curvature: a parabola through five points
+    # across +-2 standard errors of the offset's x axis has the same
+    c = dict(out.coefficients)
+    offsets = np.linspace(-2.0, 2.0, 5) * info[0]
+    values = []
+    for d in offsets:
+        c["gyro_bias"] = out.coefficients["gyro_bias"] + np.array([d, 0.0, 0.0])
+        corr = corrected_observations(obs, out.posterior.mean, c)
+        values.append(loglik_quad(model_factory(c)(corr, out.theta), corr.ys))
+    curvature = 2.0 * np.polyfit(offsets, values, 2)[0]
+    np.testing.assert_allclose(1.0 / np.sqrt(-curvature), info[0], rtol=0.05)
+    rep = out.to_report()["selected"][0]
+    assert set(rep["stderr_jackknife"]) == set(rep["stderr_observed_information"]) == {
+        "b_x", "b_y", "b_z"}
 
 
 def test_drag_and_wind_refit_reaches_the_clean_twins_floor(tmp_path):

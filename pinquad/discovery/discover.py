@@ -81,6 +81,7 @@ from pinquad.discovery.selection import (
     jackknife,
     score_candidate,
 )
+from pinquad.discovery.uncertainty import information_stderr, reported_stderr
 from pinquad.identification.identify import get_smoother
 from pinquad.models.ssm import Observations, Theta
 
@@ -191,12 +192,15 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
                                               hold_inertia=True)
         pi_after = mf.fit.pi
         after = heldout_rms(res0, pi_after, coeffs, test, window)
-        stderr = jackknife(obs, posterior, theta, selected, cfg, train, hold_inertia=True)
+        jack = jackknife(obs, posterior, theta, selected, cfg, train, hold_inertia=True)
+        info = information_stderr(obs, replace(theta, mass=float(pi_after[0])), posterior.mean,
+                                  coeffs, selected, jack)
         evidence = effect_evidence(selected, res0, pi0, res0, pi_after, coeffs, test)
-        return DiscoveryResult(tuple(selected), coeffs, stderr, tuple(scores), before, after,
+        return DiscoveryResult(tuple(selected), coeffs, reported_stderr(jack, info),
+                               tuple(scores), before, after,
                                float(pi_after[0]), np.asarray(theta.inertia), theta, posterior,
                                validation + " (no EM refit: effects fitted on the base posterior)",
-                               evidence)
+                               evidence, stderr_jackknife=jack, stderr_information=info)
     th_tr, post_tr, coeffs_tr = refit(obs, theta, posterior, selected, smoother, cfg, train)
     res_tr = compute_residuals(obs, post_tr, th_tr.gravity, cfg.block_seconds)
     pi_tr = np.r_[th_tr.mass, np.diag(th_tr.inertia)]
@@ -218,9 +222,10 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
     else:
         th_f, post_f, coeffs_f = th_tr, post_tr, coeffs_tr
         all_blocks = train
-    stderr = jackknife(obs, post_f, th_f, selected, cfg, all_blocks,
-                       sampling=cfg.sampling_nuisance)
+    jack = jackknife(obs, post_f, th_f, selected, cfg, all_blocks,
+                     sampling=cfg.sampling_nuisance)
+    info = information_stderr(obs, th_f, post_f.mean, coeffs_f, selected, jack)
     evidence = effect_evidence(selected, res0, pi0, res_tr, pi_tr, coeffs_tr, test)
-    return DiscoveryResult(tuple(selected), coeffs_f, stderr, tuple(scores), before, after,
-                           th_f.mass, np.asarray(th_f.inertia), th_f, post_f, validation,
-                           evidence)
+    return DiscoveryResult(tuple(selected), coeffs_f, reported_stderr(jack, info), tuple(scores),
+                           before, after, th_f.mass, np.asarray(th_f.inertia), th_f, post_f,
+                           validation, evidence, stderr_jackknife=jack, stderr_information=info)

@@ -4,6 +4,7 @@ the report's figures (``EffectEvidence``) and ``DiscoveryResult`` (the DESIGN 4.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -151,12 +152,26 @@ class EffectEvidence:
     after: ScatterPanel
 
 
+STDERR_NOTE = ("stderr = the larger of the block jackknife at the refit posterior (which "
+               "holds the smoothed states fixed) and the observed information of the EKF "
+               "likelihood in the coefficients, mass, inertia and noise held at the refit's "
+               "(which does not); NaN information: the jackknife alone")
+
+
+def _by_name(names: Sequence[str], values: Array | None) -> dict[str, float] | None:
+    if values is None:
+        return None
+    return {n: float(v) for n, v in zip(names, values, strict=True)}
+
+
 @dataclass(frozen=True)
 class DiscoveryResult:
     """What discovery found.
 
     selected: effect names in the order found; coefficients / stderr: name -> (p,) in the
-    units of ``pinquad.discovery.library.SPECS`` (stderr by block jackknife); scores: every
+    units of ``pinquad.discovery.library.SPECS``; stderr: the larger of stderr_jackknife
+    (block jackknife at the refit posterior) and stderr_information (observed information
+    of the EKF likelihood; ``pinquad.discovery.uncertainty``); scores: every
     candidate test of every round; rms_before / rms_after: held-out residual RMS per axis
     (``AXES`` [N, N m], ``GYRO_AXES`` [rad/s], ``ATT_AXES`` [rad/s]); mass [kg], inertia
     (3, 3) [kg m^2]: after the refit (the base estimates if nothing was selected); theta:
@@ -179,6 +194,8 @@ class DiscoveryResult:
     validation: str
     evidence: tuple[EffectEvidence, ...] = field(default_factory=tuple)
     figures: tuple[str, ...] = field(default_factory=tuple)
+    stderr_jackknife: dict[str, Array] = field(default_factory=dict)
+    stderr_information: dict[str, Array] = field(default_factory=dict)
 
     def to_report(self) -> dict:
         """The DESIGN 4.3 ``discovery`` section (plus candidate scores and refit estimates)."""
@@ -192,6 +209,10 @@ class DiscoveryResult:
                                                               self.coefficients[name], strict=True)},
                 "stderr": {n: float(v) for n, v in zip(spec.coefficient_names,
                                                         self.stderr[name], strict=True)},
+                "stderr_jackknife": _by_name(spec.coefficient_names,
+                                             self.stderr_jackknife.get(name)),
+                "stderr_observed_information": _by_name(spec.coefficient_names,
+                                                        self.stderr_information.get(name)),
                 "units": dict(zip(spec.coefficient_names, spec.units, strict=True)),
                 "evidence": {"heldout_gain": best.gain, "d_loglik_heldout": best.d_loglik_heldout,
                              "d_bic_train": best.d_bic, "round": best.round,
@@ -202,6 +223,7 @@ class DiscoveryResult:
             "residual_rms_before": dict(self.rms_before),
             "residual_rms_after": dict(self.rms_after),
             "validation": self.validation,
+            "stderr_note": STDERR_NOTE,
             "candidates": [{"effect": s.effect, "round": s.round, "heldout_gain": s.gain,
                             "d_loglik_heldout": s.d_loglik_heldout, "d_bic_train": s.d_bic,
                             "selected": s.passed} for s in self.scores],

@@ -41,6 +41,54 @@ def _with_params(theta: Theta, phi: Array) -> Theta:
     return replace(theta, mass=float(v[0]), inertia=np.diag(v[1:4]))
 
 
+def central_differences(f: Callable[[Array], float], x0: Array, steps: Array
+                        ) -> tuple[float, Array, Array]:
+    """f(x0), its gradient g (n,) and Hessian H (n, n) by central differences with the
+    per-coordinate steps h (n,):
+
+        g_i  = [f(x0 + h_i e_i) - f(x0 - h_i e_i)] / 2 h_i
+        H_ii = [f(x0 + h_i e_i) - 2 f(x0) + f(x0 - h_i e_i)] / h_i^2
+        H_ij = [f(+h_i e_i + h_j e_j) - f(+h_i e_i - h_j e_j) - f(-h_i e_i + h_j e_j)
+                + f(-h_i e_i - h_j e_j)] / 4 h_i h_j
+
+    1 + 2n + 2n(n-1) evaluations of f. An evaluation that raises ``LinAlgError``,
+    ``FloatingPointError`` or ``ValueError`` (a filter that broke down there: seen on a
+    flightgen flight with floor strikes, its innovation covariance not positive definite
+    at a 0.2 % heavier mass) counts as NaN, and so do the derivatives it enters."""
+    x0 = np.asarray(x0, dtype=float)
+    steps = np.asarray(steps, dtype=float)
+    n = x0.size
+    cache: dict[tuple[int, ...], float] = {}
+
+    def value(offset: tuple[int, ...]) -> float:
+        if offset not in cache:
+            try:
+                cache[offset] = float(f(x0 + steps * np.asarray(offset, dtype=float)))
+            except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+                cache[offset] = float("nan")
+        return cache[offset]
+
+    def off(pairs: dict[int, int]) -> tuple[int, ...]:
+        o = [0] * n
+        for i, a in pairs.items():
+            o[i] = a
+        return tuple(o)
+
+    hess = np.empty((n, n))
+    grad = np.empty(n)
+    zero = off({})
+    for i in range(n):
+        plus, minus = off({i: 1}), off({i: -1})
+        hess[i, i] = (value(plus) - 2 * value(zero) + value(minus)) / steps[i] ** 2
+        grad[i] = (value(plus) - value(minus)) / (2 * steps[i])
+        for j in range(i):
+            hess[i, j] = hess[j, i] = (
+                value(off({i: 1, j: 1})) - value(off({i: 1, j: -1}))
+                - value(off({i: -1, j: 1})) + value(off({i: -1, j: -1}))
+            ) / (4 * steps[i] * steps[j])
+    return value(zero), grad, hess
+
+
 def loglik_derivatives(obs: Observations, theta: Theta, loglik: LogLik = ekf_loglik,
                        step: float = 2e-3) -> tuple[float, Array, Array]:
     """log p(y | theta), its gradient (4,) and the observed information (4, 4) with
@@ -48,41 +96,13 @@ def loglik_derivatives(obs: Observations, theta: Theta, loglik: LogLik = ekf_log
     log-parameters (see module docstring); the gradient is
     g_i = [L(phi + h e_i) - L(phi - h e_i)] / 2h / theta_i."""
     phi0 = np.log(np.concatenate([[theta.mass], np.diag(theta.inertia)]))
-    cache: dict[tuple[int, ...], float] = {}
-
-    def value(offset: tuple[int, ...]) -> float:
-        if offset not in cache:
-            phi = phi0 + step * np.asarray(offset, dtype=float)
-            try:
-                cache[offset] = float(loglik(QuadSSM(obs, _with_params(theta, phi)), obs.ys))
-            except (np.linalg.LinAlgError, FloatingPointError, ValueError):
-                # the filter broke down at this neighbour (seen on a flightgen flight
-                # with floor strikes, its innovation covariance not positive definite
-                # at a 0.2 % heavier mass): no derivative there, NaN standard errors
-                cache[offset] = float("nan")
-        return cache[offset]
-
-    n = 4
-    hess = np.empty((n, n))
-    grad = np.empty(n)
-    zero = (0,) * n
-    for i in range(n):
-        e = [0] * n
-        e[i] = 1
-        plus, minus = tuple(e), tuple(-x for x in e)
-        hess[i, i] = (value(plus) - 2 * value(zero) + value(minus)) / step**2
-        grad[i] = (value(plus) - value(minus)) / (2 * step)
-        for j in range(i):
-            def off(a: int, b: int, i: int = i, j: int = j) -> tuple[int, ...]:
-                o = [0] * n
-                o[i], o[j] = a, b
-                return tuple(o)
-            hess[i, j] = hess[j, i] = (value(off(1, 1)) - value(off(1, -1)) - value(off(-1, 1))
-                                       + value(off(-1, -1))) / (4 * step**2)
+    value, grad, hess = central_differences(
+        lambda phi: loglik(QuadSSM(obs, _with_params(theta, phi)), obs.ys), phi0,
+        np.full(4, step))
     d_inv = 1.0 / np.exp(phi0)
     # d/dtheta = (1/theta) d/dphi; the second derivative's first-order term
     # -(1/theta^2) dL/dphi vanishes at the maximum and is kept out of the information.
-    return value(zero), grad * d_inv, -(d_inv[:, None] * hess * d_inv[None, :])
+    return value, grad * d_inv, -(d_inv[:, None] * hess * d_inv[None, :])
 
 
 STDERR_UNAVAILABLE = ("no standard error: the filter's log-likelihood is not smooth at the "
@@ -103,14 +123,14 @@ def observed_information(obs: Observations, theta: Theta, loglik: LogLik = ekf_l
     ``refinements`` times. A flight whose first step works is unchanged."""
     info = loglik_derivatives(obs, theta, loglik, step)[2]
     for _ in range(refinements):
-        if _negative_definite_hessian(info):
+        if positive_definite_information(info):
             break
         step /= 4.0
         info = loglik_derivatives(obs, theta, loglik, step)[2]
     return info
 
 
-def _negative_definite_hessian(info: Array) -> bool:
+def positive_definite_information(info: Array) -> bool:
     """The information (minus the Hessian) is finite and positive definite."""
     if not np.all(np.isfinite(info)):
         return False

@@ -1,0 +1,111 @@
+"""Standard errors of the effect coefficients: the block jackknife at the refit posterior
+and the observed information of the EKF likelihood, the larger of the two reported.
+
+The block jackknife (``selection.jackknife``) refits the coefficients on the residuals of
+one posterior with one block left out at a time. It is robust to serial correlation
+within a block, but it holds the smoothed states fixed, and those states were smoothed
+with the model at the estimated coefficients: an E-step at other coefficients would move
+them. The refit's map c -> c' (E-step at c, coefficients refitted on its posterior) has
+slopes near 1 where the smoother absorbs a wrong coefficient into the states: 0.96 for a
+gyro offset on a 100 Hz flightgen flight (the smoothed rates take 96 % of an offset
+error), 0.3-0.37 for lateral drag at 500 Hz. The jackknife misses that missing
+information and understated the error 3-25 fold on flightgen's Monte Carlo
+(docs/trust.md).
+
+The observed information of the likelihood itself does not: with the mass, inertia and
+noise held at the refit's, and the state-dependent thrust and torque corrections at its
+smoothed path (``refit.corrected_observations``),
+
+    L(c) = log p(y | theta, c) = sum_k log N(nu_k(c); 0, S_k(c))
+
+(the compiled EKF on the corrected observations, with ``EffectSSM``'s body x/y forces
+for drag and wind), and Info = -d^2 L / dc dc^T by central differences
+(``identification.fisher.central_differences``) with steps of about one standard error,
+found by a few diagonal rounds from three jackknife standard errors. The reported
+standard error of each coefficient is max(jackknife, sqrt(diag Info^-1)); the jackknife
+alone where the information is not positive definite.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.discovery.refit import corrected_observations, model_factory
+from pinquad.estep.fast_smoother import loglik_quad
+from pinquad.identification.fisher import central_differences, positive_definite_information, standard_errors
+from pinquad.models.ssm import Observations, QuadSSM, Theta
+
+Array = NDArray[np.float64]
+
+STEP_ROUNDS = 4
+"""Diagonal rounds of the step search at most (each 2 p likelihood evaluations)."""
+
+
+def _split(x: Array, effects: Sequence[str], sizes: Sequence[int]) -> dict[str, Array]:
+    out, i = {}, 0
+    for e, s in zip(effects, sizes, strict=True):
+        out[e] = np.array(x[i:i + s], dtype=float)
+        i += s
+    return out
+
+
+def information_stderr(obs: Observations, theta: Theta, state: Array,
+                       coefficients: dict[str, Array], effects: Sequence[str],
+                       jackknife: dict[str, Array],
+                       loglik: Callable[[QuadSSM, Array], float] = loglik_quad
+                       ) -> dict[str, Array]:
+    """Effect -> (p,) standard errors sqrt(diag Info^-1) of the coefficients of
+    ``effects`` (their units, ``library.SPECS``) from the observed information of
+    L(c) = log p(y | theta, c) (module docstring); NaN where the information is not
+    positive definite. obs: the log's observations (uncorrected); theta: the refit's
+    parameters, held; state (N, 12): the smoothed path at which the thrust and torque
+    corrections are evaluated; jackknife: effect -> (p,) jackknife standard errors, whose
+    triple starts the step search."""
+    sizes = [np.size(coefficients[e]) for e in effects]
+    x0 = np.concatenate([np.asarray(coefficients[e], dtype=float).ravel() for e in effects])
+
+    def value(x: Array) -> float:
+        c = dict(coefficients)
+        c.update(_split(x, effects, sizes))
+        corr = corrected_observations(obs, state, c)
+        return loglik(model_factory(c)(corr, theta), corr.ys)
+
+    se0 = np.concatenate([np.asarray(jackknife[e], dtype=float).ravel() for e in effects])
+    scale = np.maximum(np.abs(x0), 1e-9)
+    steps = np.where(np.isfinite(se0) & (se0 > 0), 3.0 * se0, 1e-3 * scale)
+    l0 = value(x0)
+    for _ in range(STEP_ROUNDS):
+        curvature = np.empty(x0.size)
+        for i in range(x0.size):
+            e = np.zeros(x0.size)
+            e[i] = steps[i]
+            try:
+                curvature[i] = (value(x0 + e) - 2.0 * l0 + value(x0 - e)) / steps[i] ** 2
+            except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+                curvature[i] = np.nan
+        # a step whose curvature is lost in rounding (not negative) is too small
+        target = np.where(curvature < 0, 1.0 / np.sqrt(np.abs(curvature)), 4.0 * steps)
+        settled = np.all(np.abs(np.log(target / steps)) < np.log(3.0))
+        steps = target
+        if settled:
+            break
+    _, _, hess = central_differences(value, x0, steps)
+    info = -0.5 * (hess + hess.T)
+    if not positive_definite_information(info):
+        return {e: np.full(s, np.nan) for e, s in zip(effects, sizes, strict=True)}
+    return _split(standard_errors(info), effects, sizes)
+
+
+def reported_stderr(jackknife: dict[str, Array], information: dict[str, Array]
+                    ) -> dict[str, Array]:
+    """Effect -> max(jackknife, information) per coefficient; the jackknife where the
+    information gave none (NaN)."""
+    out = {}
+    for e, jack in jackknife.items():
+        info = np.asarray(information.get(e, np.full(np.shape(jack), np.nan)), dtype=float)
+        jack = np.asarray(jack, dtype=float)
+        out[e] = np.where(np.isfinite(info), np.fmax(jack, info), jack)
+    return out

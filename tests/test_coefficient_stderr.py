@@ -1,0 +1,51 @@
+"""The pieces of the effect coefficients' standard errors (pinquad.discovery.uncertainty):
+central differences of a log-likelihood and the reported choice between the jackknife
+and the information. The whole path runs in test_discovery's gyro-offset refit."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pinquad.discovery.uncertainty import reported_stderr
+from pinquad.identification.fisher import central_differences
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(min_value=1, max_value=5), st.integers(min_value=0, max_value=2**32 - 1))
+def test_central_differences_are_exact_on_a_quadratic(n, seed):
+    """f(x) = b^T x - (x - a)^T A (x - a) / 2 has gradient b - A (x - a) and Hessian -A;
+    central differences of a quadratic are exact up to rounding, at any steps."""
+    rng = np.random.default_rng(seed)
+    root = rng.normal(size=(n, n))
+    a_mat = root @ root.T + n * np.eye(n)
+    a, b, x0 = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n)
+    steps = 10.0 ** rng.uniform(-3, 0, size=n)
+
+    def f(x):
+        return float(b @ x - 0.5 * (x - a) @ a_mat @ (x - a))
+
+    value, grad, hess = central_differences(f, x0, steps)
+    assert value == f(x0)
+    np.testing.assert_allclose(grad, b - a_mat @ (x0 - a), rtol=1e-7, atol=1e-7)
+    np.testing.assert_allclose(hess, -a_mat, rtol=1e-6, atol=1e-6 * np.abs(a_mat).max())
+
+
+def test_an_evaluation_that_breaks_down_is_nan_in_the_derivatives_it_enters():
+    def f(x):
+        if x[0] > 0.5:
+            raise np.linalg.LinAlgError("not positive definite")
+        return float(-x @ x)
+
+    _, grad, hess = central_differences(f, np.zeros(2), np.array([1.0, 1.0]))
+    assert np.isnan(grad[0]) and np.isnan(hess[0, 0]) and np.isnan(hess[0, 1])
+    assert grad[1] == 0.0 and hess[1, 1] == -2.0
+
+
+def test_the_reported_error_is_the_larger_and_the_jackknife_without_information():
+    jack = {"drag": np.array([1e-5, 2e-5, 3e-4]), "wind": np.array([1e-4, 1e-4])}
+    info = {"drag": np.array([4e-5, 1e-5, np.nan])}
+    out = reported_stderr(jack, info)
+    np.testing.assert_array_equal(out["drag"], [4e-5, 2e-5, 3e-4])
+    np.testing.assert_array_equal(out["wind"], jack["wind"])
