@@ -91,6 +91,9 @@ def test_coefficients_are_scored_against_their_printed_standard_errors():
     assert [fgmc.within_stderr(c, 2.0) for c in cases] == [True, False, True, None]
     row = fgmc.summarize(cases)[0]
     assert (row["coef_within_2se"], row["coef_with_stderr"]) == (2, 3)
-    assert "| 4/4 | 2/3 |" in flightgen_mc_markdown([row])
+    # rms of z over the three with errors: D_x, D_y exact; D_z 0, 3.41, 1.90 se
+    z_dz = 0.133 * drag[2] / np.array([0.039 * drag[2], 0.07 * drag[2]])
+    np.testing.assert_allclose(row["coef_z_rms"], [0.0, 0.0, np.sqrt(np.sum(z_dz**2) / 3)])
+    assert "| 4/4 | 2/3 | 0, 0, 2.3 |" in flightgen_mc_markdown([row])
     unnamed = fgmc.FlightgenCase(**{**cases[0].__dict__, "selected": (), "coefficients": {}})
     assert fgmc.within_stderr(unnamed, 2.0) is False

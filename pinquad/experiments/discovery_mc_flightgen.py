@@ -242,19 +242,26 @@ def _median_max(values: list[float]) -> tuple[float, float]:
     return (float(np.median(v)), float(np.max(v))) if v else (math.nan, math.nan)
 
 
+def stderr_scores(case: FlightgenCase) -> NDArray[np.float64] | None:
+    """(p,) z = (c - c0) / se of the injected effect's coefficients against the standard
+    errors printed beside them; None when the effect was not named, no effect was
+    injected or the case has no standard errors recorded."""
+    truth = injected(case.condition)
+    if case.coef_stderr is None or not truth or case.condition not in case.coefficients:
+        return None
+    c0 = np.asarray(list(truth.values()))
+    c = np.asarray(case.coefficients[case.condition])
+    return (c - c0) / np.asarray(case.coef_stderr[case.condition])
+
+
 def within_stderr(case: FlightgenCase, k: float) -> bool | None:
     """Whether every coefficient of the injected effect lies within k of the standard
     errors printed beside it, |c - c0| <= k se (False: the effect was not named); None
     when the case has no standard errors recorded or no effect was injected."""
-    truth = injected(case.condition)
-    if case.coef_stderr is None or not truth:
+    if case.coef_stderr is None or not injected(case.condition):
         return None
-    if case.condition not in case.coefficients:
-        return False
-    c0 = np.asarray(list(truth.values()))
-    c = np.asarray(case.coefficients[case.condition])
-    se = np.asarray(case.coef_stderr[case.condition])
-    return bool(np.all(np.abs(c - c0) <= k * se))
+    z = stderr_scores(case)
+    return False if z is None else bool(np.all(np.abs(z) <= k))
 
 
 def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
@@ -302,6 +309,11 @@ def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
                 covered = [within_stderr(c, 2.0) for c in cs]
                 row["coef_with_stderr"] = sum(v is not None for v in covered)
                 row["coef_within_2se"] = sum(bool(v) for v in covered)
+                # per coefficient: about 1 when the printed errors are the real ones,
+                # above when they are too small, below when too large
+                scores = [z for z in (stderr_scores(c) for c in cs) if z is not None]
+                row["coef_z_rms"] = (np.sqrt(np.mean(np.square(scores), axis=0)).tolist()
+                                     if scores else [])
                 row["coef_err_median"], row["coef_err_max"] = _median_max(errs)
                 row["gain_median"] = _median_max([c.gain for c in cs])[0]
             rows.append(row)

@@ -14,25 +14,27 @@ def flightgen_mc_markdown(rows: list[dict]) -> str:
     """Markdown: one row per (log rate, condition) with the counts against the targets,
     then the base EM's and the reported estimates' RMS relative errors."""
     head = ("| log rate | condition | n | named | exact set | nothing selected | "
-            "coef within 10 % | coef within 2 se | coef err median / max | held-out gain median | "
-            "extra selected | rejected by the null (flights: effects) |")
-    lines = [head, "|" + "---|" * 12]
+            "coef within 10 % | coef within 2 se | rms of (c - c0) / se | coef err median / max | "
+            "held-out gain median | extra selected | rejected by the null (flights: effects) |")
+    lines = [head, "|" + "---|" * 13]
     for r in rows:
         if "named" not in r:  # no effect injected: clean or floor-strike flights
-            named = exact = within = covered = err = gain = ""
+            named = exact = within = covered = z_rms = err = gain = ""
         else:
             named, exact = f"{r['named']}/{r['n']}", f"{r['exact']}/{r['n']}"
             within = f"{r['coef_within_10pct']}/{r['n']}"
             # runs made before the standard errors were recorded leave it blank
             covered = (f"{r['coef_within_2se']}/{r['coef_with_stderr']}"
                        if r.get("coef_with_stderr") else "")
+            z_rms = ", ".join(f"{z:.2g}" for z in r.get("coef_z_rms", []))
             err = f"{_pct(r['coef_err_median'])} / {_pct(r['coef_err_max'])}"
             gain = _pct(r["gain_median"])
         extra = ", ".join(r["extra_selected"]) or "-"
         rejected = (f"{r.get('null_rejected', 0)}/{r['n']}: "
                     + (", ".join(r.get("null_rejected_effects", [])) or "-"))
         lines.append(f"| {r['log_rate']} Hz | {r['condition']} | {r['n']} | {named} | {exact} | "
-                     f"{r['nothing_selected']}/{r['n']} | {within} | {covered} | {err} | {gain} | {extra} | "
+                     f"{r['nothing_selected']}/{r['n']} | {within} | {covered} | {z_rms} | {err} | {gain} | "
+                     f"{extra} | "
                      f"{rejected} |")
     lines += ["", "RMS relative error over the seeds, base EM -> reported (refit when an "
               "effect is selected):", "",
