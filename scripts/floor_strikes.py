@@ -13,7 +13,10 @@ import tempfile
 from pathlib import Path
 
 from flightgen import FlightSpec, generate, write_csv
-from pinquad.experiments.discovery_mc_flightgen import true_contact_transitions
+from pinquad.experiments.discovery_mc_flightgen import (
+    found_contact_transitions,
+    true_contact_transitions,
+)
 from pinquad.experiments.recorded import LogOptions, identify_log, run_discovery
 from pinquad.io.read import read_log
 
@@ -33,10 +36,10 @@ def main() -> None:
                               start_on_floor=True, land=True, floor_strikes=2)
             flight = generate(spec)
             path = write_csv(flight, Path(tmp) / f"strikes_{seed}.csv")
-            result = identify_log(read_log(path), LogOptions(msteps=("regressor",),
-                                                             information=False))
+            log = read_log(path)
+            result = identify_log(log, LogOptions(msteps=("regressor",), information=False))
             truth = true_contact_transitions(flight, result.obs.n)
-            found = result.obs.exclude[: result.obs.n - 1]
+            found = found_contact_transitions(log)
             outcome = run_discovery(result)
             selected = outcome.result.selected if outcome.result is not None else outcome.error
             print(f"| {seed} | {int(truth.sum())} | {int((found & truth).sum())} | "

@@ -69,7 +69,7 @@ def test_flightgen_runs_merge_and_a_wrong_kind_of_file_is_an_input_error(tmp_pat
     code = discovery.main(["--generator", "flightgen", "--merge", str(first / "cases.jsonl"),
                            str(second / "cases.jsonl"), "--out", str(tmp_path / "merged")])
     assert code == 0
-    assert "| 100 Hz | 2 | 2/2 | - | 778 | 772 | 6 | 130 | 1/2 |" in capsys.readouterr().out
+    assert "| 100 Hz | 2 | 2/2 | - | 778 | 772 | 6 | 130 | 1/2 | 0: 0 |" in capsys.readouterr().out
     assert (tmp_path / "merged" / "discovery_mc_flightgen.md").exists()
     assert discovery.main(["--merge", str(first / "cases.jsonl")]) == 2
     assert "--generator flightgen" in capsys.readouterr().err

@@ -38,8 +38,17 @@ from flightgen import CRAZYFLIE, Effects, Flight, FlightSpec, generate, write_cs
 from flightgen.trajectory import excursion
 from pinquad.experiments.discovery_mc import in_order
 from pinquad.experiments.headline import headline
-from pinquad.experiments.recorded import LogOptions, discovery_section, identify_log, run_discovery
+from pinquad.experiments.recorded import (
+    LogOptions,
+    discovery_section,
+    identify_log,
+    initial_guess,
+    run_discovery,
+)
+from pinquad.io.logs import FlightLog
 from pinquad.io.read import read_log
+from pinquad.models.attitude_range import near_euler_singularity
+from pinquad.models.sources import floor_contact
 from pinquad.sim import effects as sim_effects
 
 FG_CONDITIONS: tuple[str, ...] = ("none", "drag", "ground_effect", "com_offset", "wind",
@@ -126,7 +135,9 @@ class FlightgenCase:
     contact_off: transitions that touch the floor in the truth, found from the data
     among them, missed, and found where the vehicle was off the floor (all 0 on flights
     without a floor); coef_stderr: effect -> the standard errors discovery printed beside
-    its coefficients (block jackknife; None in runs made before they were recorded)."""
+    its coefficients (None in runs made before they were recorded); singular_excluded:
+    transitions excluded for an attitude near the Euler angles' singularity
+    (``models.attitude_range``; 0 in runs made before)."""
 
     condition: str
     log_rate: int
@@ -149,6 +160,7 @@ class FlightgenCase:
     contact_missed: int = 0
     contact_off: int = 0
     coef_stderr: dict[str, list[float]] | None = None
+    singular_excluded: int = 0
 
     def to_json(self) -> dict:
         d = dict(self.__dict__)
@@ -168,6 +180,14 @@ def true_contact_transitions(flight: Flight, n_rows: int) -> NDArray[np.bool_]:
     return touched
 
 
+def found_contact_transitions(log: FlightLog) -> NDArray[np.bool_]:
+    """(N - 1,) bool: transitions touching the floor contact found from the data, as
+    ``identify_log`` finds it (its other exclusions, such as an attitude near the Euler
+    singularity, are not floor contact)."""
+    rows = floor_contact(log, initial_guess(log)[0]).rows
+    return rows[:-1] | rows[1:]
+
+
 def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
              ) -> FlightgenCase:
     """Fly, write CSV, read back, identify and discover as ``offline --log`` does."""
@@ -175,12 +195,14 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
     spec = flight_spec(condition, seed, index, log_rate)
     flight = generate(spec)
     path = write_csv(flight, workdir / f"fg-{condition}-{log_rate}-{seed}.csv")
-    result = identify_log(read_log(path), LogOptions(msteps=("regressor",), estep="rts",
-                                                     max_iterations=100, information=True))
+    log = read_log(path)
+    result = identify_log(log, LogOptions(msteps=("regressor",), estep="rts",
+                                          max_iterations=100, information=True))
     outcome = run_discovery(result)
     judged = headline(result, outcome).final.verdict
     truth_contact = true_contact_transitions(flight, result.obs.n)
-    found = np.asarray(result.obs.exclude[: result.obs.n - 1], dtype=bool)
+    found = found_contact_transitions(log)
+    singular = near_euler_singularity(log.t, log.euler).transitions()
     section = discovery_section(outcome)
     truth = np.r_[CRAZYFLIE.mass, np.diag(CRAZYFLIE.inertia_matrix)]
     run = result.runs[0]
@@ -206,7 +228,7 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
                          {p.name: p.verdict for p in judged.parameters},
                          int(truth_contact.sum()), int((found & truth_contact).sum()),
                          int((truth_contact & ~found).sum()), int((found & ~truth_contact).sum()),
-                         stderr)
+                         stderr, singular)
 
 
 @dataclass(frozen=True)
@@ -299,6 +321,8 @@ def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
             if cond == FLOOR_CONDITION:
                 row["contact"] = {k: sum(getattr(c, f"contact_{k}") for c in cs)
                                   for k in ("true", "found", "missed", "off")}
+                row["singular_flights"] = sum(c.singular_excluded > 0 for c in cs)
+                row["singular_excluded"] = sum(c.singular_excluded for c in cs)
                 row["contact_all_found"] = sum(c.contact_missed == 0 and c.contact_true > 0
                                                for c in cs)
             elif cond != "none":

@@ -51,6 +51,7 @@ from pinquad.identification.identify import Identification, identify
 from pinquad.identification.verdict import VehicleRange, vehicle_range
 from pinquad.io.logs import FlightLog
 from pinquad.io.sanity import check_log
+from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import floor_contact, interval_inputs, observations
 from pinquad.models.ssm import Observations, Theta
 from pinquad.realdata.dataset import default_guess
@@ -355,9 +356,10 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions,
     mass0, inertia0, guess = initial_guess(log)
     sensors = list(options.sensors) or [default_sensor(log)]
     gravity = log.meta.gravity
-    # floor contact: the log's flags, else found from the data (models.contact)
-    contact = floor_contact(log, mass0)
-    seen = {sensor: observations(log, sensor, contact) for sensor in sensors}
+    # floor contact: the log's flags, else found from the data (models.contact); attitudes
+    # near the Euler angles' singularity (models.attitude_range)
+    contact, singular = floor_contact(log, mass0), near_euler_singularity(log.t, log.euler)
+    seen = {sensor: observations(log, sensor, contact, singular) for sensor in sensors}
     tasks = [(sensor, mstep) for sensor in sensors for mstep in options.msteps]
     obs = seen[sensors[0]]
     first_mstep = options.msteps[0]
@@ -379,6 +381,7 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions,
         alternative = input_alternative(log, obs, first_mstep, mass0, inertia0, options)
     n_ex = int(obs.exclude[: obs.n - 1].sum())
     excluded = (f"{contact.transitions()} transitions: {contact.describe()}",
+                *singular.report_lines(),
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
     return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
                      tuple(log.meta.notes), "simulated", contents=log_contents(log),

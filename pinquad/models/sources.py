@@ -20,6 +20,7 @@ from estimators.ekf import run_filter
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.effect_vocabulary import vehicle_ground_radius
 from pinquad.io.logs import FlightLog
+from pinquad.models.attitude_range import SingularAttitude
 from pinquad.models.contact import ContactDetection, ContactSettings, detect_floor_contact
 from pinquad.models.navigation import NavTuning, SensorANavModel
 from pinquad.models.ssm import Observations
@@ -119,14 +120,16 @@ def interval_inputs(logged: Array, actuation: str) -> Array:
     return out
 
 
-def observations(log: FlightLog, source: str, contact: FloorContact | None = None
-                 ) -> Observations:
+def observations(log: FlightLog, source: str, contact: FloorContact | None = None,
+                 singular: SingularAttitude | None = None) -> Observations:
     """Build the E-step's observations of a log for source A, B or C.
 
     Transitions into or out of a contact row are excluded from the M-step; those into one
     are also resets for the E-step (``Observations.resets``). The contact rows are
     ``contact.rows``; without it, the log's contact flags, else none (the data-based
-    detection needs a mass guess: pass ``floor_contact(log, mass_guess)``). The inputs are
+    detection needs a mass guess: pass ``floor_contact(log, mass_guess)``). Transitions
+    touching ``singular.rows`` (``attitude_range.near_euler_singularity``) are excluded
+    and resets too. The inputs are
     what each transition applies (``interval_inputs`` by ``log.meta.actuation``); a
     sampled log's rows themselves are kept as ``samples``, and its flight is continuous
     (``Observations.continuous``).
@@ -162,6 +165,11 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
         # touching down, the floor stops and levels the vehicle within the step: the
         # smoother must not carry the flight dynamics across that (ssm.RESET_VAR)
         resets[:-1] = rows[1:]
+    if singular is not None:
+        # within the excursion every transition is one the Euler-angle state cannot follow
+        touching = singular.rows[:-1] | singular.rows[1:]
+        exclude[:-1] |= touching
+        resets[:-1] |= touching
     logged = np.column_stack([log.thrust, log.torque])
     inputs = interval_inputs(logged, log.meta.actuation)
     samples = logged.copy() if log.meta.actuation == "sampled" else None

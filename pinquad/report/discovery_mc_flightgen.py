@@ -49,13 +49,15 @@ def flightgen_mc_markdown(rows: list[dict]) -> str:
                   "transitions touching the floor in the truth, found from the data, missed, "
                   "found off the floor (summed over the flights):", "",
                   "| log rate | n | nothing selected | selected | true | found | missed | "
-                  "found off the floor | flights with every contact found |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  "found off the floor | flights with every contact found | "
+                  "excluded near the Euler singularity (flights: transitions) |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
         for r in floor:
             c = r["contact"]
             lines.append(f"| {r['log_rate']} Hz | {r['n']} | {r['nothing_selected']}/{r['n']} | "
                          f"{', '.join(r['extra_selected']) or '-'} | {c['true']} | {c['found']} | "
-                         f"{c['missed']} | {c['off']} | {r['contact_all_found']}/{r['n']} |")
+                         f"{c['missed']} | {c['off']} | {r['contact_all_found']}/{r['n']} | "
+                         f"{r.get('singular_flights', 0)}: {r.get('singular_excluded', 0)} |")
     judged = [r for r in rows if r.get("judged")]
     if judged:
         lines += ["", "Verdicts of the reported estimates: parameters more than 10 % from the "
