@@ -51,8 +51,9 @@ def test_a_flip_is_cut_out_of_the_smoothing(tmp_path):
     for name, cut in (("plain", None), ("cut", singular)):
         obs = observations(log, "B", contact, cut)
         if cut is not None:
-            touching = singular.rows[:-1] | singular.rows[1:]
-            assert np.all(obs.resets[:-1][touching]) and np.all(obs.exclude[:-1][touching])
+            touching = singular.touching()
+            assert touching.sum() == singular.transitions()
+            assert np.all(obs.resets[touching]) and np.all(obs.exclude[touching])
         post = smooth_quad(QuadSSM(obs, theta), obs.ys)
         free = np.isfinite(obs.ys[:, 6]) & ~obs.exclude
         miss = np.angle(np.exp(1j * (obs.ys[free, 6:9] - post.mean[free, 6:9])))

@@ -46,9 +46,16 @@ class SingularAttitude:
     margin: float
     max_pitch: float
 
+    def touching(self) -> BoolArray:
+        """(N,) bool: transition k -> k+1 touches such a row at either end (the last
+        entry, no transition, False)."""
+        out = np.zeros(self.rows.size, dtype=bool)
+        out[:-1] = self.rows[:-1] | self.rows[1:]
+        return out
+
     def transitions(self) -> int:
         """Transitions k -> k+1 touching such a row at either end."""
-        return int((self.rows[:-1] | self.rows[1:]).sum())
+        return int(self.touching().sum())
 
     def report_lines(self) -> tuple[str, ...]:
         """The report's exclusion line, none when no row is near the singularity."""

@@ -167,9 +167,8 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
         resets[:-1] = rows[1:]
     if singular is not None:
         # within the excursion every transition is one the Euler-angle state cannot follow
-        touching = singular.rows[:-1] | singular.rows[1:]
-        exclude[:-1] |= touching
-        resets[:-1] |= touching
+        exclude |= singular.touching()
+        resets |= singular.touching()
     logged = np.column_stack([log.thrust, log.torque])
     inputs = interval_inputs(logged, log.meta.actuation)
     samples = logged.copy() if log.meta.actuation == "sampled" else None

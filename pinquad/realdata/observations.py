@@ -41,6 +41,7 @@ from pinquad.core.conventions import GRAVITY, rotation_from_euler
 from pinquad.core.vehicle_file import VehicleSpec
 from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
 from pinquad.io.sdlog import is_sdlog, read_sdflight
+from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.contact import ContactSettings, detect_floor_contact
 from pinquad.models.ssm import Observations
 from pinquad.realdata.dataset import default_guess
@@ -486,6 +487,13 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         exclusions.append(Exclusion("ground contact, take-off or landing: none (airborne "
                                     "throughout: the logs start and end in flight)", 0))
 
+    # an attitude near the Euler singularity, cut out as in models.sources.observations
+    singular = near_euler_singularity(grid, euler)
+    if singular.rows.any():
+        exclusions.append(Exclusion(singular.describe(),
+                                    int((singular.touching() & ~exclude)[:n_tr].sum())))
+        exclude |= singular.touching()
+
     flagged = np.zeros(k, dtype=bool)
     if untrusted_rows.any():
         # A bin with any untrusted sample is skipped, even if trusted samples remain.
@@ -514,7 +522,7 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     # inflates its variance for the whole flight (a simulated 250 mm quad's take-off with
     # stopped rotors: I_zz +9.4 % instead of +1.1 %). A log gap (no sample at all) keeps
     # its interpolated input: between readings on either side it is a good one.
-    resets = nan_in & flagged
+    resets = (nan_in & flagged) | singular.touching()
     if nan_in.all():
         raise ValueError(f"{source}: no usable actuation sample in the whole log "
                          f"({report.n_flagged} of {log.n} rotor readings implausible); "
