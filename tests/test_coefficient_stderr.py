@@ -8,8 +8,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pinquad.discovery.uncertainty import reported_stderr
+from pinquad.discovery.uncertainty import information_stderr, reported_stderr
+from pinquad.identification.em import initial_theta
 from pinquad.identification.fisher import central_differences
+from pinquad.models.ssm import Observations
 
 
 @settings(max_examples=25, deadline=None)
@@ -49,3 +51,37 @@ def test_the_reported_error_is_the_larger_and_the_jackknife_without_information(
     out = reported_stderr(jack, info)
     np.testing.assert_array_equal(out["drag"], [4e-5, 2e-5, 3e-4])
     np.testing.assert_array_equal(out["wind"], jack["wind"])
+
+
+def _tiny_gyro_observations(n: int = 6) -> Observations:
+    """n rows of a hover measured by position and gyro (a shape, not a flight)."""
+    ys = np.zeros((n, 6))
+    return Observations(t=np.arange(n) * 0.01, dt=0.01, inputs=np.tile([0.34, 0, 0, 0], (n, 1)),
+                        channels=("pos", "gyro"), ys=ys, x0=np.zeros(12), p0=np.ones(12))
+
+
+def _quadratic_in_the_offset(curvature: np.ndarray):
+    """A log-likelihood -sum(c_i b_i^2) / 2 of the gyro offset b read back from the
+    de-biased gyro rows, which corrected_observations shifts by -b."""
+    def loglik(model, ys) -> float:
+        b = -ys[0, 3:6]
+        return float(-0.5 * np.sum(curvature * b**2))
+    return loglik
+
+
+def test_the_information_is_the_curvature_and_a_breakdown_gives_none():
+    obs = _tiny_gyro_observations()
+    theta = initial_theta(obs, 0.035, np.diag([16.6e-6, 16.7e-6, 29.3e-6]), 9.81)
+    offset = {"gyro_bias": np.array([0.03, -0.02, 0.0])}
+    jack = {"gyro_bias": np.array([1e-5, 1e-5, 1e-5])}  # the search starts 30-100x low
+    curvature = np.array([1e6, 4e6, 2.5e5])  # se 1e-3, 5e-4, 2e-3 rad/s
+    se = information_stderr(obs, theta, np.zeros((6, 12)), offset, ["gyro_bias"], jack,
+                            loglik=_quadratic_in_the_offset(curvature))
+    np.testing.assert_allclose(se["gyro_bias"], 1.0 / np.sqrt(curvature), rtol=1e-6)
+
+    def broken(model, ys) -> float:
+        raise np.linalg.LinAlgError("innovation covariance not positive definite")
+
+    se = information_stderr(obs, theta, np.zeros((6, 12)), offset, ["gyro_bias"], jack,
+                            loglik=broken)
+    assert np.all(np.isnan(se["gyro_bias"]))

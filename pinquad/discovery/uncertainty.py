@@ -60,7 +60,8 @@ def information_stderr(obs: Observations, theta: Theta, state: Array,
     """Effect -> (p,) standard errors sqrt(diag Info^-1) of the coefficients of
     ``effects`` (their units, ``library.SPECS``) from the observed information of
     L(c) = log p(y | theta, c) (module docstring); NaN where the information is not
-    positive definite. obs: the log's observations (uncorrected); theta: the refit's
+    positive definite or the filter breaks down at the estimate. obs: the log's
+    observations (uncorrected); theta: the refit's
     parameters, held; state (N, 12): the smoothed path at which the thrust and torque
     corrections are evaluated; jackknife: effect -> (p,) jackknife standard errors, whose
     triple starts the step search."""
@@ -73,10 +74,16 @@ def information_stderr(obs: Observations, theta: Theta, state: Array,
         corr = corrected_observations(obs, state, c)
         return loglik(model_factory(c)(corr, theta), corr.ys)
 
+    unavailable = {e: np.full(s, np.nan) for e, s in zip(effects, sizes, strict=True)}
     se0 = np.concatenate([np.asarray(jackknife[e], dtype=float).ravel() for e in effects])
     scale = np.maximum(np.abs(x0), 1e-9)
     steps = np.where(np.isfinite(se0) & (se0 > 0), 3.0 * se0, 1e-3 * scale)
-    l0 = value(x0)
+    try:
+        l0 = value(x0)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+        # no likelihood at the estimate itself: no information, the jackknife stands;
+        # discovery's answer does not fail for want of an error bar
+        return unavailable
     for _ in range(STEP_ROUNDS):
         curvature = np.empty(x0.size)
         for i in range(x0.size):
@@ -95,7 +102,7 @@ def information_stderr(obs: Observations, theta: Theta, state: Array,
     _, _, hess = central_differences(value, x0, steps)
     info = -0.5 * (hess + hess.T)
     if not positive_definite_information(info):
-        return {e: np.full(s, np.nan) for e, s in zip(effects, sizes, strict=True)}
+        return unavailable
     return _split(standard_errors(info), effects, sizes)
 
 
