@@ -48,6 +48,7 @@ from pinquad.experiments.recorded import (
 from pinquad.io.logs import FlightLog
 from pinquad.io.read import read_log
 from pinquad.models.attitude_range import near_euler_singularity
+from pinquad.models.contact import touching_transitions
 from pinquad.models.sources import floor_contact
 from pinquad.sim import effects as sim_effects
 
@@ -184,8 +185,7 @@ def found_contact_transitions(log: FlightLog) -> NDArray[np.bool_]:
     """(N - 1,) bool: transitions touching the floor contact found from the data, as
     ``identify_log`` finds it (its other exclusions, such as an attitude near the Euler
     singularity, are not floor contact)."""
-    rows = floor_contact(log, initial_guess(log)[0]).rows
-    return rows[:-1] | rows[1:]
+    return touching_transitions(floor_contact(log, initial_guess(log)[0]).rows)
 
 
 def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.models.contact import touching_transitions
+
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
@@ -50,7 +52,7 @@ class SingularAttitude:
         """(N,) bool: transition k -> k+1 touches such a row at either end (the last
         entry, no transition, False)."""
         out = np.zeros(self.rows.size, dtype=bool)
-        out[:-1] = self.rows[:-1] | self.rows[1:]
+        out[:-1] = touching_transitions(self.rows)
         return out
 
     def transitions(self) -> int:

@@ -160,6 +160,13 @@ def _spread(r: Array, rows: BoolArray) -> float:
     return float(1.4826 * np.median(np.abs(vals - np.median(vals))))
 
 
+def touching_transitions(rows: BoolArray) -> BoolArray:
+    """(N - 1,) bool: transition k -> k+1 touches a marked row of ``rows`` (N,) at either
+    end (the transitions floor contact, or any other marked stretch, takes out)."""
+    rows = np.asarray(rows, dtype=bool)
+    return rows[:-1] | rows[1:]
+
+
 def _dilate(mask: BoolArray, rows: int) -> BoolArray:
     if rows < 1 or not mask.any():
         return mask.copy()

@@ -21,7 +21,12 @@ from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.effect_vocabulary import vehicle_ground_radius
 from pinquad.io.logs import FlightLog
 from pinquad.models.attitude_range import SingularAttitude
-from pinquad.models.contact import ContactDetection, ContactSettings, detect_floor_contact
+from pinquad.models.contact import (
+    ContactDetection,
+    ContactSettings,
+    detect_floor_contact,
+    touching_transitions,
+)
 from pinquad.models.navigation import NavTuning, SensorANavModel
 from pinquad.models.ssm import Observations
 
@@ -67,16 +72,15 @@ class FloorContact:
 
     def transitions(self) -> int:
         """Transitions k -> k+1 touching a contact row at either end."""
-        return int((self.rows[:-1] | self.rows[1:]).sum())
+        return int(touching_transitions(self.rows).sum())
 
     def describe(self) -> str:
         """The report's exclusion line (without the count)."""
         if self.source == "flags":
             words = "touching the floor (the log's contact flags)"
             if self.detection is not None:
-                det = self.detection.widened
-                flagged = self.rows[:-1] | self.rows[1:]
-                found = det[:-1] | det[1:]
+                flagged = touching_transitions(self.rows)
+                found = touching_transitions(self.detection.widened)
                 words += (f"; found from the data: {int(found.sum())} transitions, "
                           f"{int((found & flagged).sum())} of the {int(flagged.sum())} flagged")
             return words
@@ -167,8 +171,9 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
         resets[:-1] = rows[1:]
     if singular is not None:
         # within the excursion every transition is one the Euler-angle state cannot follow
-        exclude |= singular.touching()
-        resets |= singular.touching()
+        touching = singular.touching()
+        exclude |= touching
+        resets |= touching
     logged = np.column_stack([log.thrust, log.torque])
     inputs = interval_inputs(logged, log.meta.actuation)
     samples = logged.copy() if log.meta.actuation == "sampled" else None
