@@ -18,15 +18,20 @@ from pinquad.io.read import read_log
 
 def test_a_clean_100_hz_flightgen_flight_selects_nothing(tmp_path):
     """A clean (no effect, default noise) 20 s aggressive flight of the independent
-    generator, logged at 100 Hz: with the sampling nuisance in the selection's models
-    nothing is selected; without it (the selection before issue 22) the intra-interval
-    change of the thrust direction is taken for drag."""
+    generator, logged at 100 Hz: nothing is selected, with the sampling nuisance in the
+    selection's models and, since the E- and M-steps turn the thrust with the interval's
+    mean rotation (``models.continuous``, ``mstep.updates.applied_force``), without it
+    too. Read the way pinquad read every log before issue 22 (the row held over its
+    interval, explicit Euler, no nuisance) the intra-interval change of the thrust
+    direction is taken for drag."""
     spec = FlightSpec(duration=20.0, trajectory="sines", aggressive=True, log_rate=100,
                       seed=4, vehicle=CRAZYFLIE, floor=None)
-    path = write_csv(generate(spec), tmp_path / "clean.csv")
-    result = identify_log(read_log(path), LogOptions(msteps=("regressor",), estep="rts",
-                                                     max_iterations=100, information=False))
+    log = read_log(write_csv(generate(spec), tmp_path / "clean.csv"))
+    options = LogOptions(msteps=("regressor",), estep="rts", max_iterations=100,
+                         information=False)
+    result = identify_log(log, options)
     start = discovery_start(result.runs[0])
+    assert start.obs.continuous
     cfg = discovery_config(result.kind, result.log.meta.actuation)
     assert cfg.sampling_nuisance == (0,)
     assert discovery_config(result.kind, "held").sampling_nuisance == ()
@@ -34,7 +39,13 @@ def test_a_clean_100_hz_flightgen_flight_selects_nothing(tmp_path):
     assert found.selected == (), [(s.effect, s.gain) for s in found.scores]
     without = discover(start.obs, start.theta, start.posterior,
                        cfg=replace(cfg, sampling_nuisance=(), refit_em=False))
-    assert "drag" in without.selected
+    assert without.selected == (), [(s.effect, s.gain) for s in without.scores]
+    held = identify_log(replace(log, meta=replace(log.meta, actuation="held")), options)
+    old = discovery_start(held.runs[0])
+    assert not old.obs.continuous
+    before = discover(old.obs, old.theta, old.posterior,
+                      cfg=replace(discovery_config(held.kind, "held"), refit_em=False))
+    assert "drag" in before.selected, [(s.effect, s.gain) for s in before.scores]
 
 
 def test_discovery_command_rejects_a_condition_the_generator_does_not_have(capsys):

@@ -122,7 +122,10 @@ def test_the_worker_pool_changes_nothing_but_the_wall_time(drag_start):
 def test_effect_mstep_lateral_noise_equals_the_per_transition_residual(drag_start):
     """The effect M-step's lateral wrench noise from the expected quadratic forms equals the
     per-transition form it replaced: S_j = dt / n (sum_k (E[Y_k pi] - tau_k - f_k)_j^2 +
-    pi^T (A_j - sum_k Y_kj^T Y_kj) pi) with regressor_stats' arrays, j = x, y."""
+    the covariance part of q_j) with regressor_stats' arrays, j = x, y; the covariance
+    part pi^T (A_j - sum_k Y_kj^T Y_kj) pi - 2 (b_j - sum_k tau_kj Y_kj) pi + c_j - sum_k
+    tau_kj^2 (the last two nonzero on this continuous flight, whose applied force turns
+    with the attitude)."""
     obs, post, theta = drag_start.obs, drag_start.posterior, drag_start.theta
     coefficients = {"drag": np.array([0.006, 0.006, 0.007]), "wind": np.array([0.01, -0.006])}
     new = effect_mstep(coefficients)(post, obs, theta).theta
@@ -136,8 +139,11 @@ def test_effect_mstep_lateral_noise_equals_the_per_transition_residual(drag_star
                 for e, c in coefficients.items())
     pi = np.r_[new.mass, np.diag(new.inertia)]
     rho = np.einsum("kap,p->ka", stats.y, pi) - stats.tau - force
-    cov_part = np.einsum("p,apq,q->a", pi,
-                         stats.a - np.einsum("kap,kaq->apq", stats.y, stats.y), pi)
+    assert obs.continuous
+    cov_part = (np.einsum("p,apq,q->a", pi,
+                          stats.a - np.einsum("kap,kaq->apq", stats.y, stats.y), pi)
+                - 2.0 * (stats.b - np.einsum("kap,ka->ap", stats.y, stats.tau)) @ pi
+                + stats.c - np.einsum("ka,ka->a", stats.tau, stats.tau))
     ref = obs.dt * (np.sum(rho**2, axis=0) + cov_part)[0:2] / idx.size
     np.testing.assert_allclose(new.noise.wrench[0:2], ref, rtol=1e-10)
     # the flight's drag is what the lateral rows no longer count as noise

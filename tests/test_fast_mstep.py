@@ -30,15 +30,18 @@ def flight():
     return {s: simulate(SimConfig(sensor=s), np.random.default_rng(7)) for s in "ABC"}
 
 
+@pytest.mark.parametrize("continuous", [False, True])
 @pytest.mark.parametrize("source", ["A", "B", "C"])
-def test_quadratics_match_regressor_stats(flight, source):
+def test_quadratics_match_regressor_stats(flight, source, continuous):
     """Posterior of a few EM steps (non-trivial covariances and cross-covariances), some
-    transitions excluded; every entry of a, b, c to 1e-11 of its row's scale."""
+    transitions excluded; every entry of a, b, c to 1e-11 of its row's scale; held and
+    continuous flights (the latter's applied force along the interval's mean thrust
+    direction, with its own covariance terms in b and c)."""
     obs = observations(flight_log(flight[source]).slice(0, 900), source)
     assert np.all(np.isfinite(obs.ys).mean(axis=0) >= 0.45)  # every channel sampled
     exclude = obs.exclude.copy()
     exclude[100:140] = True
-    obs = replace(obs, exclude=exclude)
+    obs = replace(obs, exclude=exclude, continuous=continuous)
     theta0 = initial_theta(obs, PAPER_VEHICLE.mass * 0.9, PAPER_VEHICLE.inertia * 1.2, 9.81)
     post = run_em(obs, theta0, get_smoother("rts"), regressor_mstep, max_iterations=4).posterior
     ref = regressor_stats(post, obs, 9.81)

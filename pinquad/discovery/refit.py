@@ -23,7 +23,12 @@ from pinquad.identification.em import initial_theta, run_em
 from pinquad.models.effect import EffectSSM
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.stats import transition_mask
-from pinquad.mstep.updates import body_regressor, expected_quadratics, regressor_mstep
+from pinquad.mstep.updates import (
+    applied_force,
+    body_regressor,
+    expected_quadratics,
+    regressor_mstep,
+)
 
 Array = NDArray[np.float64]
 
@@ -67,14 +72,16 @@ def effect_mstep(coefficients: dict[str, Array]):
     noise of an ``EffectSSM``: the body x/y force rows' variance is re-estimated from the
     residual the drag / wind forces f_k leave,
 
-        S_j = dt / n E[sum_k ((Y_k pi)_j - f_kj)^2]
-            = dt / n (pi^T A_j pi - 2 sum_k m (R_k^T a_k)_j f_kj + sum_k f_kj^2),  j = x, y,
+        S_j = dt / n E[sum_k ((Y_k pi)_j - tau_kj - f_kj)^2]
+            = dt / n (q_j(pi) - 2 sum_k ((Y_k pi)_j - tau_kj) f_kj + sum_k f_kj^2),  j = x, y,
 
-    (A_j the M-step's expected quadratic form of row j, whose applied wrench is zero;
-    (Y_k pi)_j = m (R_k^T a_k)_j and f_k at the smoothed states), instead of from Y pi
-    alone, which would re-inflate the noise by the very forces the extended model now
-    explains. One pass over the posterior serves both (the expected quadratics). Without
-    drag or wind in ``coefficients`` it is ``regressor_mstep`` itself."""
+    (q_j = pi^T A_j pi - 2 b_j^T pi + c_j the M-step's expected row sum; tau_kj the
+    applied force's row, zero for a held thrust, the thrust direction's turn on a
+    continuous flight (``applied_force``); Y_k pi, tau_k and f_k at the smoothed states),
+    instead of from q_j alone, which would re-inflate the noise by the very forces the
+    extended model now explains. One pass over the posterior serves both (the expected
+    quadratics). Without drag or wind in ``coefficients`` it is ``regressor_mstep``
+    itself."""
     wrench_effects = [e for e in ("drag", "wind") if e in coefficients]
     if not wrench_effects:
         return regressor_mstep
@@ -87,11 +94,14 @@ def effect_mstep(coefficients: dict[str, Array]):
         data = TransitionData.of(obs, post.mean[idx], idx)
         force = sum(np.einsum("kap,p->ka", wrench_features(e, data), coefficients[e])
                     for e in wrench_effects)[:, 0:2]
-        y_pi = new.mass * body_regressor(post.mean[idx], post.mean[idx + 1], obs.dt,
-                                         theta.gravity)[:, 0:2, 0]
+        x_now, x_next = post.mean[idx], post.mean[idx + 1]
+        applied, _ = applied_force(x_now, x_next, obs.inputs[idx, 0], bool(obs.continuous))
+        residual = (new.mass * body_regressor(x_now, x_next, obs.dt, theta.gravity)[:, 0:2, 0]
+                    - applied[:, 0:2])
         pi = np.r_[new.mass, np.diag(new.inertia)]
-        quad = np.einsum("p,apq,q->a", pi, stats.a[0:2], pi)
-        var = ((quad - 2.0 * np.sum(y_pi * force, axis=0) + np.sum(force**2, axis=0))
+        quad = (np.einsum("p,apq,q->a", pi, stats.a[0:2], pi) - 2.0 * stats.b[0:2] @ pi
+                + stats.c[0:2])
+        var = ((quad - 2.0 * np.sum(residual * force, axis=0) + np.sum(force**2, axis=0))
                / max(idx.size, 1))
         wrench = new.noise.wrench.copy()
         wrench[0:2] = np.maximum(obs.dt * var, 1e-6 * wrench[2])

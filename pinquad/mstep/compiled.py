@@ -8,7 +8,8 @@ estimator once per update). Per transition (see ``pinquad.mstep.updates``):
 
     Y_k (6, 4): force rows   m R_k^T ((v_{k+1} - v_k)/dt + g e3)
                 torque rows  I omega' + omega x I omega, omega' = (omega_{k+1} - omega_k)/dt
-    tau_k = [0, 0, F_k, M_k]
+    tau_k = [0, 0, F_k, M_k]  (a continuous flight: F_k (e3 + R_k^T R_{k+1} e3) / 2 in the
+                               force rows, ``updates.applied_force``)
     a_j += Y_kj^T Y_kj + E-terms,   b_j += Y_kj tau_kj,   c_j += tau_kj^2
 
 with the first-order expectation terms d_j Sigma d_j^T of the regressor's state
@@ -38,23 +39,30 @@ Array = NDArray[np.float64]
 
 
 @njit(cache=True)
-def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
-    """Sums a (6, 4, 4), b (6, 4), c (6,) over transitions idx[j] -> idx[j] + 1."""
+def _quadratics(mean, cov, cross, inputs, idx, dt, gravity, continuous):
+    """Sums a (6, 4, 4), b (6, 4), c (6,) over transitions idx[j] -> idx[j] + 1
+    (continuous: the applied force along the interval's mean thrust direction)."""
     a = np.zeros((6, 4, 4))
     b = np.zeros((6, 4))
     c = np.zeros(6)
     rot = np.empty((3, 3))
     d_rot = np.empty((3, 3, 3))
+    rot1 = np.empty((3, 3))
+    d_rot1 = np.empty((3, 3, 3))
     acc = np.empty(3)
     y = np.empty((6, 4))
     tau = np.empty(6)
-    d_force = np.empty((3, 9))
-    sig_f = np.empty((9, 9))
+    d_force = np.zeros((3, 12))
+    d_tau = np.zeros((3, 12))
+    sig_f = np.empty((12, 12))
     sig_w = np.empty((6, 6))
     d_t = np.zeros((3, 3, 6))
     inv = 1.0 / dt
-    # state rows of (Theta_k, v_k) and (omega_k): 6..8, 3..5; 9..11
+    # state rows of (Theta_k, v_k) in x_k and of (v_{k+1}, Theta_{k+1}) in x_{k+1};
+    # (omega_k, omega_{k+1}): 9..11 of each
     rows_f = np.array([6, 7, 8, 3, 4, 5])
+    rows_n = np.array([3, 4, 5, 6, 7, 8])
+    n_f = 12 if continuous else 9
     for j in range(idx.shape[0]):
         k = idx[j]
         x0 = mean[k]
@@ -76,9 +84,25 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
         y[3, 1], y[4, 1], y[5, 1] = wd0, wx * wz, -wx * wy
         y[3, 2], y[4, 2], y[5, 2] = -wy * wz, wd1, wx * wy
         y[3, 3], y[4, 3], y[5, 3] = wy * wz, -wx * wz, wd2
+        thrust = inputs[k, 0]
         tau[0] = 0.0
         tau[1] = 0.0
-        tau[2] = inputs[k, 0]
+        tau[2] = thrust
+        if continuous:
+            # F (e3 + R_k^T R_{k+1} e3) / 2 and its derivative by Theta_k (columns 0..2)
+            # and Theta_{k+1} (9..11), as updates.applied_force
+            rotation_derivatives(x1[6], x1[7], x1[8], rot1, d_rot1)
+            half = 0.5 * thrust
+            for i in range(3):
+                tau[i] = half * (rot[0, i] * rot1[0, 2] + rot[1, i] * rot1[1, 2]
+                                 + rot[2, i] * rot1[2, 2])
+                for m in range(3):
+                    d_tau[i, m] = half * (d_rot[0, i, m] * rot1[0, 2] + d_rot[1, i, m] * rot1[1, 2]
+                                          + d_rot[2, i, m] * rot1[2, 2])
+                    d_tau[i, 9 + m] = half * (rot[0, i] * d_rot1[0, 2, m]
+                                              + rot[1, i] * d_rot1[1, 2, m]
+                                              + rot[2, i] * d_rot1[2, 2, m])
+            tau[2] += half
         tau[3] = inputs[k, 1]
         tau[4] = inputs[k, 2]
         tau[5] = inputs[k, 3]
@@ -97,29 +121,42 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
             for s in range(3):
                 d_force[i, 3 + s] = -rot[s, i] / dt
                 d_force[i, 6 + s] = rot[s, i] / dt
-        # joint covariance of (Theta_k, v_k, v_{k+1}); cross[k] = Cov(x_{k+1}, x_k)
+        # joint covariance of (Theta_k, v_k, v_{k+1}[, Theta_{k+1}]);
+        # cross[k] = Cov(x_{k+1}, x_k)
         pk = cov[k]
         pn = cov[k + 1]
         ck = cross[k]
         for r in range(6):
             for s in range(6):
                 sig_f[r, s] = pk[rows_f[r], rows_f[s]]
-            for s in range(3):
-                sig_f[6 + s, r] = ck[3 + s, rows_f[r]]
-                sig_f[r, 6 + s] = ck[3 + s, rows_f[r]]
-        for r in range(3):
-            for s in range(3):
-                sig_f[6 + r, 6 + s] = pn[3 + r, 3 + s]
+        for r in range(n_f - 6):
+            for s in range(6):
+                sig_f[6 + r, s] = ck[rows_n[r], rows_f[s]]
+                sig_f[s, 6 + r] = ck[rows_n[r], rows_f[s]]
+            for s in range(n_f - 6):
+                sig_f[6 + r, 6 + s] = pn[rows_n[r], rows_n[s]]
         for i in range(3):
             acc_q = 0.0
-            for r in range(9):
+            acc_b = 0.0
+            acc_c = 0.0
+            for r in range(n_f):
                 dr = d_force[i, r]
+                gr = d_tau[i, r]
                 if dr != 0.0:
                     t = 0.0
-                    for s in range(9):
+                    for s in range(n_f):
                         t += sig_f[r, s] * d_force[i, s]
                     acc_q += dr * t
+                if continuous and (dr != 0.0 or gr != 0.0):
+                    u = 0.0
+                    for s in range(n_f):
+                        u += sig_f[r, s] * d_tau[i, s]
+                    acc_b += dr * u
+                    acc_c += gr * u
             a[i, 0, 0] += acc_q
+            if continuous:
+                b[i, 0] += acc_b
+                c[i] += acc_c
         # joint covariance of (omega_k, omega_{k+1})
         for r in range(3):
             for s in range(3):
@@ -156,13 +193,14 @@ def _quadratics(mean, cov, cross, inputs, idx, dt, gravity):
 def regressor_quadratics(post: Posterior, obs: Observations, gravity: float
                          ) -> QuadraticSums:
     """The regressor M-step's expected quadratic forms over the used transitions
-    (``identify.transition_mask``), compiled (module docstring)."""
+    (``identify.transition_mask``), compiled (module docstring), with the applied force
+    of a continuous flight when ``obs.continuous``."""
     idx = np.flatnonzero(transition_mask(obs)).astype(np.int64)
     a, b, c = _quadratics(np.ascontiguousarray(post.mean, dtype=float),
                           np.ascontiguousarray(post.cov, dtype=float),
                           np.ascontiguousarray(post.cross_cov, dtype=float),
                           np.ascontiguousarray(obs.inputs, dtype=float), idx, float(obs.dt),
-                          float(gravity))
+                          float(gravity), bool(obs.continuous))
     return QuadraticSums(a, b, c, float(idx.size))
 
 

@@ -15,10 +15,20 @@ out the M-step minimises over pi
 
 with E[sum_k rho_kj^2] = pi^T A_j pi - 2 b_j^T pi + c_j built from the posterior means,
 covariances and lag-one cross-covariances (first order in the state uncertainty, exact in
-the finite-difference accelerations, whose variance dominates). The minimiser over the
-mass alone is closed form; the inertia is found by quasi-Newton on log-parameters that
-keep it physically consistent (I_xx = d_y + d_z etc. with d > 0: positive definite and
-the triangle inequalities hold by construction).
+the finite-difference accelerations, whose variance dominates). The mass is the
+one-dimensional minimiser of the force rows' part (``profiled_mass``; closed form when
+only the body-z row carries a force); the inertia is found by damped Newton over
+inertias kept physically consistent (positive, triangle inequalities).
+
+On a continuous flight (``Observations.continuous``: the E-step turns the thrust with the
+mean of R_k and R_{k+1}, ``pinquad.models.continuous``) the applied force is the thrust
+along that mean direction, in the body frame at k:
+
+    tau_k[0:3] = F_k u_k,   u_k = (e3 + R_k^T R_{k+1} e3) / 2        (``applied_force``)
+
+so the force rows' residual is the one the E-step's transition leaves. It depends on the
+attitudes, and the expectation gains the matching first-order terms (b_j += d_j Sigma
+g_j^T, c_j += g_j Sigma g_j^T with g_j = d tau_kj / d(Theta_k, Theta_{k+1})).
 
 ``paper_mstep`` is the paper's closed form (mass from vertical velocity increments,
 I_xx, I_yy, I_zz per axis, point estimates only).
@@ -31,6 +41,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import brentq
 
 from estimators.protocol import Posterior
 from pinquad.core.conventions import (
@@ -83,14 +94,44 @@ def body_regressor(x_now: Array, x_next: Array, dt: float, gravity: float) -> Ar
     return y
 
 
+def applied_force(x_now: Array, x_next: Array, thrust: Array, continuous: bool
+                  ) -> tuple[Array, Array | None]:
+    """The force rows of tau_k (K, 3) [N] in the body frame at k, and, on a continuous
+    flight, their derivative (K, 3, 12) w.r.t. (Theta_k, v_k, v_{k+1}, Theta_{k+1})
+    (None when they do not depend on the states).
+
+    Held (explicit Euler): F_k e3. Continuous: F_k (e3 + R_k^T R_{k+1} e3) / 2, the
+    thrust along the interval's mean direction (module docstring); x_now, x_next (K, 12)
+    the states at k and k+1, thrust (K,) [N].
+    """
+    k = x_now.shape[0]
+    force = np.zeros((k, 3))
+    if not continuous:
+        force[:, 2] = thrust
+        return force, None
+    rot0, d_rot0 = rotation_and_derivatives(x_now[:, 6:9])
+    rot1, d_rot1 = rotation_and_derivatives(x_next[:, 6:9])
+    half = 0.5 * np.asarray(thrust, dtype=float)
+    axis1 = rot1[:, :, 2]                                   # R_{k+1} e3
+    force[:, 2] = half
+    force += half[:, None] * np.einsum("kji,kj->ki", rot0, axis1)
+    d_force = np.zeros((k, 3, 12))
+    # d(R_k^T R_{k+1} e3)/dTheta_k,m = (dR_k/dTheta_m)^T R_{k+1} e3; by Theta_{k+1},m:
+    # R_k^T (dR_{k+1}/dTheta_m) e3
+    d_force[:, :, 0:3] = half[:, None, None] * np.einsum("kjim,kj->kim", d_rot0, axis1)
+    d_force[:, :, 9:12] = half[:, None, None] * np.einsum("kji,kjm->kim", rot0,
+                                                          d_rot1[:, :, 2, :])
+    return force, d_force
+
+
 def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float
                         ) -> tuple[Array, Array]:
     """Non-zero blocks of the regressor's derivative w.r.t. the states.
 
-    Returns d_force (K, 3, 9): derivative of the mass column's force rows w.r.t.
-    (Theta_k, v_k, v_{k+1}); d_torque (K, 3, 3, 6): derivative of the inertia columns
-    (p = Ixx, Iyy, Izz) torque rows w.r.t. (omega_k, omega_{k+1}). All other entries of
-    dY/d(x_k, x_{k+1}) are zero.
+    Returns d_force (K, 3, 12): derivative of the mass column's force rows w.r.t.
+    (Theta_k, v_k, v_{k+1}, Theta_{k+1}) (zero in the last three); d_torque (K, 3, 3, 6):
+    derivative of the inertia columns (p = Ixx, Iyy, Izz) torque rows w.r.t.
+    (omega_k, omega_{k+1}). All other entries of dY/d(x_k, x_{k+1}) are zero.
     """
     k = x_now.shape[0]
     rot = rotation_from_euler(x_now[:, 6:9])
@@ -100,7 +141,7 @@ def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float
     w = x_now[:, 9:12]
     wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
     rot_t = np.transpose(rot, (0, 2, 1))
-    d_force = np.empty((k, 3, 9))
+    d_force = np.zeros((k, 3, 12))
     # d(R^T a)/dTheta_j = (dR/dTheta_j)^T a
     d_force[:, :, 0:3] = np.einsum("kbaj,kb->kaj", d_rot, acc)
     d_force[:, :, 3:6] = -rot_t / dt
@@ -125,22 +166,21 @@ def _regressor_jacobian(x_now: Array, x_next: Array, dt: float, gravity: float
 def _expectation_parts(post: Posterior, idx: NDArray[np.int64], dt: float, gravity: float
                        ) -> tuple[Array, Array, Array, Array]:
     """The regressor's state derivatives and the smoothed joint covariances they meet, per
-    used transition idx (K,): d_force (K, 3, 9), sig_f (K, 9, 9) of (Theta_k, v_k,
-    v_{k+1}); d_torque (K, 3, 3, 6), sig_w (K, 6, 6) of (omega_k, omega_{k+1})."""
+    used transition idx (K,): d_force (K, 3, 12), sig_f (K, 12, 12) of (Theta_k, v_k,
+    v_{k+1}, Theta_{k+1}); d_torque (K, 3, 3, 6), sig_w (K, 6, 6) of (omega_k,
+    omega_{k+1})."""
     x_now, x_next = post.mean[idx], post.mean[idx + 1]
     d_force, d_torque = _regressor_jacobian(x_now, x_next, dt, gravity)
     p_now, p_next, cross = post.cov[idx], post.cov[idx + 1], post.cross_cov[idx]
-    # Covariance of (Theta_k, v_k, v_{k+1}) and of (omega_k, omega_{k+1});
-    # cross = Cov(x_{k+1}, x_k).
-    sig_f = np.empty((idx.size, 9, 9))
-    sig_f[:, 0:3, 0:3] = p_now[:, 6:9, 6:9]
-    sig_f[:, 0:3, 3:6] = p_now[:, 6:9, 3:6]
-    sig_f[:, 3:6, 0:3] = p_now[:, 3:6, 6:9]
-    sig_f[:, 3:6, 3:6] = p_now[:, 3:6, 3:6]
-    sig_f[:, 6:9, 0:3] = cross[:, 3:6, 6:9]
-    sig_f[:, 6:9, 3:6] = cross[:, 3:6, 3:6]
-    sig_f[:, 0:6, 6:9] = np.transpose(sig_f[:, 6:9, 0:6], (0, 2, 1))
-    sig_f[:, 6:9, 6:9] = p_next[:, 3:6, 3:6]
+    # cross = Cov(x_{k+1}, x_k): rows of x_k in (Theta_k, v_k), of x_{k+1} in
+    # (v_{k+1}, Theta_{k+1})
+    now = np.r_[6:9, 3:6]
+    nxt = np.r_[3:6, 6:9]
+    sig_f = np.empty((idx.size, 12, 12))
+    sig_f[:, 0:6, 0:6] = p_now[:, now[:, None], now]
+    sig_f[:, 6:12, 6:12] = p_next[:, nxt[:, None], nxt]
+    sig_f[:, 6:12, 0:6] = cross[:, nxt[:, None], now]
+    sig_f[:, 0:6, 6:12] = np.transpose(sig_f[:, 6:12, 0:6], (0, 2, 1))
     sig_w = np.empty((idx.size, 6, 6))
     sig_w[:, 0:3, 0:3] = p_now[:, 9:12, 9:12]
     sig_w[:, 3:6, 0:3] = cross[:, 9:12, 9:12]
@@ -149,15 +189,22 @@ def _expectation_parts(post: Posterior, idx: NDArray[np.int64], dt: float, gravi
     return d_force, sig_f, d_torque, sig_w
 
 
-def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> RegressorStats:
-    """Expected sufficient statistics of the wrench residuals over used transitions."""
+def regressor_stats(post: Posterior, obs: Observations, gravity: float,
+                    continuous: bool | None = None) -> RegressorStats:
+    """Expected sufficient statistics of the wrench residuals over used transitions.
+
+    continuous: the applied force of a continuous flight (``applied_force``); None
+    follows ``obs.continuous``. Discovery's residuals ask for the held force (False):
+    its selection fits the thrust direction's move as a free nuisance column
+    (``pinquad.discovery.residuals.sampling_columns``)."""
+    cont = bool(obs.continuous) if continuous is None else continuous
     use = transition_mask(obs)
     idx = np.flatnonzero(use)
     x_now, x_next = post.mean[idx], post.mean[idx + 1]
     dt = obs.dt
     y = body_regressor(x_now, x_next, dt, gravity)
     tau = np.zeros((idx.size, 6))
-    tau[:, 2] = obs.inputs[idx, 0]
+    tau[:, 0:3], d_applied = applied_force(x_now, x_next, obs.inputs[idx, 0], cont)
     tau[:, 3:6] = obs.inputs[idx, 1:4]
     d_force, sig_f, d_torque, sig_w = _expectation_parts(post, idx, dt, gravity)
     a = np.einsum("kaq,kap->apq", y, y)
@@ -166,6 +213,9 @@ def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> Regre
                                   optimize=True)
     b = np.einsum("kap,ka->ap", y, tau)
     c = np.einsum("ka,ka->a", tau, tau)
+    if d_applied is not None:
+        b[0:3, 0] += np.einsum("kai,kij,kaj->a", d_force, sig_f, d_applied, optimize=True)
+        c[0:3] += np.einsum("kai,kij,kaj->a", d_applied, sig_f, d_applied, optimize=True)
     return RegressorStats(y, tau, a, b, c, int(idx.size))
 
 
@@ -318,13 +368,50 @@ def remember_leaving(earlier: QuadraticSums | None, post: Posterior, obs: Observ
 
 
 def closed_form_mass(stats, fallback: float) -> float:
-    """The M-step's mass [kg] from the body-z force row of ``stats`` (a, b, c sums):
-    the x and y rows cancel against two of the three log m terms, the z row gives
+    """The M-step's mass [kg] when only the body-z force row carries an applied force
+    (b_x = c_x = b_y = c_y = 0, a held thrust): the x and y rows cancel against two of
+    the three log m terms, the z row gives
 
         m = c_z / b_z = sum F^2 / sum E[a_z] F
 
     (``fallback`` when b_z <= 0, e.g. no used transition)."""
     return float(stats.c[2] / stats.b[2, 0]) if stats.b[2, 0] > 0 else fallback
+
+
+def profiled_mass(stats, fallback: float) -> float:
+    """The mass [kg] at the minimum of the force rows' part of J,
+
+        J(m) = 1/2 sum_{j=x,y,z} log q_j(m) - 3 log m,   q_j = a_j m^2 - 2 b_j m + c_j,
+
+    (a_j = A_j[0, 0]; the torque rows do not involve m) that descent reaches from the
+    closed form m0 = ``closed_form_mass``, within a factor 2 of it: the first sign change
+    of g(m) = m J'(m) = sum_j (a_j m^2 - b_j m) / q_j - 3 on 1 % steps downhill from m0,
+    refined by Brent's method (the end of the range if there is none). m0 itself when
+    the x and y rows carry no applied force (then it is the minimiser) or b_z <= 0
+    (``fallback``). Why local: the body-z row alone fixes the mass; x and y only nudge
+    it, and rows whose residual does not scale with m (no lateral acceleration) would
+    pull a global search off along -3 log m."""
+    m0 = closed_form_mass(stats, fallback)
+    a, b, c = stats.a[0:3, 0, 0], stats.b[0:3, 0], stats.c[0:3]
+    if stats.b[2, 0] <= 0 or not (np.any(b[0:2]) or np.any(c[0:2])):
+        return m0
+
+    def g(m: float) -> float:
+        q = a * m * m - 2.0 * b * m + c
+        return float(np.sum((a * m * m - b * m) / q)) - 3.0
+
+    g0 = g(m0)
+    if g0 == 0.0:
+        return m0
+    factor = 1.01 if g0 < 0.0 else 1.0 / 1.01
+    near = m0
+    while 0.5 * m0 <= near * factor <= 2.0 * m0:
+        far = near * factor
+        if (g(far) > 0.0) == (g0 < 0.0):
+            return float(brentq(g, min(near, far), max(near, far), xtol=1e-15 * m0,
+                                rtol=4 * np.finfo(float).eps))
+        near = far
+    return near
 
 
 def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
@@ -342,7 +429,7 @@ def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
     if earlier is not None:
         stats = QuadraticSums.of(stats).plus(earlier)
     n = stats.n
-    mass = closed_form_mass(stats, theta.mass)
+    mass = profiled_mass(stats, theta.mass)
 
     a_t, b_t, c_t = stats.a[3:6], stats.b[3:6], stats.c[3:6]
     inertia = inertia_newton(mass, a_t, b_t, c_t, np.diag(theta.inertia))
@@ -351,7 +438,7 @@ def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
     noise = update_noise(post, obs, theta, row_var)
     new = Theta(mass=mass, inertia=np.diag(inertia), noise=noise, gravity=theta.gravity)
     q = np.maximum(_row_sums(stats, pi), 1e-300)
-    objective = float(0.5 * np.sum(np.log(q[2:6])) - np.log(mass) - np.sum(np.log(inertia)))
+    objective = float(0.5 * np.sum(np.log(q)) - 3.0 * np.log(mass) - np.sum(np.log(inertia)))
     return MStepResult(new, objective, row_var)
 
 

@@ -19,7 +19,7 @@ from pinquad.mstep.stats import QuadraticSums, transition_mask
 from pinquad.mstep.updates import (
     MStepResult,
     body_regressor,
-    closed_form_mass,
+    profiled_mass,
     regressor_stats,
     update_noise,
 )
@@ -209,8 +209,8 @@ class RealMStep:
         no longer in ``obs`` (the online stream's memory), added to the mass row's."""
         g = theta.gravity
         stats = regressor_stats(post, obs, g)
-        mass = closed_form_mass(stats if earlier is None
-                                else QuadraticSums.of(stats).plus(earlier), theta.mass)
+        mass = profiled_mass(stats if earlier is None
+                             else QuadraticSums.of(stats).plus(earlier), theta.mass)
         band = self.band_stats(post, obs, g)
         a, b, c = band.quadratic()
         inertia, objective = profiled_inertia(a, b, c, np.diag(theta.inertia))
@@ -228,10 +228,13 @@ class RealMStep:
         offset = z_all @ coef.T + rotor
         # Wrench residual variances with the moment in place (first order in the state
         # uncertainty, as the shared M-step): q_j = pi^T A_j pi - 2 pi^T b'_j + c'_j.
-        tau_eff = stats.tau.copy()
-        tau_eff[:, 3:6] += offset[idx]
-        b_eff = np.einsum("kap,ka->ap", stats.y, tau_eff)
-        c_eff = np.einsum("ka,ka->a", tau_eff, tau_eff)
+        # (the force rows keep the shared statistics' b and c, with their covariance
+        # terms on a continuous flight)
+        tau_eff = stats.tau[:, 3:6] + offset[idx]
+        b_eff = stats.b.copy()
+        c_eff = stats.c.copy()
+        b_eff[3:6] = np.einsum("kap,ka->ap", stats.y[:, 3:6], tau_eff)
+        c_eff[3:6] = np.einsum("ka,ka->a", tau_eff, tau_eff)
         q = np.einsum("p,apq,q->a", pi, stats.a, pi) - 2.0 * b_eff @ pi + c_eff
         row_var = np.maximum(q / stats.n, 0.0)
         noise = update_noise(post, obs, theta, row_var)
