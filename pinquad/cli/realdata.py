@@ -26,6 +26,7 @@ from pinquad.experiments.recorded import measured_effects
 from pinquad.io.datadir import missing_data_hint
 from pinquad.io.logs import LogFormatError, vehicle_file_named
 from pinquad.io.read import is_flight_log
+from pinquad.realdata.consistency import between_flights
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
 from pinquad.realdata.observations import RealDataOptions, options_for_vehicle
 from pinquad.realdata.rotor_inertia import pooled_rotor_inertia
@@ -193,7 +194,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     failed = [(j.path.name, r) for j, r in zip(jobs, results, strict=True) if isinstance(r, str)]
     results = [r for r in results if not isinstance(r, str)]
-    print(format_table(results, rotor, spec))
+    # flights of one vehicle against each other: errors scaled where they scatter more
+    # than their statistical errors allow, verdicts judged again
+    results, scatters = between_flights(results)
+    print(format_table(results, rotor, spec, scatters))
     for name, why in failed:
         print(f"\n{name}: not identified: {why}")
     print(f"\n{len(results)} logs in {time.perf_counter() - t0:.0f} s "

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.identify import get_smoother, loglik_function
-from pinquad.identification.verdict import EstimateVerdict
+from pinquad.identification.verdict import EstimateVerdict, VerdictEvidence
 from pinquad.models.ssm import Theta
 from pinquad.realdata.band_mstep import BandStats, RealMStep
 from pinquad.realdata.mass_balance import MotorSplit, motor_split, quasi_static_mass
@@ -76,7 +76,11 @@ class RealIdentification:
     check split by motor (:func:`motor_split`); verdict: the estimate's verdict
     (``pinquad.identification.verdict``; set by the table, None until judged); effects:
     the effects found on the flight with their evidence against the null (the table's
-    ``TableJob.effects`` summary; None: discovery not run).
+    ``TableJob.effects`` summary; None: discovery not run); evidence: what the verdict
+    was judged on besides the errors (set by the table, so that ``realdata.consistency``
+    can judge again); vehicle: the vehicle whose range it was judged against;
+    scatter_scale (4,): the between-flight scale factors S that multiply the statistical
+    errors inside ``se_total`` (``realdata.consistency``; None: not compared).
     """
 
     name: str
@@ -106,6 +110,9 @@ class RealIdentification:
     motor_split: MotorSplit | None = None
     verdict: EstimateVerdict | None = None
     effects: dict | None = None
+    evidence: VerdictEvidence | None = None
+    vehicle: str = "crazyflie21"
+    scatter_scale: Array | None = None
 
     @property
     def params(self) -> Array:

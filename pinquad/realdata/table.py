@@ -12,7 +12,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge, vehicle_range
+from pinquad.identification.verdict import (
+    VerdictEvidence,
+    data_evidence,
+    judge,
+    vehicle_range,
+)
 from pinquad.io.logs import LogFormatError
 from pinquad.models.ssm import Observations
 from pinquad.realdata.dataset import default_guess
@@ -64,21 +69,21 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
     except (LogFormatError, ValueError) as exc:
         return str(exc)
     effects = None if job.effects is None else job.effects(real.obs, theta, post)
+    evidence = real_evidence(ident, real.obs, post.mean, theta)
     return replace(ident, rotor_source=job.rotor_source,
-                   verdict=real_verdict(ident, real.obs, post.mean, theta, job.vehicle),
-                   effects=effects)
+                   verdict=judge(ident.mass, np.diag(ident.inertia), ident.se_total, evidence,
+                                 vehicle_range(job.vehicle)),
+                   effects=effects, evidence=evidence, vehicle=job.vehicle)
 
 
-def real_verdict(ident: RealIdentification, obs: Observations, mean: Array,
-                 theta: RealTheta, vehicle: str = "crazyflie21") -> EstimateVerdict:
-    """The verdict of a measured flight's estimate (``pinquad.identification.verdict``):
-    its total standard errors against the Crazyflie's range, the torques (with the
-    fitted nuisance moment) explaining the angular acceleration on the M-step's band,
-    and the EKF's innovation consistency at the estimate. mean (N, 12): smoothed states."""
+def real_evidence(ident: RealIdentification, obs: Observations, mean: Array,
+                  theta: RealTheta) -> VerdictEvidence:
+    """What a measured flight's verdict (``pinquad.identification.verdict``) rests on
+    beside its total standard errors: the torques (with the fitted nuisance moment)
+    explaining the angular acceleration on the M-step's band, and the EKF's innovation
+    consistency at the estimate. mean (N, 12): smoothed states."""
     plain = replace(plain_theta(theta), inertia=np.diag(ident.inertia))
-    ev = data_evidence(corrected(obs, theta), plain, mean, tuple(ident.band))
-    return judge(ident.mass, np.diag(ident.inertia), ident.se_total, ev,
-                 vehicle_range(vehicle))
+    return data_evidence(corrected(obs, theta), plain, mean, tuple(ident.band))
 
 
 def run_jobs(jobs: Sequence[TableJob], executor: Executor) -> list[RealIdentification | str]:

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.vehicle_file import VehicleSpec
+from pinquad.realdata.consistency import FlightScatter
 from pinquad.realdata.dataset import FLIGHTS, YAW_FLIGHTS
 from pinquad.realdata.identify import RealIdentification
 from pinquad.realdata.rotor_inertia import PooledRotorInertia
@@ -37,7 +38,9 @@ def _judged(r: RealIdentification, i: int, scale: float, fmt: str = ".2f") -> st
     name = ("mass", "I_xx", "I_yy", "I_zz")[i]
     v = None if r.verdict is None else r.verdict.get(name)
     if v is None or v.trusted:
-        return _pm(r.params[i], r.se_total[i], r.se_stat[i], scale, fmt)
+        text = _pm(r.params[i], r.se_total[i], r.se_stat[i], scale, fmt)
+        s = 1.0 if r.scatter_scale is None else float(r.scatter_scale[i])
+        return text if s == 1.0 else f"{text} [x{s:.1f}]"
     return f"{r.params[i] * scale:{fmt}} ({v.verdict})"
 
 
@@ -88,10 +91,12 @@ def reference_values(spec: VehicleSpec) -> tuple[float, NDArray[np.float64], str
 
 def format_table(results: Sequence[RealIdentification],
                  rotor: PooledRotorInertia | None = None,
-                 spec: VehicleSpec = CRAZYFLIE_SPEC) -> str:
+                 spec: VehicleSpec = CRAZYFLIE_SPEC,
+                 scatters: Sequence[FlightScatter] = ()) -> str:
     """The markdown table of the identified flights and the summaries below it
     (``rotor``: the pooled rotor inertia the flights were identified with, described;
-    ``spec``: the vehicle file, whose ``[reference]`` the flights are compared with)."""
+    ``spec``: the vehicle file, whose ``[reference]`` the flights are compared with;
+    ``scatters``: the flights compared with each other, ``realdata.consistency``)."""
     if not results:
         return "(no flights)"
     kf = results[0].kf
@@ -137,6 +142,13 @@ def format_table(results: Sequence[RealIdentification],
         "",
         kf.note,
     ]
+    if scatters:
+        lines += ["", "flights against each other (the trusted estimates of each parameter "
+                  "over the flights that share their rotor-speed source; where they scatter "
+                  "beyond their statistical errors, every such flight's statistical error is "
+                  "scaled by S = sqrt(chi2 / dof) inside its total and its verdict judged "
+                  "again; pinquad.realdata.consistency):"]
+        lines += [f"- {sc.describe()}" for sc in scatters]
     if rotor is not None:
         lines += ["", rotor.describe()]
     masses = np.array([r.mass for r in results])

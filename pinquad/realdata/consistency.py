@@ -1,0 +1,141 @@
+"""Flights of one vehicle against each other: does each flight's standard error cover the
+scatter between the flights?
+
+A flight's statistical standard error counts the noise the model knows. Flights of the
+same vehicle under the same conditions (the same thrust map, the same rotor-speed
+source) share mass and inertia. So when their estimates scatter further than those errors
+allow, each flight carries an error the model does not know (yaw's torque model on the
+Crazyflie: I_zz over the yaw flights spreads 71 % while each flight claims ~10 %). One
+flight alone cannot show that; the table of ``python -m pinquad.realdata`` can.
+
+Per parameter and group, over the flights whose verdict on it was "trusted":
+
+    mu   = sum_i w_i x_i / sum_i w_i,      w_i = 1 / s_i^2  (s_i: statistical standard error)
+    chi2 = sum_i w_i (x_i - mu)^2          ~ chi2(L - 1) when the s_i are the real errors
+    S    = max(1, sqrt(chi2 / (L - 1)))    (the Particle Data Group's scale factor)
+
+and every flight of the group gets its statistical error scaled by S inside its total,
+
+    se_total'^2 = se_total^2 + (S^2 - 1) s_i^2
+
+(the common parts, kf and the yaw ratio, do not scatter between flights and stay as
+they are), and its verdict judged again with it. A scaled error that covers too much of
+the vehicle's possible range turns "trusted" into "not identifiable".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2 as chi2_dist
+
+from pinquad.identification.verdict import TRUSTED, judge, vehicle_range
+from pinquad.realdata.identify import RealIdentification
+
+Array = NDArray[np.float64]
+
+PARAMETERS = ("mass", "I_xx", "I_yy", "I_zz")
+UNITS = ((1e3, "g"), (1e6, "e-6 kg m^2"), (1e6, "e-6 kg m^2"), (1e6, "e-6 kg m^2"))
+
+
+@dataclass(frozen=True)
+class FlightScatter:
+    """The scatter of one parameter over the flights of one group (module docstring).
+
+    parameter: "mass", "I_xx", "I_yy" or "I_zz"; group: the flights' shared conditions,
+    in words; logs (L,): their names; values (L,) [kg or kg m^2]; stderr (L,): their
+    statistical standard errors (same unit); mean: the weighted mean; chi2 [-] on dof =
+    L - 1 degrees of freedom; p_value: P(chi2(dof) >= chi2); scale: S >= 1.
+    """
+
+    parameter: str
+    group: str
+    logs: tuple[str, ...]
+    values: Array
+    stderr: Array
+    mean: float
+    chi2: float
+    dof: int
+    p_value: float
+    scale: float
+
+    def describe(self) -> str:
+        factor, unit = UNITS[PARAMETERS.index(self.parameter)]
+        each = ", ".join(f"{n} {factor * v:.4g} ± {factor * s:.2g}"
+                         for n, v, s in zip(self.logs, self.values, self.stderr, strict=True))
+        verdict = (f"statistical errors scaled by S = {self.scale:.2f}" if self.scale > 1.0
+                   else "within their errors (S = 1)")
+        return (f"{self.parameter}, {self.group} ({each} {unit}): weighted mean "
+                f"{factor * self.mean:.4g} {unit}, chi2 {self.chi2:.1f} on {self.dof} dof "
+                f"(p {self.p_value:.2g}): {verdict}")
+
+
+def flight_scatter(parameter: str, group: str, logs: Sequence[str], values: Array,
+                   stderr: Array) -> FlightScatter:
+    """The ``FlightScatter`` of estimates ``values`` (L,) with statistical standard errors
+    ``stderr`` (L,) > 0 (L >= 2), by the module docstring's equations."""
+    x = np.asarray(values, dtype=float)
+    s = np.asarray(stderr, dtype=float)
+    if x.size < 2 or x.size != s.size or not np.all(s > 0):
+        raise ValueError(f"{parameter}: need two or more estimates with positive standard "
+                         f"errors; got {x.size} values, errors {s}")
+    w = 1.0 / s**2
+    mean = float(np.sum(w * x) / np.sum(w))
+    chi2 = float(np.sum(w * (x - mean) ** 2))
+    dof = x.size - 1
+    return FlightScatter(parameter, group, tuple(logs), x, s, mean, chi2, dof,
+                         float(chi2_dist.sf(chi2, dof)), max(1.0, math.sqrt(chi2 / dof)))
+
+
+def scaled_total(se_total: float, se_stat: float, scale: float) -> float:
+    """sqrt(se_total^2 + (S^2 - 1) se_stat^2): the total standard error with its
+    statistical part scaled by S (module docstring)."""
+    return math.sqrt(se_total**2 + (scale**2 - 1.0) * se_stat**2)
+
+
+def _group(r: RealIdentification) -> str:
+    rebuilt = r.motor_split.rebuilt if r.motor_split is not None else ()
+    if rebuilt:
+        return "rotor speeds of motor(s) " + ", ".join(f"M{i + 1}" for i in rebuilt) + \
+            " rebuilt from PWM"
+    return "measured rotor speeds"
+
+
+def between_flights(results: Sequence[RealIdentification]
+                    ) -> tuple[list[RealIdentification], list[FlightScatter]]:
+    """The flights with their totals scaled and verdicts judged again where flights of the
+    same group scatter beyond their errors (module docstring), and the scatter of every
+    (parameter, group) with two or more trusted estimates. A flight without its verdict
+    evidence (``RealIdentification.evidence``) is left as it is."""
+    scatters: list[FlightScatter] = []
+    scale = {r.name: np.ones(4) for r in results}
+    for group in sorted({_group(r) for r in results}):
+        members = [r for r in results if _group(r) == group and r.verdict is not None
+                   and r.evidence is not None]
+        for j, name in enumerate(PARAMETERS):
+            trusted = [r for r in members if r.verdict.parameters[j].verdict == TRUSTED
+                       and np.isfinite(r.se_stat[j]) and r.se_stat[j] > 0]
+            if len(trusted) < 2:
+                continue
+            sc = flight_scatter(name, group, [r.name for r in trusted],
+                                np.array([r.params[j] for r in trusted]),
+                                np.array([r.se_stat[j] for r in trusted]))
+            scatters.append(sc)
+            for r in members:
+                scale[r.name][j] = sc.scale
+    out = []
+    for r in results:
+        s = scale[r.name]
+        if r.evidence is None or r.verdict is None or np.all(s == 1.0):
+            out.append(r)
+            continue
+        total = np.array([scaled_total(float(r.se_total[j]), float(r.se_stat[j]), float(s[j]))
+                          if np.isfinite(r.se_stat[j]) else float(r.se_total[j])
+                          for j in range(4)])
+        verdict = judge(r.mass, np.diag(r.inertia), total, r.evidence, vehicle_range(r.vehicle))
+        out.append(replace(r, se_total=total, verdict=verdict, scatter_scale=s.copy()))
+    return out, scatters
