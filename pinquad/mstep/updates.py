@@ -189,15 +189,15 @@ def _expectation_parts(post: Posterior, idx: NDArray[np.int64], dt: float, gravi
     return d_force, sig_f, d_torque, sig_w
 
 
-def regressor_stats(post: Posterior, obs: Observations, gravity: float,
-                    continuous: bool | None = None) -> RegressorStats:
-    """Expected sufficient statistics of the wrench residuals over used transitions.
-
-    continuous: the applied force of a continuous flight (``applied_force``); None
-    follows ``obs.continuous``. Discovery's residuals ask for the held force (False):
-    its selection fits the thrust direction's move as a free nuisance column
-    (``pinquad.discovery.residuals.sampling_columns``)."""
-    cont = bool(obs.continuous) if continuous is None else continuous
+def regressor_stats(post: Posterior, obs: Observations, gravity: float) -> RegressorStats:
+    """Expected sufficient statistics of the wrench residuals over used transitions, with
+    the applied force of ``applied_force`` (turned with the interval's mean rotation when
+    ``obs.continuous``). Discovery's residuals take tau from here too, so on a continuous
+    flight their force rows are the E-step's and the selection's sampling nuisance
+    (``pinquad.discovery.residuals.sampling_columns``) fits only what that leaves; their
+    covariance part (``covariance_terms``) is A's alone, without the b and c terms of
+    the attitude-dependent force (first order in the attitude's smoothed uncertainty)."""
+    cont = bool(obs.continuous)
     use = transition_mask(obs)
     idx = np.flatnonzero(use)
     x_now, x_next = post.mean[idx], post.mean[idx + 1]
