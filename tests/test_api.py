@@ -85,3 +85,27 @@ def test_simulated_flight_identified_through_the_api_within_the_paper_bounds():
     assert np.all(fit.stderr > 0)
     assert fit.posterior is not None and fit.posterior.mean.shape == (log.n, 12)
     assert fit.history_mass.shape[0] == fit.history_inertia.shape[0]
+
+
+def test_a_measured_flight_says_where_its_thrust_coefficient_came_from(monkeypatch, tmp_path):
+    """Rotor speeds become thrust through kf, and every estimate scales with it: the fit's
+    notes name the thrust-stand runs it came from, and, with no stand data found, the
+    shipped constant and its assumed 5 % error (a 2.8 % heavier jana00 then, not silently)."""
+    import pinquad
+    import pinquad.realdata.thrust as thrust
+
+    if not JANA00.exists():
+        pytest.fail(f"the shared Crazyflie data is required: {JANA00} not found")
+    log = pinquad.read_log(JANA00)
+    fit = pinquad.identify(log, max_iterations=5, information=False)
+    assert any("thrust-stand run(s)" in n for n in fit.notes), fit.notes
+    monkeypatch.setattr(thrust, "stand_dir", lambda *a, **k: tmp_path)
+    thrust.thrust_coefficient.cache_clear()   # kf is cached per directory argument
+    try:
+        fallback = pinquad.identify(log, max_iterations=5, information=False)
+    finally:
+        monkeypatch.undo()
+        thrust.thrust_coefficient.cache_clear()
+    assert any("no thrust-stand CSV" in n and "assumed 5 % standard error" in n
+               for n in fallback.notes), fallback.notes
+    assert fallback.mass != fit.mass

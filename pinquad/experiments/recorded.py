@@ -200,7 +200,10 @@ def _from_measured(ident: RealIdentification, label: str, post: Posterior, theta
         mstep="regressor", mass=ident.mass, inertia=np.diag(ident.inertia), stderr=ident.se_total,
         history_mass=ident.history[:, 0], history_inertia=ident.history[:, 1:4],
         loglik=ident.loglik, converged=ident.converged, seconds=ident.seconds, theta=theta,
-        sensor=label, e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident)
+        sensor=label, e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident,
+        # every estimate scales with kf: where it came from (a thrust stand, a vehicle
+        # file or the shipped constant when no stand data is found) belongs beside it
+        notes=(ident.kf.note,))
 
 
 def discovery_start(run: Identification) -> DiscoveryStart:
