@@ -196,14 +196,12 @@ def default_sensor(log: FlightLog) -> str:
 
 def _from_measured(ident: RealIdentification, label: str, post: Posterior, theta: Theta,
                    obs: Observations) -> Identification:
+    """A measured flight's run; its notes say where kf came from (every estimate scales with it)."""
     return Identification(
         mstep="regressor", mass=ident.mass, inertia=np.diag(ident.inertia), stderr=ident.se_total,
-        history_mass=ident.history[:, 0], history_inertia=ident.history[:, 1:4],
-        loglik=ident.loglik, converged=ident.converged, seconds=ident.seconds, theta=theta,
-        sensor=label, e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident,
-        # every estimate scales with kf: where it came from (a thrust stand, a vehicle
-        # file or the shipped constant when no stand data is found) belongs beside it
-        notes=(ident.kf.note,))
+        history_mass=ident.history[:, 0], history_inertia=ident.history[:, 1:4], theta=theta,
+        loglik=ident.loglik, converged=ident.converged, seconds=ident.seconds, sensor=label,
+        e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident, notes=(ident.kf.note,))
 
 
 def discovery_start(run: Identification) -> DiscoveryStart:
@@ -308,8 +306,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
             if first is None:
                 first = (real, post.mean)
         if "paper" in options.msteps:
-            # The paper's M-step knows no air-speed moment: give it the torques with the
-            # regressor run's moment added when there is one.
+            # the paper's M-step knows no air-speed moment: the regressor run's is added
             obs = real.obs if theta is None else corrected(real.obs, theta)
             ident_p, post_p = identify(obs, mass0, inertia0, log.meta.gravity, options.estep,
                                        "paper", options.max_iterations, False)
