@@ -104,3 +104,62 @@ def test_batch_exit_code_orders_failed_over_untrusted():
     assert batch_exit_code([ok]) == ALL_TRUSTED
     assert batch_exit_code([ok, weak]) == SOME_UNTRUSTED
     assert batch_exit_code([ok, weak, bad]) == SOME_FAILED
+
+
+def _measured_report(izz: float, izz_stat: float, vehicle: str = "crazyflie21",
+                     rebuilt: tuple[int, ...] = ()) -> dict:
+    """A report.json as a measured Crazyflie flight writes it: every parameter trusted,
+    mass and roll/pitch alike on every flight, I_zz ``izz`` +- ``izz_stat``
+    (statistical) inside a total with kf's 4.8 % and the yaw ratio's 8.3 %."""
+    params = np.array([0.0347, 16.6e-6, 16.7e-6, izz])
+    stat = np.array([5e-5, 0.5e-6, 0.5e-6, izz_stat])
+    total = np.hypot(stat, params * np.array([0.048, 0.048, 0.048, np.hypot(0.048, 0.083)]))
+    trusted = {"verdict": "trusted", "reasons": []}
+    return {
+        "source": {"vehicle": vehicle},
+        "estimates": {"mass": params[0], "inertia": np.diag(params[1:]).tolist(),
+                      "stderr": {"mass": total[0], "inertia_diag": total[1:].tolist()},
+                      "verdict": {"overall": "trusted",
+                                  "parameters": {k: trusted for k in ("mass", "I_xx", "I_yy",
+                                                                      "I_zz")}}},
+        "runs": [{"stderr_statistical": {"mass": stat[0], "inertia_diag": stat[1:].tolist()},
+                  "motor_split": {"rebuilt_motors": list(rebuilt)}}]}
+
+
+def test_batch_compares_the_flights_of_one_vehicle():
+    """Four flights of one Crazyflie whose I_zz (26.9, 15.8, 13.2, 17.7 e-6, each +-0.6-2.0
+    statistical) scatter 6x beyond their errors: the batch scales the errors, lowers
+    the two whose scaled error covers too much of the range to not identifiable (the
+    batch's exit code with them), leaves mass and roll/pitch (which agree) as they were,
+    and does not mix in a flight with a rebuilt motor or one that failed."""
+    from pinquad.experiments.batch import compare_flights
+    from pinquad.report.batch import batch_json, batch_table
+
+    values = {"a": (26.9e-6, 0.8e-6), "b": (15.8e-6, 2.0e-6), "c": (13.2e-6, 1.3e-6),
+              "d": (17.7e-6, 0.6e-6)}
+    rows = [row_from_report(n, n, _measured_report(*v), 1.0) for n, v in values.items()]
+    rows.append(row_from_report("e", "e", _measured_report(40e-6, 0.5e-6, rebuilt=(0,)), 1.0))
+    rows.append(failed_row("f", "f", "f: no such file", 0.0))
+    assert batch_exit_code(rows) == SOME_FAILED
+    assert all(r.status == "trusted" for r in rows[:5])
+    judged, scatters = compare_flights(rows)
+    izz = [s for s in scatters if s.parameter == "I_zz"]
+    assert len(izz) == 1 and izz[0].logs == ("a", "b", "c", "d")
+    assert izz[0].scale == pytest.approx(6.34, abs=0.02)
+    by = {r.name: r for r in judged}
+    assert {n: by[n].verdicts["I_zz"] for n in "abcd"} == {
+        "a": "trusted", "b": "not identifiable", "c": "not identifiable", "d": "trusted"}
+    assert [by[n].status for n in "abcd"] == ["trusted", "not trusted", "not trusted", "trusted"]
+    assert by["a"].inertia_se[2] == pytest.approx(
+        np.sqrt(rows[0].inertia_se[2] ** 2 + (izz[0].scale ** 2 - 1.0) * (0.8e-6) ** 2))
+    for n in "abcd":
+        assert by[n].mass_se == rows["abcd".index(n)].mass_se
+        assert by[n].scatter_scale[0] == 1.0 and by[n].scatter_scale[3] > 6.0
+    assert by["e"] == rows[4] and by["f"] == rows[5]
+    text = batch_table(judged, scatters)
+    assert "[x6.3]" in text and "I_zz, crazyflie21 (a 26.9" in text
+    data = batch_json(judged, ["--log"], 4, 1.0, scatters)
+    assert [d["parameter"] for d in data["between_flights"]] == ["mass", "I_xx", "I_yy", "I_zz"]
+    # on their own (no scatter to compare with) the flights keep their verdicts
+    alone, none = compare_flights(rows[:1])
+    assert alone == rows[:1] and none == []

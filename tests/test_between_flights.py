@@ -93,3 +93,18 @@ def test_i_zz_that_scatters_beyond_its_errors_is_judged_again():
         assert after.verdict.get("mass").verdict == TRUSTED
         assert after.scatter_scale[3] == pytest.approx(izz.scale)
     assert all(s.scale == 1.0 for s in scatters if s.parameter != "I_zz")
+
+
+def test_a_degenerate_statistical_error_is_compared_by_its_total():
+    """A jackknife pinned on the consistency boundary prints ~1e-20 kg m^2: such a flight
+    (and one without a statistical error) is compared with its total error, so one flight
+    cannot make chi2 ~1e20 (the batch of the 14 real logs without the information did)."""
+    from pinquad.realdata.consistency import comparable_error
+
+    assert comparable_error(15.4e-6, 1.0e-20, 1.1e-6) == 1.1e-6
+    assert comparable_error(15.4e-6, float("nan"), 1.1e-6) == 1.1e-6
+    assert comparable_error(15.4e-6, 0.3e-6, 1.1e-6) == 0.3e-6
+    flights = [_flight("a", 17.7e-6, 0.6e-6), _flight("b", 18.5e-6, 1e-20)]
+    _, scatters = between_flights(flights)
+    izz = next(s for s in scatters if s.parameter == "I_zz")
+    assert izz.stderr[1] == flights[1].se_total[3] and izz.chi2 < 1.0

@@ -29,6 +29,7 @@ from pinquad.core.execution import Backend, open_executor
 from pinquad.experiments.batch import (
     BatchRow,
     batch_exit_code,
+    compare_flights,
     failed_row,
     row_from_report,
     unique_names,
@@ -152,12 +153,15 @@ def run_batch(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
                                             outcome.seconds))
             print(f"  {name}: {rows[-1].status}"
                   + (f" ({rows[-1].error})" if rows[-1].error else ""))
+        # flights of one vehicle against each other: errors scaled where they scatter
+        # more than they allow, and a verdict lowered where the scaled error is too wide
+        rows, scatters = compare_flights(rows)
         code = batch_exit_code(rows)
-        table = batch_table(rows)
+        table = batch_table(rows, scatters)
         writer.path("table.md").write_text(
             f"# pinquad offline batch\n\n{batch_counts(rows)}; exit code {code}\n\n{table}\n")
         writer.path("batch.json").write_text(json.dumps(
-            batch_json(rows, argv, code, time.perf_counter() - t0), indent=2))
+            batch_json(rows, argv, code, time.perf_counter() - t0, scatters), indent=2))
         final = writer.publish()
     print()
     print(table)

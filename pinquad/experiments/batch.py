@@ -9,9 +9,22 @@ in its own subdirectory; this module only summarises what those runs wrote.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+
+from pinquad.identification.verdict import (
+    NOT_IDENTIFIABLE,
+    TRUSTED,
+    range_reasons,
+    vehicle_range,
+)
+from pinquad.realdata.consistency import (
+    FlightScatter,
+    comparable_error,
+    flight_scatter,
+    scaled_total,
+)
 
 ALL_TRUSTED, SOME_UNTRUSTED, SOME_FAILED = 0, 3, 4
 """Batch exit codes: every headline trusted; every log identified but some headline not
@@ -34,6 +47,11 @@ class BatchRow:
     effects: names of the effects discovery selected, in order (DESIGN 4.4).
     seconds: the run's wall time [s].
     error: the error message of a failed log, else "".
+    vehicle: the vehicle the log named ("" when failed); group: the flights it is
+        compared with (``compare_flights``: same vehicle, same rebuilt motors).
+    stat_se: (4,) statistical standard errors of [m, I_xx, I_yy, I_zz] (the run's, NaN
+        where the report has none: then the total's); scatter_scale: (4,) the between-
+        flight scale factors S inside mass_se / inertia_se (1: not scaled).
     """
 
     name: str
@@ -48,9 +66,14 @@ class BatchRow:
     effects: tuple[str, ...]
     seconds: float
     error: str
+    vehicle: str = ""
+    group: str = ""
+    stat_se: tuple[float, float, float, float] = (float("nan"),) * 4
+    scatter_scale: tuple[float, float, float, float] = (1.0,) * 4
 
 
 NAN3 = (float("nan"),) * 3
+PARAMETERS = ("mass", "I_xx", "I_yy", "I_zz")
 
 
 def _number(value: object) -> float:
@@ -66,6 +89,10 @@ def row_from_report(name: str, path: str, report: dict, seconds: float) -> Batch
     inertia = np.asarray(est["inertia"], dtype=float)
     se = est.get("stderr") or {}
     discovery = report.get("discovery") or {}
+    run = (report.get("runs") or [{}])[0]
+    stat = run.get("stderr_statistical") or {}
+    rebuilt = (run.get("motor_split") or {}).get("rebuilt_motors") or []
+    vehicle = str((report.get("source") or {}).get("vehicle") or "")
     return BatchRow(
         name=name, path=path, status="trusted" if overall == "trusted" else "not trusted",
         mass=float(est["mass"]), mass_se=_number(se.get("mass")),
@@ -74,7 +101,11 @@ def row_from_report(name: str, path: str, report: dict, seconds: float) -> Batch
         overall=overall,
         verdicts={k: v.get("verdict", "") for k, v in verdict.get("parameters", {}).items()},
         effects=tuple(s["effect"] for s in discovery.get("selected", [])),
-        seconds=seconds, error="")
+        seconds=seconds, error="", vehicle=vehicle,
+        group=vehicle + ("" if not rebuilt else ", motor(s) " + ", ".join(
+            f"M{int(i)}" for i in rebuilt) + " rebuilt from PWM"),   # report: 1-based
+        stat_se=(_number(stat.get("mass")),
+                 *(_number(v) for v in (stat.get("inertia_diag") or NAN3))))
 
 
 def failed_row(name: str, path: str, error: str, seconds: float) -> BatchRow:
@@ -104,3 +135,66 @@ def unique_names(paths: Sequence[str]) -> list[str]:
         seen[base] = seen.get(base, 0) + 1
         names.append(base if seen[base] == 1 else f"{base}-{seen[base]}")
     return names
+
+
+def compare_flights(rows: Sequence[BatchRow]) -> tuple[list[BatchRow], list[FlightScatter]]:
+    """The batch's flights of one vehicle against each other (``realdata.consistency``):
+    per group (same vehicle, same motors rebuilt from PWM) and parameter, the scatter of
+    the trusted estimates against their statistical errors (the total's where a report
+    has none or a degenerate one, ``comparable_error``: a weaker test, never a stronger);
+    where it exceeds them every
+    row of the group gets its statistical error scaled by S inside its total, and a
+    trusted parameter whose scaled error then covers too much of the vehicle's range is
+    "not identifiable" (``verdict.range_reasons``; the row not trusted). Only that check
+    depends on the error's size, so a verdict can only be lowered here. Returns the rows
+    and the scatters compared."""
+    scatters: list[FlightScatter] = []
+    scale: dict[str, list[float]] = {r.name: [1.0] * 4 for r in rows}
+    done = [r for r in rows if r.status != "failed" and r.verdicts]
+    for group in sorted({r.group for r in done}):
+        members = [r for r in done if r.group == group]
+        for j, name in enumerate(PARAMETERS):
+            trusted = [r for r in members if r.verdicts.get(name) == TRUSTED
+                       and np.isfinite(_stat(r, j)) and _stat(r, j) > 0]
+            if len(trusted) < 2:
+                continue
+            sc = flight_scatter(name, group, [r.name for r in trusted],
+                                np.array([_value(r, j) for r in trusted]),
+                                np.array([_stat(r, j) for r in trusted]))
+            scatters.append(sc)
+            for r in members:
+                scale[r.name][j] = sc.scale
+    out = []
+    for r in rows:
+        s = scale[r.name]
+        if all(v == 1.0 for v in s):
+            out.append(r)
+            continue
+        totals = [scaled_total(_total(r, j), _stat(r, j), s[j])
+                  if np.isfinite(_stat(r, j)) and np.isfinite(_total(r, j)) else _total(r, j)
+                  for j in range(4)]
+        vrange = vehicle_range(r.vehicle) if r.vehicle else None
+        verdicts = dict(r.verdicts)
+        for j, name in enumerate(PARAMETERS):
+            if verdicts.get(name) == TRUSTED and vrange is not None and s[j] > 1.0 \
+                    and range_reasons(j, totals[j], vrange):
+                verdicts[name] = NOT_IDENTIFIABLE
+        lowered = verdicts != r.verdicts
+        out.append(replace(r, mass_se=totals[0], inertia_se=tuple(totals[1:4]),
+                           verdicts=verdicts, scatter_scale=tuple(s),
+                           status="not trusted" if lowered else r.status,
+                           overall=NOT_IDENTIFIABLE if lowered and r.overall == TRUSTED
+                           else r.overall))
+    return out, scatters
+
+
+def _value(r: BatchRow, j: int) -> float:
+    return r.mass if j == 0 else r.inertia_diag[j - 1]
+
+
+def _total(r: BatchRow, j: int) -> float:
+    return r.mass_se if j == 0 else r.inertia_se[j - 1]
+
+
+def _stat(r: BatchRow, j: int) -> float:
+    return comparable_error(_value(r, j), r.stat_se[j], _total(r, j))

@@ -216,6 +216,19 @@ def _range_check(name: str, se: float, lo: float, hi: float, scale: float, unit:
             f"(at most {100 * th.max_range_share:.0f} %)"]
 
 
+def range_reasons(index: int, stderr: float, vrange: VehicleRange,
+                  thresholds: VerdictThresholds = DEFAULT_THRESHOLDS) -> list[str]:
+    """The reasons (none, or one) that parameter ``index`` of [m, I_xx, I_yy, I_zz] is not
+    identifiable by its standard error ``stderr`` [kg or kg m^2] alone: its +-2 standard
+    errors cover more than ``max_range_share`` of the vehicle's range (``judge``'s check,
+    for callers that scale an error after the verdict, ``realdata.consistency``)."""
+    if index == 0:
+        return _range_check("mass", stderr, *vrange.mass, 1e3, "g", thresholds)
+    i = index - 1
+    return _range_check(DIAGONAL[i], stderr, float(vrange.inertia_lo[i]),
+                        float(vrange.inertia_hi[i]), 1e6, "e-6 kg m^2", thresholds)
+
+
 def _nis_check(evidence: VerdictEvidence, channels: Sequence[str],
                th: VerdictThresholds) -> list[str]:
     bad = [(c, evidence.nis_ratio[c]) for c in channels

@@ -20,7 +20,9 @@ and every flight of the group gets its statistical error scaled by S inside its 
 
 (the common parts, kf and the yaw ratio, do not scatter between flights and stay as
 they are), and its verdict judged again with it. A scaled error that covers too much of
-the vehicle's possible range turns "trusted" into "not identifiable".
+the vehicle's possible range turns "trusted" into "not identifiable". A flight whose
+statistical error is missing or degenerate is compared with its total instead
+(``comparable_error``).
 """
 
 from __future__ import annotations
@@ -97,6 +99,16 @@ def scaled_total(se_total: float, se_stat: float, scale: float) -> float:
     return math.sqrt(se_total**2 + (scale**2 - 1.0) * se_stat**2)
 
 
+def comparable_error(value: float, stat: float, total: float) -> float:
+    """The error a flight is compared with: its statistical error, or its total where the
+    statistical one is missing or degenerate, below 1e-6 of the value (a jackknife whose
+    blocks all give the same estimate, pinned on the physical-consistency boundary
+    I_zz = I_xx + I_yy, prints ~1e-20: as a weight it would swamp every other flight)."""
+    if np.isfinite(stat) and stat > 1e-6 * abs(value):
+        return float(stat)
+    return float(total)
+
+
 def _group(r: RealIdentification) -> str:
     rebuilt = r.motor_split.rebuilt if r.motor_split is not None else ()
     if rebuilt:
@@ -118,12 +130,12 @@ def between_flights(results: Sequence[RealIdentification]
                    and r.evidence is not None]
         for j, name in enumerate(PARAMETERS):
             trusted = [r for r in members if r.verdict.parameters[j].verdict == TRUSTED
-                       and np.isfinite(r.se_stat[j]) and r.se_stat[j] > 0]
+                       and _error(r, j) > 0]
             if len(trusted) < 2:
                 continue
             sc = flight_scatter(name, group, [r.name for r in trusted],
                                 np.array([r.params[j] for r in trusted]),
-                                np.array([r.se_stat[j] for r in trusted]))
+                                np.array([_error(r, j) for r in trusted]))
             scatters.append(sc)
             for r in members:
                 scale[r.name][j] = sc.scale
@@ -133,9 +145,13 @@ def between_flights(results: Sequence[RealIdentification]
         if r.evidence is None or r.verdict is None or np.all(s == 1.0):
             out.append(r)
             continue
-        total = np.array([scaled_total(float(r.se_total[j]), float(r.se_stat[j]), float(s[j]))
-                          if np.isfinite(r.se_stat[j]) else float(r.se_total[j])
+        total = np.array([scaled_total(float(r.se_total[j]), _error(r, j), float(s[j]))
+                          if np.isfinite(_error(r, j)) else float(r.se_total[j])
                           for j in range(4)])
         verdict = judge(r.mass, np.diag(r.inertia), total, r.evidence, vehicle_range(r.vehicle))
         out.append(replace(r, se_total=total, verdict=verdict, scatter_scale=s.copy()))
     return out, scatters
+
+
+def _error(r: RealIdentification, j: int) -> float:
+    return comparable_error(float(r.params[j]), float(r.se_stat[j]), float(r.se_total[j]))
