@@ -163,3 +163,11 @@ def test_batch_compares_the_flights_of_one_vehicle():
     # on their own (no scatter to compare with) the flights keep their verdicts
     alone, none = compare_flights(rows[:1])
     assert alone == rows[:1] and none == []
+    # logs that name no vehicle are not taken for one vehicle
+    unnamed = []
+    for n, v in values.items():
+        report = _measured_report(*v)
+        report["source"]["vehicle_named"] = False
+        unnamed.append(row_from_report(n, n, report, 1.0))
+    same, nothing = compare_flights(unnamed)
+    assert same == unnamed and nothing == []

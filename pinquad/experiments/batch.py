@@ -47,8 +47,9 @@ class BatchRow:
     effects: names of the effects discovery selected, in order (DESIGN 4.4).
     seconds: the run's wall time [s].
     error: the error message of a failed log, else "".
-    vehicle: the vehicle the log named ("" when failed); group: the flights it is
-        compared with (``compare_flights``: same vehicle, same rebuilt motors).
+    vehicle: the vehicle the log was read as ("" when failed); group: the flights it is
+        compared with (``compare_flights``: same named vehicle, same rebuilt motors; a
+        log naming no vehicle is a group of its own).
     stat_se: (4,) statistical standard errors of [m, I_xx, I_yy, I_zz] (the run's, NaN
         where the report has none: then the total's); scatter_scale: (4,) the between-
         flight scale factors S inside mass_se / inertia_se (1: not scaled).
@@ -92,7 +93,11 @@ def row_from_report(name: str, path: str, report: dict, seconds: float) -> Batch
     run = (report.get("runs") or [{}])[0]
     stat = run.get("stderr_statistical") or {}
     rebuilt = (run.get("motor_split") or {}).get("rebuilt_motors") or []
-    vehicle = str((report.get("source") or {}).get("vehicle") or "")
+    source = report.get("source") or {}
+    vehicle = str(source.get("vehicle") or "")
+    # a log that names no vehicle is compared with no other: the default it was read as
+    # says nothing about which vehicle flew it
+    named = source.get("vehicle_named", True) is not False
     return BatchRow(
         name=name, path=path, status="trusted" if overall == "trusted" else "not trusted",
         mass=float(est["mass"]), mass_se=_number(se.get("mass")),
@@ -102,8 +107,9 @@ def row_from_report(name: str, path: str, report: dict, seconds: float) -> Batch
         verdicts={k: v.get("verdict", "") for k, v in verdict.get("parameters", {}).items()},
         effects=tuple(s["effect"] for s in discovery.get("selected", [])),
         seconds=seconds, error="", vehicle=vehicle,
-        group=vehicle + ("" if not rebuilt else ", motor(s) " + ", ".join(
-            f"M{int(i)}" for i in rebuilt) + " rebuilt from PWM"),   # report: 1-based
+        group=(vehicle if named else f"{name} (no vehicle named)") + (
+            "" if not rebuilt else ", motor(s) " + ", ".join(
+                f"M{int(i)}" for i in rebuilt) + " rebuilt from PWM"),   # report: 1-based
         stat_se=(_number(stat.get("mass")),
                  *(_number(v) for v in (stat.get("inertia_diag") or NAN3))))
 
