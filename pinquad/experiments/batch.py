@@ -16,14 +16,16 @@ import numpy as np
 from pinquad.identification.verdict import (
     NOT_IDENTIFIABLE,
     TRUSTED,
+    VehicleRange,
     range_reasons,
     vehicle_range,
 )
 from pinquad.realdata.consistency import (
+    PARAMETERS,
+    FlightEstimate,
     FlightScatter,
     comparable_error,
-    flight_scatter,
-    scaled_total,
+    scaled_totals,
 )
 
 ALL_TRUSTED, SOME_UNTRUSTED, SOME_FAILED = 0, 3, 4
@@ -74,7 +76,6 @@ class BatchRow:
 
 
 NAN3 = (float("nan"),) * 3
-PARAMETERS = ("mass", "I_xx", "I_yy", "I_zz")
 
 
 def _number(value: object) -> float:
@@ -154,44 +155,45 @@ def compare_flights(rows: Sequence[BatchRow]) -> tuple[list[BatchRow], list[Flig
     "not identifiable" (``verdict.range_reasons``; the row not trusted). Only that check
     depends on the error's size, so a verdict can only be lowered here. Returns the rows
     and the scatters compared."""
-    scatters: list[FlightScatter] = []
-    scale: dict[str, list[float]] = {r.name: [1.0] * 4 for r in rows}
     done = [r for r in rows if r.status != "failed" and r.verdicts]
-    for group in sorted({r.group for r in done}):
-        members = [r for r in done if r.group == group]
-        for j, name in enumerate(PARAMETERS):
-            trusted = [r for r in members if r.verdicts.get(name) == TRUSTED
-                       and np.isfinite(_stat(r, j)) and _stat(r, j) > 0]
-            if len(trusted) < 2:
-                continue
-            sc = flight_scatter(name, group, [r.name for r in trusted],
-                                np.array([_value(r, j) for r in trusted]),
-                                np.array([_stat(r, j) for r in trusted]))
-            scatters.append(sc)
-            for r in members:
-                scale[r.name][j] = sc.scale
+    flights = [FlightEstimate(
+        r.name, r.group, np.array([_value(r, j) for j in range(4)]),
+        np.array([_stat(r, j) for j in range(4)]), np.array([_total(r, j) for j in range(4)]),
+        np.array([r.verdicts.get(name) == TRUSTED for name in PARAMETERS])) for r in done]
+    scale, totals, scatters = scaled_totals(flights)
+    new = {r.name: (s, t) for r, s, t in zip(done, scale, totals, strict=True)
+           if np.any(s != 1.0)}
     out = []
     for r in rows:
-        s = scale[r.name]
-        if all(v == 1.0 for v in s):
+        if r.name not in new:
             out.append(r)
             continue
-        totals = [scaled_total(_total(r, j), _stat(r, j), s[j])
-                  if np.isfinite(_stat(r, j)) and np.isfinite(_total(r, j)) else _total(r, j)
-                  for j in range(4)]
-        vrange = vehicle_range(r.vehicle) if r.vehicle else None
+        s, total = new[r.name]
+        vrange = _vehicle_range(r.vehicle)
         verdicts = dict(r.verdicts)
         for j, name in enumerate(PARAMETERS):
             if verdicts.get(name) == TRUSTED and vrange is not None and s[j] > 1.0 \
-                    and range_reasons(j, totals[j], vrange):
+                    and range_reasons(j, float(total[j]), vrange):
                 verdicts[name] = NOT_IDENTIFIABLE
         lowered = verdicts != r.verdicts
-        out.append(replace(r, mass_se=totals[0], inertia_se=tuple(totals[1:4]),
-                           verdicts=verdicts, scatter_scale=tuple(s),
+        out.append(replace(r, mass_se=float(total[0]),
+                           inertia_se=tuple(float(v) for v in total[1:4]),
+                           verdicts=verdicts, scatter_scale=tuple(float(v) for v in s),
                            status="not trusted" if lowered else r.status,
                            overall=NOT_IDENTIFIABLE if lowered and r.overall == TRUSTED
                            else r.overall))
     return out, scatters
+
+
+def _vehicle_range(vehicle: str) -> VehicleRange | None:
+    """The vehicle's range, None when there is none to judge against (no vehicle, or a
+    vehicle file that no longer reads: the batch's rows are written regardless)."""
+    if not vehicle:
+        return None
+    try:
+        return vehicle_range(vehicle)
+    except (OSError, ValueError):
+        return None
 
 
 def _value(r: BatchRow, j: int) -> float:

@@ -117,37 +117,68 @@ def _group(r: RealIdentification) -> str:
     return "measured rotor speeds"
 
 
+@dataclass(frozen=True)
+class FlightEstimate:
+    """What the comparison needs of one flight: name; group (the flights it is compared
+    with); values (4,), errors (4,) (``comparable_error``) and totals (4,) of [m, I_xx,
+    I_yy, I_zz] [kg, kg m^2]; trusted (4,): the verdict on each."""
+
+    name: str
+    group: str
+    values: Array
+    errors: Array
+    totals: Array
+    trusted: NDArray[np.bool_]
+
+
+def scaled_totals(flights: Sequence[FlightEstimate]
+                  ) -> tuple[list[Array], list[Array], list[FlightScatter]]:
+    """Per flight, the scale factors S (4,) and the totals (4,) with the statistical part
+    scaled (``scaled_total``; NaN errors leave a total as it is), and the scatter of every
+    (group, parameter) with two or more trusted estimates (module docstring)."""
+    scatters: list[FlightScatter] = []
+    scale = [np.ones(4) for _ in flights]
+    for group in sorted({f.group for f in flights}):
+        members = [i for i, f in enumerate(flights) if f.group == group]
+        for j, name in enumerate(PARAMETERS):
+            trusted = [i for i in members if flights[i].trusted[j]
+                       and flights[i].errors[j] > 0]
+            if len(trusted) < 2:
+                continue
+            sc = flight_scatter(name, group, [flights[i].name for i in trusted],
+                                np.array([flights[i].values[j] for i in trusted]),
+                                np.array([flights[i].errors[j] for i in trusted]))
+            scatters.append(sc)
+            for i in members:
+                scale[i][j] = sc.scale
+    totals = [np.array([scaled_total(float(f.totals[j]), float(f.errors[j]), float(s[j]))
+                        if np.isfinite(f.errors[j]) and np.isfinite(f.totals[j])
+                        else float(f.totals[j]) for j in range(4)])
+              for f, s in zip(flights, scale, strict=True)]
+    return scale, totals, scatters
+
+
 def between_flights(results: Sequence[RealIdentification]
                     ) -> tuple[list[RealIdentification], list[FlightScatter]]:
     """The flights with their totals scaled and verdicts judged again where flights of the
     same group scatter beyond their errors (module docstring), and the scatter of every
     (parameter, group) with two or more trusted estimates. A flight without its verdict
-    evidence (``RealIdentification.evidence``) is left as it is."""
-    scatters: list[FlightScatter] = []
-    scale = {r.name: np.ones(4) for r in results}
-    for group in sorted({_group(r) for r in results}):
-        members = [r for r in results if _group(r) == group and r.verdict is not None
-                   and r.evidence is not None]
-        for j, name in enumerate(PARAMETERS):
-            trusted = [r for r in members if r.verdict.parameters[j].verdict == TRUSTED
-                       and _error(r, j) > 0]
-            if len(trusted) < 2:
-                continue
-            sc = flight_scatter(name, group, [r.name for r in trusted],
-                                np.array([r.params[j] for r in trusted]),
-                                np.array([_error(r, j) for r in trusted]))
-            scatters.append(sc)
-            for r in members:
-                scale[r.name][j] = sc.scale
+    or its evidence (``RealIdentification.evidence``) is left as it is."""
+    judged = [r for r in results if r.verdict is not None and r.evidence is not None]
+    flights = [FlightEstimate(
+        r.name, _group(r), r.params, np.array([_error(r, j) for j in range(4)]),
+        np.asarray(r.se_total, dtype=float),
+        np.array([r.verdict.parameters[j].verdict == TRUSTED for j in range(4)]))
+        for r in judged]
+    scale, totals, scatters = scaled_totals(flights)
+    new = {r.name: (s, t) for r, s, t in zip(judged, scale, totals, strict=True)
+           if np.any(s != 1.0)}
     out = []
     for r in results:
-        s = scale[r.name]
-        if r.evidence is None or r.verdict is None or np.all(s == 1.0):
+        if r.name not in new:
             out.append(r)
             continue
-        total = np.array([scaled_total(float(r.se_total[j]), _error(r, j), float(s[j]))
-                          if np.isfinite(_error(r, j)) else float(r.se_total[j])
-                          for j in range(4)])
+        s, total = new[r.name]
         verdict = judge(r.mass, np.diag(r.inertia), total, r.evidence, vehicle_range(r.vehicle))
         out.append(replace(r, se_total=total, verdict=verdict, scatter_scale=s.copy()))
     return out, scatters
