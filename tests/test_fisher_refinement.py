@@ -7,6 +7,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pinquad.identification import fisher
 from pinquad.identification.fisher import (
@@ -66,3 +68,33 @@ def test_a_missing_standard_error_that_was_asked_for_is_not_trusted():
     assert asked.get("mass").verdict == NOT_IDENTIFIABLE
     assert asked.get("mass").reasons == (STDERR_UNAVAILABLE,)
     assert asked.get("I_xx").verdict == TRUSTED and asked.get("I_yy").verdict == NOT_IDENTIFIABLE
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 4), st.floats(-1.0, 0.0))
+def test_determined_covariance_drops_only_the_direction_the_data_leave(seed, flat, curvature):
+    """A positive definite information in scaled units, made flat or wrongly curved
+    (eigenvalue <= 0) along parameter ``flat`` alone: that parameter is undetermined,
+    every other one keeps the covariance of its own block (the inverse with ``flat``
+    removed); positive definite, nothing is undetermined and the covariance is the
+    inverse."""
+    rng = np.random.default_rng(seed)
+    scale = 10.0 ** rng.uniform(-8, 0, size=5)
+    root = rng.normal(size=(4, 4))
+    block = root @ root.T + 0.5 * np.eye(4)
+    keep = [i for i in range(5) if i != flat]
+    scaled = np.zeros((5, 5))
+    scaled[np.ix_(keep, keep)] = block
+    scaled[flat, flat] = curvature
+    info = scaled / np.outer(scale, scale)
+    cov, undetermined = fisher.determined_covariance(info, scale)
+    assert undetermined.tolist() == [i == flat for i in range(5)]
+    expected = np.linalg.inv(block) * np.outer(scale[keep], scale[keep])
+    np.testing.assert_allclose(cov[np.ix_(keep, keep)], expected, rtol=1e-8,
+                               atol=1e-10 * np.abs(expected).max())
+    scaled[flat, flat] = 2.0
+    info = scaled / np.outer(scale, scale)
+    cov, undetermined = fisher.determined_covariance(info, scale)
+    assert not undetermined.any()
+    np.testing.assert_allclose(cov, np.linalg.inv(scaled) * np.outer(scale, scale), rtol=1e-8,
+                               atol=1e-10 * np.abs(cov).max())

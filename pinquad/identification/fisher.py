@@ -141,6 +141,31 @@ def positive_definite_information(info: Array) -> bool:
     return True
 
 
+def determined_covariance(info: Array, scale: Array, loading: float = 0.1
+                          ) -> tuple[Array, NDArray[np.bool_]]:
+    """The covariance of the directions the information determines, and the parameters
+    it does not.
+
+    With S = diag(scale) (the parameters' natural steps), the scaled information
+    S Info S = V diag(lambda) V^T; the directions with lambda <= 1e-12 max(lambda) (the
+    log-likelihood flat, or curved the wrong way, along them: not a maximum there) are
+    dropped, Cov = S V_+ diag(1 / lambda_+) V_+^T S over the rest, and parameter i is
+    undetermined where |V_ij| > ``loading`` for a dropped direction j. Returns (Cov
+    (n, n), undetermined (n,) bool); all undetermined when nothing is kept."""
+    scale = np.asarray(scale, dtype=float)
+    scaled = 0.5 * (info + info.T) * np.outer(scale, scale)
+    n = scaled.shape[0]
+    if not np.all(np.isfinite(scaled)):
+        return np.full((n, n), np.nan), np.ones(n, dtype=bool)
+    lam, vec = np.linalg.eigh(scaled)
+    keep = lam > 1e-12 * max(float(lam.max()), 0.0)
+    if not keep.any():
+        return np.full((n, n), np.nan), np.ones(n, dtype=bool)
+    inner = (vec[:, keep] / lam[keep]) @ vec[:, keep].T
+    undetermined = np.any(np.abs(vec[:, ~keep]) > loading, axis=1)
+    return inner * np.outer(scale, scale), undetermined
+
+
 def standard_errors(info: Array) -> Array:
     """sqrt(diag(Info^{-1})) (4,); NaN where the information is not positive definite."""
     try:

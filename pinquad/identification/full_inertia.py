@@ -45,6 +45,7 @@ from estimators.protocol import Posterior
 from pinquad.core.conventions import rotation_from_euler, skew
 from pinquad.estep.fast_smoother import loglik_quad
 from pinquad.identification.em import run_em
+from pinquad.identification.fisher import determined_covariance
 from pinquad.models.full import (
     FullQuadSSM,
     dynamic_parameters,
@@ -52,14 +53,17 @@ from pinquad.models.full import (
 )
 from pinquad.models.ssm import Observations, Theta
 from pinquad.mstep.stats import transition_mask
-from pinquad.mstep.updates import MStepResult, update_noise
+from pinquad.mstep.updates import MStepResult, applied_force, update_noise
 
 Array = NDArray[np.float64]
 
 PI_NAMES = ("m", "h_x", "h_y", "h_z", "I_xx", "I_xy", "I_yy", "I_xz", "I_yz", "I_zz")
-# The state coordinates Y(x_k, x_{k+1}) depends on: Euler angles, velocity and rates of
-# x_k, velocity and rates of x_{k+1} (indices into the stacked (x_k, x_{k+1}) (24,)).
-_Z = np.array([3, 4, 5, 6, 7, 8, 9, 10, 11, 15, 16, 17, 21, 22, 23])
+# The state coordinates Y(x_k, x_{k+1}) and tau depend on: velocity, Euler angles and
+# rates of x_k, velocity, Euler angles (tau's force rows on a continuous flight only) and
+# rates of x_{k+1} (indices into the stacked (x_k, x_{k+1}) (24,)).
+_Z = np.array([3, 4, 5, 6, 7, 8, 9, 10, 11, 15, 16, 17, 18, 19, 20, 21, 22, 23])
+# where applied_force's derivative columns (Theta_k, v_k, v_{k+1}, Theta_{k+1}) sit in _Z
+_FORCE_COLS = np.r_[3:6, 0:3, 9:12, 12:15]
 _FD_STEP = 1e-6
 
 
@@ -140,17 +144,24 @@ class FullStats:
 
 def full_stats(post: Posterior, obs: Observations, gravity: float) -> FullStats:
     """FullStats over every transition the M-step uses (``identify.transition_mask``):
-    the regressor at the smoothed means, plus
-    the first-order term E[(Y - Y(mean)) pi]^2 ~ pi^T D Sigma D^T pi, with D = dY/dz by
-    central differences over the 15 state coordinates z that Y depends on and Sigma
-    their smoothed joint covariance (from the covariances and lag-one
-    cross-covariances)."""
+    the regressor and the applied wrench tau at the smoothed means, plus the first-order
+    term of the residual rho = Y pi - tau about them,
+
+        E[rho_j^2] ~ rho_j(mean)^2 + (D_j pi - T_j)^T Sigma (D_j pi - T_j),
+
+    with D = dY/dz by central differences over the 18 state coordinates z that Y and tau
+    depend on, T = d tau / dz (``mstep.updates.applied_force``'s derivative: non-zero
+    only for the force rows of a continuous flight, whose thrust acts along the
+    interval's mean direction F (e3 + R_k^T R_{k+1} e3) / 2 as the E-step moves it) and
+    Sigma their smoothed joint covariance (from the covariances and lag-one
+    cross-covariances). Held flights: tau = [0, 0, F, M], T = 0."""
     idx = np.flatnonzero(transition_mask(obs))
     dt = obs.dt
     x_now, x_next = post.mean[idx], post.mean[idx + 1]
     y = spatial_regressor(x_now, x_next, dt, gravity)
     tau = np.zeros((idx.size, 6))
-    tau[:, 2] = obs.inputs[idx, 0]
+    tau[:, 0:3], d_applied = applied_force(x_now, x_next, obs.inputs[idx, 0],
+                                           bool(obs.continuous))
     tau[:, 3:6] = obs.inputs[idx, 1:4]
     joint = np.empty((idx.size, 24, 24))
     joint[:, 0:12, 0:12] = post.cov[idx]
@@ -171,6 +182,11 @@ def full_stats(post: Posterior, obs: Observations, gravity: float) -> FullStats:
     a += np.einsum("kjpa,kab,kjqb->jpq", deriv, sigma, deriv, optimize=True)
     b = np.einsum("kjp,kj->jp", y, tau)
     c = np.einsum("kj,kj->j", tau, tau)
+    if d_applied is not None:
+        d_tau = np.zeros((idx.size, 3, _Z.size))
+        d_tau[:, :, _FORCE_COLS] = d_applied
+        b[0:3] += np.einsum("kjpa,kab,kjb->jp", deriv[:, 0:3], sigma, d_tau, optimize=True)
+        c[0:3] += np.einsum("kja,kab,kjb->j", d_tau, sigma, d_tau, optimize=True)
     return FullStats(a, b, c, int(idx.size))
 
 
@@ -366,8 +382,10 @@ def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = N
 
     (offsets in units of h, both O(h^2)), Info = -H; then the delta method through
     pi -> (m, c, I_c). Returns (se_mass, se_com (3,), se_inertia
-    (3, 3), the information (10, 10)); a direction the data do not determine shows up
-    as a large or NaN standard error (111 likelihood evaluations, compiled)."""
+    (3, 3), the information (10, 10)); a direction the data do not determine (the
+    information not positive there: ``fisher.determined_covariance``) leaves NaN for
+    the parameters it moves and the others' errors from the rest (111 likelihood
+    evaluations, compiled)."""
     pi0 = dynamic_parameters(theta.mass, theta.com, theta.inertia)
     scale_i = float(np.trace(theta.inertia)) / 3.0
     steps = np.array([1e-3 * theta.mass] + [1e-4 * theta.mass] * 3 + [1e-3 * scale_i] * 6)
@@ -397,17 +415,22 @@ def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = N
             hess[i, j] = hess[j, i] = 0.5 * (at(1, i, j) + at(-1, i, j) - 2.0 * centre
                                              - along[i] - along[j])
     info = -hess / np.outer(steps, steps)
-    try:
-        cov_pi = np.linalg.inv(info)
-    except np.linalg.LinAlgError:
-        return math.nan, np.full(3, math.nan), np.full((3, 3), math.nan), info
+    cov_pi, undetermined = determined_covariance(info, steps)
     jac = np.empty((13, n))
     for i in range(n):
         e = np.zeros(n)
         e[i] = steps[i]
         jac[:, i] = (_derived(pi0 + e) - _derived(pi0 - e)) / (2.0 * steps[i])
     var = np.diag(jac @ cov_pi @ jac.T)
-    se = np.where(var > 0, np.sqrt(np.abs(var)), math.nan)
+    # an output the data leave undetermined: the mass if m is, c_i if m or h_i is, an
+    # entry of I_c if its own entry of I_O is (the parallel-axis term's share is second
+    # order in c)
+    unknown = np.zeros(13, dtype=bool)
+    unknown[0] = undetermined[0]
+    unknown[1:4] = undetermined[0] | undetermined[1:4]
+    for p, (r, c) in enumerate(((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))):
+        unknown[4 + 3 * r + c] = unknown[4 + 3 * c + r] = undetermined[4 + p]
+    se = np.where((var > 0) & ~unknown, np.sqrt(np.abs(var)), math.nan)
     return float(se[0]), se[1:4], se[4:13].reshape(3, 3), info
 
 
