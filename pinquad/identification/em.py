@@ -24,6 +24,17 @@ Array = NDArray[np.float64]
 Smoother = Callable[[StateSpaceModel, Array], Posterior]
 MStep = Callable[[Posterior, Observations, Theta], MStepResult]
 
+ETA_MAX = 16.0
+"""Largest over-relaxation factor of the shared eta (Salakhutdinov and Roweis' cap)."""
+
+ETA_MAX_PER_PARAMETER = 1024.0
+"""Largest over-relaxation factor of one log-parameter in ``per_parameter`` mode. A
+variance whose maximum-likelihood value is near zero (the lateral force noise of a flight
+that has none) creeps there with plain EM steps of a fraction of a percent each (the EM
+map's rate close to 1); at 16x the refit of the benchmark's 60 s log ran its 100 E-steps
+twice without converging, at 1024x it converges in 36 and 3, at a higher likelihood
+(docs/benchmark.md). Every relaxed step is still checked against the likelihood."""
+
 PAPER_Q0 = 0.0707
 PAPER_R0 = 0.00707
 
@@ -94,7 +105,7 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     the steps are over-relaxed in log-parameter space (adaptive over-relaxed EM,
     Salakhutdinov and Roweis 2003): theta_p = theta_t * (M(theta_t) / theta_t)^eta
     (``extrapolate(theta_t, M(theta_t), eta)``); if log p(y | theta_p) >= log p(y |
-    theta_t) the step is taken and eta grows by 1.5x (at most 16), otherwise eta falls
+    theta_t) the step is taken and eta grows by 1.5x (at most ``ETA_MAX``), otherwise eta falls
     back to 1 and the plain EM step M(theta_t) is taken. Every E-step counts towards
     ``max_iterations``; the recorded history holds the accepted iterates only, so the
     recorded log-likelihood is the EM sequence's.
@@ -103,11 +114,12 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     log-parameter (mass, inertia, wrench noise, measurement noise), eta_i applied to
     parameter i's EM step; a parameter whose plain EM step changes sign from its
     previous one falls back to eta_i = 1 while the others keep theirs; the acceptance
-    test and the growth are the same. Where one parameter creeps in one direction over
-    many steps (the force noise from an inflated start) while another has settled and
-    only jitters (the measurement noise), the shared eta over-relaxes the jitter until
-    the step is rejected, every eighth step or so, and never stays large for the creep:
-    discovery's refit took 174 E-steps where this takes ~95, to a higher likelihood
+    test and the growth are the same, the cap ``ETA_MAX_PER_PARAMETER``. Where one
+    parameter creeps in one direction over many steps (the force noise from an inflated
+    start) while another has settled and only jitters (the measurement noise), the shared
+    eta over-relaxes the jitter until the step is rejected, every eighth step or so, and
+    never stays large for the creep: discovery's refit took 174 E-steps where this took
+    ~95 with the cap at 16, and 39 with it at 1024, to a higher likelihood
     (docs/benchmark.md).
 
     When theta0 carries the paper's fixed Q0 (``initial_theta``) and the model is a
@@ -194,7 +206,8 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
                 break
             new_post = try_e_step(step_theta)
         elif relaxing:
-            eta = np.minimum(eta * 1.5, 16.0) if per_parameter else min(eta * 1.5, 16.0)
+            eta = (np.minimum(eta * 1.5, ETA_MAX_PER_PARAMETER) if per_parameter
+                   else min(eta * 1.5, ETA_MAX))
         if new_post is None:
             break
         failure = None
