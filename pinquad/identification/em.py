@@ -25,7 +25,7 @@ Smoother = Callable[[StateSpaceModel, Array], Posterior]
 MStep = Callable[[Posterior, Observations, Theta], MStepResult]
 
 ETA_MAX = 16.0
-"""Largest over-relaxation factor of the shared eta (Salakhutdinov and Roweis' cap)."""
+"""Largest over-relaxation factor of the shared eta."""
 
 ETA_MAX_PER_PARAMETER = 1024.0
 """Largest over-relaxation factor of one log-parameter in ``per_parameter`` mode. A
@@ -119,8 +119,9 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     start) while another has settled and only jitters (the measurement noise), the shared
     eta over-relaxes the jitter until the step is rejected, every eighth step or so, and
     never stays large for the creep: discovery's refit took 174 E-steps where this took
-    ~95 with the cap at 16, and 39 with it at 1024, to a higher likelihood
-    (docs/benchmark.md).
+    ~95 (cap 16, before the continuous E-step). On the benchmark's log the refit's two EM
+    passes then ran 100 E-steps each without converging; with the cap at 1024 they take
+    36 and 3, to a higher likelihood (docs/benchmark.md).
 
     When theta0 carries the paper's fixed Q0 (``initial_theta``) and the model is a
     QuadSSM (or a subclass), the first E-step uses the force-free ``KinematicSSM`` (a
