@@ -5,6 +5,7 @@ and the information. The whole path runs in test_discovery's gyro-offset refit."
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -85,3 +86,39 @@ def test_the_information_is_the_curvature_and_a_breakdown_gives_none():
     se = information_stderr(obs, theta, np.zeros((6, 12)), offset, ["gyro_bias"], jack,
                             loglik=broken)
     assert np.all(np.isnan(se["gyro_bias"]))
+
+
+def _quadratic_about(peak: np.ndarray, curvature: np.ndarray):
+    """A log-likelihood -sum(c_i (b_i - peak_i)^2) / 2 of the gyro offset b (as above)."""
+    def loglik(model, ys) -> float:
+        b = -ys[0, 3:6]
+        return float(-0.5 * np.sum(curvature * (b - peak) ** 2))
+    return loglik
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.floats(-5.0, 5.0), min_size=3, max_size=3))
+def test_the_newton_step_reaches_the_maximum_of_a_quadratic_likelihood(shift):
+    """Coefficients a few standard errors off the maximum of a quadratic L (the refit's
+    stall): ``information_fit`` moves them to it (to 1e-6 of a standard error) and says
+    how much L gained; at the maximum itself it takes no step."""
+    from pinquad.discovery.uncertainty import information_fit
+
+    obs = _tiny_gyro_observations()
+    theta = initial_theta(obs, 0.035, np.diag([16.6e-6, 16.7e-6, 29.3e-6]), 9.81)
+    curvature = np.array([1e6, 4e6, 2.5e5])
+    se = 1.0 / np.sqrt(curvature)
+    peak = np.array([0.03, -0.02, 0.015])
+    start = peak + np.asarray(shift) * se
+    jack = {"gyro_bias": se / 3.0}
+    fit = information_fit(obs, theta, np.zeros((6, 12)), {"gyro_bias": start}, ["gyro_bias"],
+                          jack, loglik=_quadratic_about(peak, curvature))
+    np.testing.assert_allclose(fit.stderr["gyro_bias"], se, rtol=1e-6)
+    np.testing.assert_allclose(fit.maximiser["gyro_bias"], peak, rtol=0, atol=1e-6 * se.min())
+    expected_gain = 0.5 * float(np.sum(np.asarray(shift) ** 2))
+    if expected_gain > 1e-9:
+        assert fit.gain == pytest.approx(expected_gain, rel=1e-5, abs=1e-9)
+    at_peak = information_fit(obs, theta, np.zeros((6, 12)), {"gyro_bias": peak},
+                              ["gyro_bias"], jack, loglik=_quadratic_about(peak, curvature))
+    np.testing.assert_allclose(at_peak.maximiser["gyro_bias"], peak, rtol=0,
+                               atol=1e-6 * se.min())

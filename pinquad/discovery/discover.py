@@ -81,7 +81,7 @@ from pinquad.discovery.selection import (
     jackknife,
     score_candidate,
 )
-from pinquad.discovery.uncertainty import information_stderr, reported_stderr
+from pinquad.discovery.uncertainty import information_fit, information_stderr, reported_stderr
 from pinquad.identification.identify import get_smoother
 from pinquad.models.ssm import Observations, Theta
 
@@ -224,7 +224,11 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
         all_blocks = train
     jack = jackknife(obs, post_f, th_f, selected, cfg, all_blocks,
                      sampling=cfg.sampling_nuisance)
-    info = information_stderr(obs, th_f, post_f.mean, coeffs_f, selected, jack)
+    # the coefficients at the maximum of their likelihood (theta held), where the
+    # refit's alternation stalls short of it (uncertainty.information_fit)
+    fit = information_fit(obs, th_f, post_f.mean, coeffs_f, selected, jack)
+    info = fit.stderr
+    coeffs_f = {**coeffs_f, **fit.maximiser}
     evidence = effect_evidence(selected, res0, pi0, res_tr, pi_tr, coeffs_tr, test)
     return DiscoveryResult(tuple(selected), coeffs_f, reported_stderr(jack, info), tuple(scores),
                            before, after, th_f.mass, np.asarray(th_f.inertia), th_f, post_f,

@@ -23,12 +23,16 @@ for drag and wind), and Info = -d^2 L / dc dc^T by central differences
 (``identification.fisher.central_differences``) with steps of about one standard error,
 found by a few diagonal rounds from three jackknife standard errors. The reported
 standard error of each coefficient is max(jackknife, sqrt(diag Info^-1)); the jackknife
-alone where the information is not positive definite.
+alone where the information is not positive definite. The same central differences give
+L's gradient, and the reported coefficients of an EM refit are those after one Newton
+step to L's maximum (``information_fit``; taken only where it raises L).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,19 +56,50 @@ def _split(x: Array, effects: Sequence[str], sizes: Sequence[int]) -> dict[str, 
     return out
 
 
+@dataclass(frozen=True)
+class InformationFit:
+    """What the likelihood of the coefficients says at the refit.
+
+    stderr: effect -> (p,) sqrt(diag Info^-1) (NaN where the information is not positive
+    definite or the filter broke down at the estimate); maximiser: effect -> (p,) the
+    coefficients after one Newton step on L(c), c + Info^-1 grad L, where that step was
+    taken (the information positive definite and L higher there), else the coefficients
+    given; gain [nats]: L(maximiser) - L(given) (0 when no step was taken)."""
+
+    stderr: dict[str, Array]
+    maximiser: dict[str, Array]
+    gain: float = 0.0
+
+
 def information_stderr(obs: Observations, theta: Theta, state: Array,
                        coefficients: dict[str, Array], effects: Sequence[str],
                        jackknife: dict[str, Array],
                        loglik: Callable[[QuadSSM, Array], float] = loglik_quad
                        ) -> dict[str, Array]:
     """Effect -> (p,) standard errors sqrt(diag Info^-1) of the coefficients of
-    ``effects`` (their units, ``library.SPECS``) from the observed information of
-    L(c) = log p(y | theta, c) (module docstring); NaN where the information is not
-    positive definite or the filter breaks down at the estimate. obs: the log's
-    observations (uncorrected); theta: the refit's
-    parameters, held; state (N, 12): the smoothed path at which the thrust and torque
-    corrections are evaluated; jackknife: effect -> (p,) jackknife standard errors, whose
-    triple starts the step search."""
+    ``effects`` (``information_fit``'s stderr)."""
+    return information_fit(obs, theta, state, coefficients, effects, jackknife, loglik).stderr
+
+
+def information_fit(obs: Observations, theta: Theta, state: Array,
+                    coefficients: dict[str, Array], effects: Sequence[str],
+                    jackknife: dict[str, Array],
+                    loglik: Callable[[QuadSSM, Array], float] = loglik_quad
+                    ) -> InformationFit:
+    """The observed information of L(c) = log p(y | theta, c) (module docstring) in the
+    coefficients of ``effects`` (their units, ``library.SPECS``), its standard errors,
+    and the Newton step to L's maximum.
+
+    Why the step: the refit's coefficients come from residuals at a posterior smoothed
+    WITH them, and where the smoother can absorb a coefficient's error into the states
+    (a constant wind into a 0.2 mrad mean tilt, which the motion capture's attitude
+    barely resists) that alternation stalls short of the maximum: on flightgen's 250 Hz
+    wind flights 3-3.4 standard errors short, w_x 1.3-1.5 % low. L is close to quadratic
+    in c there, so one step reaches it (a second moved it by < 0.01 standard errors).
+    obs: the log's observations (uncorrected); theta: the refit's parameters, held;
+    state (N, 12): the smoothed path at which the thrust and torque corrections are
+    evaluated; jackknife: effect -> (p,) jackknife standard errors, whose triple starts
+    the step search."""
     sizes = [np.size(coefficients[e]) for e in effects]
     x0 = np.concatenate([np.asarray(coefficients[e], dtype=float).ravel() for e in effects])
 
@@ -74,7 +109,9 @@ def information_stderr(obs: Observations, theta: Theta, state: Array,
         corr = corrected_observations(obs, state, c)
         return loglik(model_factory(c)(corr, theta), corr.ys)
 
-    unavailable = {e: np.full(s, np.nan) for e, s in zip(effects, sizes, strict=True)}
+    unavailable = InformationFit({e: np.full(s, np.nan) for e, s in zip(effects, sizes,
+                                                                        strict=True)},
+                                 {e: np.asarray(coefficients[e], dtype=float) for e in effects})
     se0 = np.concatenate([np.asarray(jackknife[e], dtype=float).ravel() for e in effects])
     scale = np.maximum(np.abs(x0), 1e-9)
     steps = np.where(np.isfinite(se0) & (se0 > 0), 3.0 * se0, 1e-3 * scale)
@@ -99,11 +136,23 @@ def information_stderr(obs: Observations, theta: Theta, state: Array,
         steps = target
         if settled:
             break
-    _, _, hess = central_differences(value, x0, steps)
+    _, grad, hess = central_differences(value, x0, steps)
     info = -0.5 * (hess + hess.T)
     if not positive_definite_information(info):
         return unavailable
-    return _split(standard_errors(info), effects, sizes)
+    stderr = _split(standard_errors(info), effects, sizes)
+    maximiser, gain = unavailable.maximiser, 0.0
+    if np.all(np.isfinite(grad)):
+        x1 = x0 + np.linalg.solve(info, grad)
+        try:
+            gain = value(x1) - l0
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+            gain = math.nan
+        if gain > 0:
+            maximiser = _split(x1, effects, sizes)
+        else:
+            gain = 0.0
+    return InformationFit(stderr, maximiser, float(gain))
 
 
 def reported_stderr(jackknife: dict[str, Array], information: dict[str, Array]
