@@ -228,8 +228,11 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
     # refit's alternation stalls short of it (uncertainty.information_fit)
     fit = information_fit(obs, th_f, post_f.mean, coeffs_f, selected, jack)
     info = fit.stderr
+    alternation = {e: np.asarray(coeffs_f[e], dtype=float) for e in selected}
     coeffs_f = {**coeffs_f, **fit.maximiser}
     evidence = effect_evidence(selected, res0, pi0, res_tr, pi_tr, coeffs_tr, test)
     return DiscoveryResult(tuple(selected), coeffs_f, reported_stderr(jack, info), tuple(scores),
                            before, after, th_f.mass, np.asarray(th_f.inertia), th_f, post_f,
-                           validation, evidence, stderr_jackknife=jack, stderr_information=info)
+                           validation, evidence, stderr_jackknife=jack, stderr_information=info,
+                           coefficients_alternation=alternation,
+                           likelihood_step_gain=fit.gain)

@@ -178,7 +178,10 @@ class DiscoveryResult:
     refit parameters; posterior: its E-step; validation: how before/after was measured;
     evidence: one per selected effect, the data of its figure; figures: paths of the
     figures drawn from it (set by ``pinquad.report.discovery.draw_discovery_figures``;
-    empty until drawn).
+    empty until drawn); coefficients_alternation: name -> (p,) the refit's coefficients
+    before the Newton step to their likelihood's maximum (``uncertainty.information_fit``;
+    empty without an EM refit) and likelihood_step_gain [nats] what that step gained (0:
+    none taken).
     """
 
     selected: tuple[str, ...]
@@ -196,6 +199,8 @@ class DiscoveryResult:
     figures: tuple[str, ...] = field(default_factory=tuple)
     stderr_jackknife: dict[str, Array] = field(default_factory=dict)
     stderr_information: dict[str, Array] = field(default_factory=dict)
+    coefficients_alternation: dict[str, Array] = field(default_factory=dict)
+    likelihood_step_gain: float = 0.0
 
     def to_report(self) -> dict:
         """The DESIGN 4.3 ``discovery`` section (plus candidate scores and refit estimates)."""
@@ -213,6 +218,8 @@ class DiscoveryResult:
                                              self.stderr_jackknife.get(name)),
                 "stderr_observed_information": _by_name(spec.coefficient_names,
                                                         self.stderr_information.get(name)),
+                "coefficients_before_likelihood_step": _by_name(
+                    spec.coefficient_names, self.coefficients_alternation.get(name)),
                 "units": dict(zip(spec.coefficient_names, spec.units, strict=True)),
                 "evidence": {"heldout_gain": best.gain, "d_loglik_heldout": best.d_loglik_heldout,
                              "d_bic_train": best.d_bic, "round": best.round,
@@ -224,6 +231,7 @@ class DiscoveryResult:
             "residual_rms_after": dict(self.rms_after),
             "validation": self.validation,
             "stderr_note": STDERR_NOTE,
+            "likelihood_step_gain": self.likelihood_step_gain,
             "candidates": [{"effect": s.effect, "round": s.round, "heldout_gain": s.gain,
                             "d_loglik_heldout": s.d_loglik_heldout, "d_bic_train": s.d_bic,
                             "selected": s.passed} for s in self.scores],
