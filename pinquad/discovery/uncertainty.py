@@ -77,15 +77,16 @@ def information_stderr(obs: Observations, theta: Theta, state: Array,
                        loglik: Callable[[QuadSSM, Array], float] = loglik_quad
                        ) -> dict[str, Array]:
     """Effect -> (p,) standard errors sqrt(diag Info^-1) of the coefficients of
-    ``effects`` (``information_fit``'s stderr)."""
-    return information_fit(obs, theta, state, coefficients, effects, jackknife, loglik).stderr
+    ``effects`` (``information_fit``'s stderr, without its Newton step)."""
+    return information_fit(obs, theta, state, coefficients, effects, jackknife, loglik,
+                           newton=False).stderr
 
 
 def information_fit(obs: Observations, theta: Theta, state: Array,
                     coefficients: dict[str, Array], effects: Sequence[str],
                     jackknife: dict[str, Array],
-                    loglik: Callable[[QuadSSM, Array], float] = loglik_quad
-                    ) -> InformationFit:
+                    loglik: Callable[[QuadSSM, Array], float] = loglik_quad,
+                    newton: bool = True) -> InformationFit:
     """The observed information of L(c) = log p(y | theta, c) (module docstring) in the
     coefficients of ``effects`` (their units, ``library.SPECS``), its standard errors,
     and the Newton step to L's maximum.
@@ -99,7 +100,7 @@ def information_fit(obs: Observations, theta: Theta, state: Array,
     obs: the log's observations (uncorrected); theta: the refit's parameters, held;
     state (N, 12): the smoothed path at which the thrust and torque corrections are
     evaluated; jackknife: effect -> (p,) jackknife standard errors, whose triple starts
-    the step search."""
+    the step search; newton: False skips the step (and its likelihood evaluation)."""
     sizes = [np.size(coefficients[e]) for e in effects]
     x0 = np.concatenate([np.asarray(coefficients[e], dtype=float).ravel() for e in effects])
 
@@ -142,7 +143,7 @@ def information_fit(obs: Observations, theta: Theta, state: Array,
         return unavailable
     stderr = _split(standard_errors(info), effects, sizes)
     maximiser, gain = unavailable.maximiser, 0.0
-    if np.all(np.isfinite(grad)):
+    if newton and np.all(np.isfinite(grad)):
         x1 = x0 + np.linalg.solve(info, grad)
         try:
             gain = value(x1) - l0

@@ -65,6 +65,8 @@ _Z = np.array([3, 4, 5, 6, 7, 8, 9, 10, 11, 15, 16, 17, 18, 19, 20, 21, 22, 23])
 # where applied_force's derivative columns (Theta_k, v_k, v_{k+1}, Theta_{k+1}) sit in _Z
 _FORCE_COLS = np.r_[3:6, 0:3, 9:12, 12:15]
 _FD_STEP = 1e-6
+# (row, column) of the inertia entries pi[4:10] = [I_xx, I_xy, I_yy, I_xz, I_yz, I_zz]
+_INERTIA_ENTRIES = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -200,8 +202,7 @@ def _basis() -> Array:
         e[i] = 1.0
         out[1 + i, 0:3, 3:6] = -skew(e)
         out[1 + i, 3:6, 0:3] = skew(e)
-    entries = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))
-    for p, (r, c) in enumerate(entries):
+    for p, (r, c) in enumerate(_INERTIA_ENTRIES):
         out[4 + p, 3 + r, 3 + c] = out[4 + p, 3 + c, 3 + r] = 1.0
     return out
 
@@ -428,7 +429,7 @@ def standard_errors(obs: Observations, theta: Theta, loglik: Callable | None = N
     unknown = np.zeros(13, dtype=bool)
     unknown[0] = undetermined[0]
     unknown[1:4] = undetermined[0] | undetermined[1:4]
-    for p, (r, c) in enumerate(((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))):
+    for p, (r, c) in enumerate(_INERTIA_ENTRIES):
         unknown[4 + 3 * r + c] = unknown[4 + 3 * c + r] = undetermined[4 + p]
     se = np.where((var > 0) & ~unknown, np.sqrt(np.abs(var)), math.nan)
     return float(se[0]), se[1:4], se[4:13].reshape(3, 3), info
