@@ -141,12 +141,17 @@ def unmoved_note(mass0: float, inertia0: Array, mass: float, inertia: Array,
 
 def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, estep: str,
              mstep: str, max_iterations: int, information: bool,
-             truth: tuple[float, Array] | None = None) -> tuple[Identification, Posterior]:
-    """EM on one set of observations, with standard errors (and information at truth)."""
+             truth: tuple[float, Array] | None = None,
+             per_parameter: bool = False) -> tuple[Identification, Posterior]:
+    """EM on one set of observations, with standard errors (and information at truth).
+    per_parameter: the regressor M-step's over-relaxation with one factor per
+    log-parameter (``run_em``); False keeps the shared factor the paper's reproduction
+    was measured with."""
     t0 = time.perf_counter()
     smoother = get_smoother(estep)
     theta0 = initial_theta(obs, mass0, inertia0, gravity)
-    res: EMResult = run_em(obs, theta0, smoother, MSTEPS[mstep], max_iterations=max_iterations)
+    res: EMResult = run_em(obs, theta0, smoother, MSTEPS[mstep], max_iterations=max_iterations,
+                           per_parameter=per_parameter)
     stderr = np.full(4, np.nan)
     info_truth = None
     if information and mstep == "regressor":
@@ -162,7 +167,7 @@ def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, e
         stderr=stderr, history_mass=res.mass, history_inertia=res.inertia_diag,
         loglik=res.loglik, converged=res.converged and unmoved is None,
         decreases=res.decreases, seconds=time.perf_counter() - t0, info_truth=info_truth,
-        theta=res.theta, failure=res.failure or unmoved,
+        theta=res.theta, failure=res.failure or unmoved, e_steps=res.e_steps,
         notes=() if unmoved is None else (unmoved,),
         stderr_problem=(STDERR_UNAVAILABLE if information and mstep == "regressor"
                         and not np.all(np.isfinite(stderr)) else None),

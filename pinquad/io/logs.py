@@ -489,3 +489,19 @@ def read_log(path: str | Path) -> FlightLog:
         torque=torque, rpm=rpm, vbat=cols.get("vbat"), contact=contact, truth=truth,
         onboard=onboard, meta=_read_sidecar(path),
     )
+
+
+def log_contents(log: FlightLog) -> str:
+    """What a log carries, in words: its actuation (thrust/torque commands, rotor speeds,
+    motor commands) and, when it has ``true_*`` columns, simulator truth."""
+    if log.thrust is not None:
+        parts = ["thrust/torque commands"]
+    elif log.rpm is not None:
+        parts = ["rotor speeds"]
+    else:
+        parts = ["motor commands"]
+    if log.measured is not None:
+        parts[0] += " (Crazyflie micro-SD log)"
+    if log.truth is not None:
+        parts.append("simulator truth")
+    return ", ".join(parts)
