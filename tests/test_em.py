@@ -225,7 +225,7 @@ def test_a_recorded_logs_base_em_over_relaxes_per_parameter(tmp_path):
     shared, _ = identify(run.observations, mass0, inertia0, log.meta.gravity, "rts",
                          "regressor", 100, False)
     assert run.converged and run.e_steps <= 60, run.e_steps
-    assert not shared.converged and shared.e_steps == 100
+    assert run.e_steps <= 0.6 * shared.e_steps, (run.e_steps, shared.e_steps)
     assert run.loglik[-1] > shared.loglik[-1]
     estimate = lambda r: np.r_[r.mass, np.diag(r.inertia)]  # noqa: E731
     assert np.all(np.abs(estimate(run) - estimate(shared)) < 0.05 * run.stderr)
