@@ -97,3 +97,37 @@ def test_coefficients_are_scored_against_their_printed_standard_errors():
     assert "| 4/4 | 2/3 | 0, 0, 2.3 |" in flightgen_mc_markdown([row])
     unnamed = fgmc.FlightgenCase(**{**cases[0].__dict__, "selected": (), "coefficients": {}})
     assert fgmc.within_stderr(unnamed, 2.0) is False
+
+
+def test_noise_only_drag_error_is_the_least_squares_d_z_of_the_truths_own_forces():
+    """The ceiling is D_z fitted to the truth's body-z force: m (R^T (a + g e3))_z minus
+    the commanded thrust is n - D_z v_z on a drag flight (no floor, no other effect)."""
+    import dataclasses
+
+    from flightgen import generate
+    from flightgen.rotation import quats_to_rots
+    from flightgen.vehicle import GRAVITY
+
+    spec = dataclasses.replace(fgmc.flight_spec("drag", 1007, 7, 100), duration=3.0)
+    flight = generate(spec)
+    rots = quats_to_rots(flight.state[:, 6:10])
+    specific = flight.accel_world + np.array([0.0, 0.0, GRAVITY])
+    force_z = spec.vehicle.mass * np.einsum("nj,nj->n", rots[:, :, 2], specific)
+    residual = force_z - flight.command[:, 0]
+    v_z = np.einsum("nj,nj->n", rots[:, :, 2], flight.state[:, 3:6])
+    d_z = spec.effects.drag[2]
+    fitted = -(residual @ v_z) / (v_z @ v_z)
+    ceiling = fgmc.noise_only_drag_error(flight)
+    assert abs(ceiling) > 1e-3  # 3 s of thrust noise leaves a visible error
+    assert math.isclose(fitted / d_z - 1.0, ceiling, rel_tol=1e-6, abs_tol=1e-9)
+    assert math.isnan(fgmc.noise_only_drag_error(
+        generate(dataclasses.replace(fgmc.flight_spec("none", 0, 0, 100), duration=0.5))))
+
+
+def test_drag_rows_count_the_thrust_noise_ceiling():
+    cases = [fgmc.FlightgenCase(**{**_case("drag", 1000 + i).__dict__,
+                                   "noise_only_err": e})
+             for i, e in enumerate((0.125, -0.02, -0.115, 0.05))]
+    row = fgmc.summarize(cases)[0]
+    assert (row["noise_only_within_10pct"], row["noise_only_n"]) == (2, 4)
+    assert "the thrust noise alone: 2/4" in flightgen_mc_markdown([row])

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flightgen import CRAZYFLIE, Effects, Flight, FlightSpec, generate, write_csv
+from flightgen.rotation import quats_to_rots
 from flightgen.trajectory import excursion
 from pinquad.experiments.discovery_mc import in_order
 from pinquad.experiments.headline import headline
@@ -138,7 +139,9 @@ class FlightgenCase:
     without a floor); coef_stderr: effect -> the standard errors discovery printed beside
     its coefficients (None in runs made before they were recorded); singular_excluded:
     transitions excluded for an attitude near the Euler angles' singularity
-    (``models.attitude_range``; 0 in runs made before)."""
+    (``models.attitude_range``; 0 in runs made before); noise_only_err: on drag flights,
+    D_z's relative error from the process noise alone (``noise_only_drag_error``; NaN
+    on other conditions and in runs made before it was recorded)."""
 
     condition: str
     log_rate: int
@@ -162,6 +165,7 @@ class FlightgenCase:
     contact_off: int = 0
     coef_stderr: dict[str, list[float]] | None = None
     singular_excluded: int = 0
+    noise_only_err: float = math.nan
 
     def to_json(self) -> dict:
         d = dict(self.__dict__)
@@ -179,6 +183,25 @@ def true_contact_transitions(flight: Flight, n_rows: int) -> NDArray[np.bool_]:
     touched = flight.in_contact[: (n_rows - 1) * step].reshape(n_rows - 1, step).any(axis=1)
     touched |= flight.in_contact[step: n_rows * step: step][: n_rows - 1]
     return touched
+
+
+def noise_only_drag_error(flight: Flight) -> float:
+    """D_z's relative error [-] that the flight's own thrust noise leaves to an estimator
+    that knows everything else: the ceiling of any estimate from the log.
+
+    The truth's body-z force is F + n_k - D_z v_z,k, with n_k [N] the thrust noise of
+    integrator step k (applied minus commanded thrust: drag flights carry no motor lag)
+    and v_z,k = (R_k^T v_k)_z [m/s] the true vertical body velocity. Least squares of the
+    residual n_k - D_z v_z,k on -v_z,k over the steps gives
+    D_z_hat - D_z = -sum(n v_z) / sum(v_z^2); returned relative to D_z. The thrust noise
+    lies along body z, so it leaves D_x and D_y alone."""
+    drag = flight.spec.effects.drag
+    if drag is None or flight.spec.effects.motor_lag:
+        return math.nan
+    noise = flight.applied[:, 0] - flight.command[:, 0]
+    v_body_z = np.einsum("nj,nj->n", quats_to_rots(flight.state[:, 6:10])[:, :, 2],
+                         flight.state[:, 3:6])
+    return float(-(noise @ v_body_z) / (v_body_z @ v_body_z) / drag[2])
 
 
 def found_contact_transitions(log: FlightLog) -> NDArray[np.bool_]:
@@ -228,7 +251,7 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
                          {p.name: p.verdict for p in judged.parameters},
                          int(truth_contact.sum()), int((found & truth_contact).sum()),
                          int((truth_contact & ~found).sum()), int((found & ~truth_contact).sum()),
-                         stderr, singular)
+                         stderr, singular, noise_only_drag_error(flight))
 
 
 @dataclass(frozen=True)
@@ -330,6 +353,11 @@ def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
                 row["named"] = sum(cond in c.selected for c in cs)
                 row["exact"] = sum(c.selected == (cond,) for c in cs)
                 row["coef_within_10pct"] = sum(math.isfinite(e) and e <= 0.10 for e in errs)
+                ceiling = [abs(c.noise_only_err) for c in cs if math.isfinite(c.noise_only_err)]
+                if ceiling:
+                    # what the thrust noise alone leaves within 10 %: no estimator does better
+                    row["noise_only_n"] = len(ceiling)
+                    row["noise_only_within_10pct"] = sum(e <= 0.10 for e in ceiling)
                 covered = [within_stderr(c, 2.0) for c in cs]
                 row["coef_with_stderr"] = sum(v is not None for v in covered)
                 row["coef_within_2se"] = sum(bool(v) for v in covered)

@@ -23,6 +23,9 @@ def flightgen_mc_markdown(rows: list[dict]) -> str:
         else:
             named, exact = f"{r['named']}/{r['n']}", f"{r['exact']}/{r['n']}"
             within = f"{r['coef_within_10pct']}/{r['n']}"
+            if r.get("noise_only_n"):
+                within += (f" (the thrust noise alone: {r['noise_only_within_10pct']}"
+                           f"/{r['noise_only_n']})")
             # runs made before the standard errors were recorded leave it blank
             covered = (f"{r['coef_within_2se']}/{r['coef_with_stderr']}"
                        if r.get("coef_with_stderr") else "")
