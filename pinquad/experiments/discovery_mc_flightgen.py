@@ -14,7 +14,9 @@ the realistic Crazyflie-class value of ``pinquad.sim.effects``' defaults) and se
    (``pinquad.experiments.recorded``, regressor M-step);
 4. score: the names selected, each injected effect's coefficients against the truth
    (``|c - c0| / |c0|``, max over its coefficients), the held-out gain of the round that
-   selected it, and the base EM's and the final mass / inertia against the truth.
+   selected it, and the base EM's and the final mass / inertia against the truth; on
+   drag flights also D_z's error from the flight's own thrust noise alone
+   (``noise_only_drag_error``), the ceiling of any estimate from the log.
 
 Targets (issue 22): clean flights nothing selected in >= 19/20 at each rate; each effect
 named in >= 19/20, coefficients within 10 %. ``flightgen`` is imported here only (the
