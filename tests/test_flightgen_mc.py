@@ -4,10 +4,14 @@ flightgen --conditions floor_strikes``)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
+from flightgen import generate
+from flightgen.rotation import quats_to_rots
+from flightgen.vehicle import GRAVITY
 from pinquad.experiments import discovery_mc_flightgen as fgmc
 from pinquad.report.discovery_mc_flightgen import flightgen_mc_markdown
 
@@ -102,12 +106,6 @@ def test_coefficients_are_scored_against_their_printed_standard_errors():
 def test_noise_only_drag_error_is_the_least_squares_d_z_of_the_truths_own_forces():
     """The ceiling is D_z fitted to the truth's body-z force: m (R^T (a + g e3))_z minus
     the commanded thrust is n - D_z v_z on a drag flight (no floor, no other effect)."""
-    import dataclasses
-
-    from flightgen import generate
-    from flightgen.rotation import quats_to_rots
-    from flightgen.vehicle import GRAVITY
-
     spec = dataclasses.replace(fgmc.flight_spec("drag", 1007, 7, 100), duration=3.0)
     flight = generate(spec)
     rots = quats_to_rots(flight.state[:, 6:10])
