@@ -356,12 +356,13 @@ def summarize(cases: Sequence[FlightgenCase]) -> list[dict]:
                 row["named"] = sum(cond in c.selected for c in cs)
                 row["exact"] = sum(c.selected == (cond,) for c in cs)
                 row["coef_within_10pct"] = sum(math.isfinite(e) and e <= 0.10 for e in errs)
-                ceiling = [abs(c.noise_only_err) for c in cs if math.isfinite(c.noise_only_err)]
-                if ceiling:
+                noise_only = [abs(c.noise_only_err) for c in cs
+                              if math.isfinite(c.noise_only_err)]
+                if noise_only:
                     # what the thrust noise alone leaves within 10 %: an estimator that
                     # knew every state would reach about this count
-                    row["noise_only_n"] = len(ceiling)
-                    row["noise_only_within_10pct"] = sum(e <= 0.10 for e in ceiling)
+                    row["noise_only_n"] = len(noise_only)
+                    row["noise_only_within_10pct"] = sum(e <= 0.10 for e in noise_only)
                 covered = [within_stderr(c, 2.0) for c in cs]
                 row["coef_with_stderr"] = sum(v is not None for v in covered)
                 row["coef_within_2se"] = sum(bool(v) for v in covered)
