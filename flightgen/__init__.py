@@ -1,12 +1,12 @@
 """flightgen: a second flight generator, sharing no code with ``pinquad.sim`` (or any of
-pinquad), for tests and the discovery Monte Carlo (issue 22, item 4).
+pinquad), for tests and the discovery Monte Carlo (docs/flightgen.md).
 
     from flightgen import FlightSpec, generate, write_csv
     flight = generate(FlightSpec(duration=30, trajectory="minsnap", log_rate=250, seed=1))
-    write_csv(flight, "flight.csv")     # DESIGN 4.2 columns + flight.csv.json
+    write_csv(flight, "flight.csv")     # pinquad's log columns + flight.csv.json
 
 Its own quaternion rigid body (RK4 at 1-2 kHz), its own geometric SE(3) controller at
-that rate, optional DESIGN 4.4 effects and floor contact in the truth, logs at 100, 250
+that rate, optional effects of pinquad's discovery vocabulary and floor contact in the truth, logs at 100, 250
 or 500 Hz with the actuation sampled at log instants and motion capture at 100 Hz.
 Imports numpy and scipy only (import-linter contract in pyproject.toml).
 """

@@ -1,4 +1,4 @@
-"""write_csv: the flight's log as a DESIGN 4.2 CSV file plus its JSON sidecar
+"""write_csv: the flight's log as a CSV file in pinquad's log columns plus its JSON sidecar
 ``<path>.json`` (the generator's own writer). Empty cells where a sensor has no sample;
 numbers written with 17 significant digits (round-trip exact)."""
 

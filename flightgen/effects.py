@@ -1,5 +1,5 @@
 """The physical effects the generator can inject into the truth, in the meanings and
-coefficient names of the discovery vocabulary (DESIGN 4.4). Re-implemented here, not
+coefficient names of the discovery vocabulary. Re-implemented here, not
 imported: the generator shares no code with pinquad.
 
 Body frame x forward, y left, z up; R body to world; v world velocity [m/s];

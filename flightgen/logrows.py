@@ -1,4 +1,4 @@
-"""From the truth at the integrator rate to the log's rows (DESIGN 4.2 columns).
+"""From the truth at the integrator rate to the log's rows (pinquad's log columns).
 
 Log instants are every ``1 / log_rate`` s, each an integrator instant. At row j (time
 t_j = integrator step k):
@@ -79,7 +79,7 @@ def log_columns(t: Array, state: Array, command: Array, accel_world: Array, log_
 
 def sidecar(vehicle: Vehicle, mass_guess: float | None = None,
             inertia_guess: Array | None = None) -> dict:
-    """The JSON sidecar (DESIGN 4.2): vehicle name, guesses (None: the reader's
+    """The JSON sidecar: vehicle name, guesses (None: the reader's
     default for that vehicle), gravity [m/s^2]."""
     return {"vehicle": vehicle.name, "mass_guess": mass_guess,
             "inertia_guess": None if inertia_guess is None

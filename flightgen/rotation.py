@@ -1,7 +1,7 @@
 """Quaternion and rotation helpers of the generator (its own: nothing shared with pinquad).
 
 Quaternions are (w, x, y, z), unit, body to world: a body vector b is the world vector
-R(q) b. Euler angles follow the log format's convention (DESIGN 4.2): roll phi, pitch
+R(q) b. Euler angles follow the log format's convention (docs/architecture.md, Conventions): roll phi, pitch
 theta, yaw psi of R = Rz(psi) Ry(theta) Rx(phi), so that
 
     phi = atan2(R[2,1], R[2,2]),  theta = asin(-R[2,0]),  psi = atan2(R[1,0], R[0,0]).

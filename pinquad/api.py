@@ -39,7 +39,7 @@ from pinquad.sim.simulator import simulate as simulate_flight
 
 def read_log(path: str | Path) -> FlightLog:
     """The flight recorded in ``path``: a Crazyflie micro-SD binary log, or a CSV or
-    Parquet table (DESIGN 4.2) with its optional JSON sidecar. Raises
+    Parquet table (the log columns of ``pinquad.io.logs``) with its optional JSON sidecar. Raises
     ``pinquad.io.logs.LogFormatError`` naming the file and the column, row or byte
     offset when the file is not a readable log."""
     return read_any_log(path)
@@ -72,7 +72,7 @@ def discover(log: FlightLog, identification: Identification,
              config: DiscoveryConfig | None = None, null: NullSettings | None = None
              ) -> DiscoveryResult:
     """What ``identification``'s model of ``log`` leaves unexplained: the effects of the
-    DESIGN 4.4 vocabulary (drag, ground_effect, com_offset, wind, motor_lag, gyro_bias)
+    effect vocabulary (drag, ground_effect, com_offset, wind, motor_lag, gyro_bias)
     that explain held-out residuals significantly, their coefficients with standard
     errors, the refitted mass and inertia, and the held-out residual RMS before and
     after. config: selection settings (default: those ``python -m pinquad.offline --log``

@@ -1,5 +1,5 @@
-"""How much an estimate rests on how a sampled input acted between log rows (issue 22
-item 2; docs/trust.md). Flies flightgen flights (the independent generator: controller
+"""How much an estimate rests on how a sampled input acted between log rows
+(docs/trust.md). Flies flightgen flights (the independent generator: controller
 and RK4 at 2 kHz, the command SAMPLED at each log row), identifies each with the logged
 input read two ways, held over each interval (pinquad's simulator's convention) and the
 mean of the interval's two rows (``pinquad.models.sources.interval_inputs``, what a

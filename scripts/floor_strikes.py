@@ -1,5 +1,5 @@
 """Flights that take off, strike the floor twice and land, with no contact column in
-the log (issue 22: floor contact from the data; docs/trust.md). Each flightgen flight
+the log (floor contact from the data; docs/trust.md). Each flightgen flight
 goes CSV -> ``offline --log``'s path (identify_log, then discovery with its null
 calibration); it prints the contact transitions found against the truth and what
 discovery selects.

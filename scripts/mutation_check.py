@@ -1,4 +1,4 @@
-"""Hand-made mutations for issue 25 ("tests that can fail"): each break is a one-line
+"""Hand-made mutations for "tests that can fail" (docs/tests.md): each break is a one-line
 text substitution in the code under test; the named test must FAIL under it.
 
 For every break: the file is changed in a temporary copy of the repository, the named

@@ -1,4 +1,4 @@
-"""The correct-log side of issue 21: what each physical sanity check of
+"""The correct-log side of the physical checks (docs/bad_input.md): what each physical sanity check of
 ``pinquad.io.sanity`` measures on every shipped real Crazyflie log and on the simulated
 flights of the paper's offline experiment (the default ``python -m pinquad.offline``:
 20 cycles x sensors A, B, C, its flight seeds), and whether any check fires.

@@ -1,5 +1,5 @@
 """Torque excitation against the error of the inertia on clean flights pinquad did not
-simulate (issue 22; docs/verdict.md, "Torques no larger than the noise").
+simulate (docs/verdict.md, "Torques no larger than the noise").
 
 Flies the clean flights of the flightgen discovery Monte Carlo (``flight_spec("none",
 seed, i, rate)``: seed = i, the same flights as ``python -m pinquad.discovery --generator

@@ -4,7 +4,7 @@ The viewer only reads what a run wrote (``report.json``, ``logs/``, ``figures/``
 never recomputes an estimate. Everything the scene needs is loaded here once, so the
 GUI callbacks only index arrays.
 
-A run directory (DESIGN.md 4.3) holds ``report.json`` with schema ``pinquad.report.offline/1``;
+A run directory holds ``report.json`` with schema ``pinquad.report.offline/1``;
 ``run_logs`` maps a name (the sensor set, or the log's name for a recorded flight) to
 ``{"log": <parquet/csv>, "smoothed": <npy (N, 12)>}`` relative to the run directory.
 """

@@ -8,7 +8,7 @@ beside ours, bias, std and the Cramer-Rao bound, and writes a run directory.
 
 With ``--log PATH`` it identifies the vehicle of a recorded log (CSV, Parquet or a
 Crazyflie micro-SD binary log; ``pinquad.experiments.recorded``) and looks for
-unmodelled effects; the run directory holds report.json (DESIGN 4.3), report.md, the log
+unmodelled effects; the run directory holds report.json, report.md, the log
 as the E-step saw it (``logs/flight.parquet``), the smoothed state means
 (``logs/flight-smoothed.npy``, (N, 12)) and figures, written whole or not at all. Its
 headline (``estimates``) is the estimate under the final model (discovery's refit when
@@ -65,7 +65,7 @@ from pinquad.report.recorded import (
 
 UNTRUSTED = 3
 """Exit code of a run whose report is written but whose headline estimate is not
-trusted (DESIGN 4.1)."""
+trusted (docs/verdict.md)."""
 
 EXIT_CODES = ("exit codes: 0 success; 2 bad input or arguments (a message naming the file "
               "and what was expected, nothing written); 3 (with --log) the run finished and "
@@ -126,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--null-replicates", type=non_negative_int, default=NullSettings().replicates,
                    metavar="N",
                    help="--log: shadow flights of the base fit that each selected effect's "
-                        "evidence must beat (issue 22's null calibration, "
+                        "evidence must beat (the null calibration, "
                         "pinquad.discovery.null; at least 19 for p <= 0.05; 0: off)")
     p.add_argument("--null-seed", type=int, default=0,
                    help="--log: seed of the shadow flights")

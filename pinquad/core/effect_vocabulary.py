@@ -1,4 +1,4 @@
-"""The effect vocabulary shared by the simulator and the estimator (DESIGN 4.4).
+"""The effect vocabulary shared by the simulator and the estimator.
 
 The simulator injects effects (``pinquad.sim.effects``) and discovery names and fits them
 (``pinquad.discovery.library``); both speak through this module, so neither imports the
@@ -34,7 +34,7 @@ from pinquad.core.vehicle_file import SHIPPED, is_vehicle_file, load_vehicle
 Array = NDArray[np.float64]
 
 EFFECT_NAMES = ("drag", "ground_effect", "com_offset", "wind", "motor_lag", "gyro_bias")
-"""The discovery vocabulary of DESIGN 4.4."""
+"""The discovery vocabulary: every effect's name and coefficients."""
 
 COEFFICIENT_NAMES: dict[str, tuple[str, ...]] = {
     "drag": ("D_x", "D_y", "D_z"),

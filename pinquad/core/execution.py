@@ -1,4 +1,4 @@
-"""Where a command's independent tasks run: the execution backend (issue 23).
+"""Where a command's independent tasks run: the execution backend (docs/cluster.md).
 
 Every command that runs many independent tasks (Monte Carlo cycles, flights, logs) maps a
 module-level task function over picklable jobs through one ``concurrent.futures.Executor``

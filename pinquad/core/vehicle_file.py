@@ -1,4 +1,4 @@
-"""A vehicle described by a TOML file (issue 24): the rigid body, where EM starts, the
+"""A vehicle described by a TOML file (docs/vehicles.md): the rigid body, where EM starts, the
 rotors and their constants, and what the vehicle is known to be independently of flight.
 
 The file is read with the standard library's ``tomllib`` into one frozen

@@ -1,4 +1,4 @@
-"""The estimator's side of the effect vocabulary (DESIGN 4.4): what discovery fits.
+"""The estimator's side of the effect vocabulary (``pinquad.core.effect_vocabulary``): what discovery fits.
 
 An :class:`EffectSpec` names an effect's coefficients and the residual rows it explains;
 ``wrench_features`` give the extra body wrench the effect adds to one transition
@@ -121,7 +121,7 @@ def applied_lag(inputs: Array, samples: Array | None, time_constant: float, dt: 
 class EffectSpec:
     """Estimator side of one effect.
 
-    name: DESIGN 4.4 name; coefficient_names / units: one per coefficient; rows: the
+    name: the effect vocabulary's name; coefficient_names / units: one per coefficient; rows: the
     residual rows it explains (0-5: body force x, y, z, torque x, y, z; "gyro" effects
     use the gyro measurement residuals instead); feature_name: the explaining feature
     (for figures); nonlinear: coefficient enters nonlinearly (motor_lag: searched on a

@@ -103,7 +103,7 @@ def sampling_columns(state: Array, inputs: Array, idx: NDArray[np.int64]) -> Arr
     default) in every model the selection compares; column 2 is left out because the
     torque rows' change is what ``motor_lag`` explains, and a free coefficient there took
     a 30 ms lag's torque signature away from it (docs/discovery.md, "Actuation between
-    samples"). Since stops 26 and 28 a continuous flight's E-step and M-step turn the
+    samples"). A continuous flight's E-step and M-step turn the
     thrust with the interval's mean rotation themselves (``models.continuous``,
     ``mstep.updates.applied_force``); column 0 then fits what that model leaves.
     """

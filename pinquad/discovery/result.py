@@ -1,5 +1,5 @@
 """Discovery's settings and results: ``DiscoveryConfig``, ``CandidateScore``, the data of
-the report's figures (``EffectEvidence``) and ``DiscoveryResult`` (the DESIGN 4.3
+the report's figures (``EffectEvidence``) and ``DiscoveryResult`` (the report.json
 ``discovery`` section). The method is in ``pinquad.discovery.discover``'s docstring."""
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ class DiscoveryConfig:
     on for sampled logs);
     two_fold: score each candidate on both folds (even blocks train and odd are held
     out, then the other way round) and sum the evidence (``selection.score_candidate``);
-    False: the even-block fold alone, as before 2026-11-26 (an effect whose signal sat
+    False: the even-block fold alone, the earlier rule (an effect whose signal sat
     in the odd blocks, such as a flight's one low pass over the floor, failed BIC on the
     training blocks while its held-out gain was 45-84 %);
     min_lag_intervals: a ``motor_lag`` whose time constant is below this many log
@@ -77,7 +77,7 @@ class DiscoveryConfig:
     controller's zero-order hold (half its period: 0.25 ms at 2 kHz, 1 ms at 500 Hz) and
     the radio or ESC update. On flightgen's 500 Hz logs, whose 2 kHz controller holds
     each command for 0.5 ms, 0.3-0.8 ms "lags" passed every other test beside the
-    injected drag, ground effect or wind (added 2026-11-26 after those runs).
+    injected drag, ground effect or wind (added after those runs).
     """
 
     block_seconds: float = 2.0
@@ -203,7 +203,7 @@ class DiscoveryResult:
     likelihood_step_gain: float = 0.0
 
     def to_report(self) -> dict:
-        """The DESIGN 4.3 ``discovery`` section (plus candidate scores and refit estimates)."""
+        """report.json's ``discovery`` section (plus candidate scores and refit estimates)."""
         selected = []
         for name in self.selected:
             spec = SPECS[name]

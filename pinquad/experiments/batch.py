@@ -1,5 +1,5 @@
 """Batch identification of many recorded logs (``python -m pinquad.offline --log A B C``):
-one row per log, read from the log's own report.json (DESIGN 4.3) or, when the log could
+one row per log, read from the log's own report.json (``io.runs.REPORT_SCHEMA``) or, when the log could
 not be identified, its error message; and the batch's exit code.
 
 Each log goes through exactly the single ``--log`` pipeline (pinquad.cli.offline.run_log)
@@ -46,7 +46,7 @@ class BatchRow:
     inertia_diag: (3,) headline I_xx, I_yy, I_zz [kg m^2]; inertia_se (3,) their errors.
     verdicts: per-parameter verdicts, e.g. {"mass": "trusted", "I_xx": ...} (empty when
         failed); overall the headline's overall verdict ("" when failed).
-    effects: names of the effects discovery selected, in order (DESIGN 4.4).
+    effects: names of the effects discovery selected, in order (``pinquad.core.effect_vocabulary``).
     seconds: the run's wall time [s].
     error: the error message of a failed log, else "".
     vehicle: the vehicle the log was read as ("" when failed); group: the flights it is

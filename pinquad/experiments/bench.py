@@ -28,7 +28,7 @@ process on the same inputs:
 * ``python -m pinquad.offline --log`` on a 60 s, 500 Hz simulated log with drag
   (``pinquad.experiments.bench_discovery``): base EM, discovery with its null
   calibration, verdicts, end to end, once (``log_discovery_60s_s``; the figure of the
-  code before issue 23's speed-up beside it).
+  code before the speed-up beside it).
 * The online update latency on an 800-sample window, p50 and p99, from
   ``pinquad.experiments.online.measure_update_latency`` (``not available`` if that is missing).
 * ``--profile``: where our E-step's time goes (wrapper checks vs compiled loops).
@@ -82,12 +82,12 @@ DISCOVERY_BEFORE = {
     "commit": "a05de1b",
     "date": "2026-11-25",
     "load_average": [1.3, 1.0],
-    "note": "python -m pinquad.offline --log on this log, the code before issue 23's "
+    "note": "python -m pinquad.offline --log on this log, the code before the "
             "speed-up (a worktree of main at the commit), numba caches warm, no profiler, "
             "nothing else running (load average at start and end; cpu_s: user + sys); "
             "on the shared machine earlier the same run took 440.4 s at load 4.7-10.2",
 }
-"""``log_discovery_60s_s`` of the code before issue 23's speed-up: ``python -m pinquad.offline
+"""``log_discovery_60s_s`` of the code before the speed-up: ``python -m pinquad.offline
 --log`` on the discovery log of ``bench_discovery``, measured once (minutes)."""
 
 

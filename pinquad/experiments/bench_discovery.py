@@ -9,7 +9,7 @@ written to CSV in a scratch directory (:func:`write_discovery_log`) and
 ``python -m pinquad.offline --log LOG`` runs on it with its defaults (base EM with the
 regressor and the paper's M-step, standard errors, discovery with its null calibration
 of 19 shadow flights, the verdicts, figures) in a subprocess: its wall time is
-``log_discovery_60s_s`` (target <= 60 s on 2 cores, issue 23), with the selected effects
+``log_discovery_60s_s`` (target <= 60 s on 2 cores), with the selected effects
 and their coefficients read back from report.json.
 
 ``pinquad.experiments.bench.DISCOVERY_BEFORE`` keeps the figure of the code before the

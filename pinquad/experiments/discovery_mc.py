@@ -1,6 +1,6 @@
 """Seeded Monte Carlo of effect discovery through the user path (``python -m pinquad.discovery``).
 
-For each condition (no effect, each single effect of DESIGN 4.4 at its realistic default
+For each condition (no effect, each single effect of the vocabulary at its realistic default
 coefficient from ``pinquad.sim.effects``, and drag + wind together) and each seed:
 
 1. simulate a Crazyflie-like flight (``discovery_scenario``: the paper's waypoints scaled
@@ -14,7 +14,7 @@ coefficient from ``pinquad.sim.effects``, and drag + wind together) and each see
    error per coefficient, ``|c - c0| / |c0|``); mass and inertia after the refit against
    the truth; the held-out residual RMS per affected axis before and after.
 
-Targets (issue 7): no effect -> nothing selected in >= 95 % of seeds; each single effect
+Targets: no effect -> nothing selected in >= 95 % of seeds; each single effect
 -> its name selected in >= 95 %, every coefficient within 10 %, mass and inertia within
 the clean-data accuracy, affected held-out RMS down by >= 50 %; drag + wind -> both
 named. "Within the clean-data accuracy" is scored two ways per seed: absolute

@@ -1,7 +1,7 @@
 """Seeded Monte Carlo of effect discovery on flights pinquad did not simulate
-(``python -m pinquad.discovery --generator flightgen``; issue 22, item 4).
+(``python -m pinquad.discovery --generator flightgen``; docs/discovery_flightgen.md).
 
-For each log rate (100, 250, 500 Hz), condition (no effect, or one DESIGN 4.4 effect at
+For each log rate (100, 250, 500 Hz), condition (no effect, or one vocabulary effect at
 the realistic Crazyflie-class value of ``pinquad.sim.effects``' defaults) and seed:
 
 1. fly the Crazyflie-class vehicle of ``flightgen`` (its own RK4 on quaternions at
@@ -18,7 +18,7 @@ the realistic Crazyflie-class value of ``pinquad.sim.effects``' defaults) and se
    drag flights also D_z's error from the flight's own thrust noise alone
    (``noise_only_drag_error``): what an estimator that knew every state would get.
 
-Targets (issue 22): clean flights nothing selected in >= 19/20 at each rate; each effect
+Targets: clean flights nothing selected in >= 19/20 at each rate; each effect
 named in >= 19/20, coefficients within 10 %. ``flightgen`` is imported here only (the
 experiments layer); it imports nothing of pinquad.
 """
@@ -59,7 +59,7 @@ FG_CONDITIONS: tuple[str, ...] = ("none", "drag", "ground_effect", "com_offset",
                                   "motor_lag", "gyro_bias", "floor_strikes")
 """Conditions: no effect, one effect at its ``pinquad.sim.effects`` default, or
 ``floor_strikes``: no effect, but a floor that the flight takes off from, strikes twice
-and lands on, with no contact column in the log (issue 22: nothing may be selected for
+and lands on, with no contact column in the log (nothing may be selected for
 the contact, and the contact transitions must be found from the data)."""
 
 FLOOR_CONDITION = "floor_strikes"
@@ -84,7 +84,7 @@ def injected(condition: str) -> dict[str, float]:
 
 
 def flightgen_effects(condition: str) -> Effects:
-    """The ``flightgen.Effects`` of ``condition`` (same meanings and units, DESIGN 4.4)."""
+    """The ``flightgen.Effects`` of ``condition`` (same meanings and units as the vocabulary's)."""
     values = list(injected(condition).values())
     if not values:
         return Effects()

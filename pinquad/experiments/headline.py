@@ -52,7 +52,7 @@ class Estimate:
     verdict: EstimateVerdict
 
     def to_report(self) -> dict:
-        """report.json's estimate layout (DESIGN 4.3 ``estimates``, plus the verdict)."""
+        """report.json's estimate layout (``estimates``, plus the verdict)."""
         return {"mass": self.mass, "inertia": np.asarray(self.inertia).tolist(),
                 "com": None if self.com is None else np.asarray(self.com).tolist(),
                 "stderr": {"mass": self.stderr[0], "inertia_diag": self.stderr[1:].tolist()},

@@ -257,7 +257,7 @@ def time_to_converge(history: Array, truth: Array, mass_band: float = 0.005,
 
 def offline_ranges(report_path: Path, mstep: str = "regressor") -> dict[str, Array]:
     """Per sensor, the (2, 4) [min; max] of [m, Ixx, Iyy, Izz] over the cycles of an offline
-    ``report.json`` (DESIGN.md 4.3 ``cycles``) identified with ``mstep`` [kg, kg m^2].
+    ``report.json`` (``cycles``) identified with ``mstep`` [kg, kg m^2].
 
     Raises ValueError naming the file if it is not an offline report with such cycles."""
     try:

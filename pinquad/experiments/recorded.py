@@ -330,7 +330,7 @@ log-parameter (``identification.em.run_em``'s ``per_parameter``, as discovery's 
 does): the force noise of a log whose simulator puts none on an axis creeps towards zero
 by plain EM steps of a fraction of a percent, and the shared factor (cap 16) followed it
 for 80 E-steps on the benchmark's 60 s log where this takes 27, to the same estimate
-(within 0.003 %, 0.05 standard errors) (docs/benchmark.md, stop 30). The paper's
+(within 0.003 %, 0.05 standard errors) (docs/benchmark.md). The paper's
 reproduction on pinquad's own simulator (``offline_mc``) keeps the shared factor its
 figures were measured with."""
 
@@ -427,7 +427,7 @@ on the body x/y force rows. Not the vertical row's column 1 (mostly the thrust
 magnitude's change), since the input reading takes the mean of the two rows' thrust:
 there its expected coefficient is 0, and a free one (fitted -3 to -6 on gentle flightgen
 flights) traded against drag's D_z, 5-25 % too high on minimum-snap flights
-(docs/discovery.md, 2026-11-26)."""
+(docs/discovery.md)."""
 
 
 def discovery_config(kind: str, actuation: str = "held") -> DiscoveryConfig:
@@ -579,7 +579,7 @@ def measured_effects(obs: Observations, theta: RealTheta, posterior: Posterior,
 
 
 def discovery_section(outcome: DiscoveryOutcome) -> dict:
-    """The DESIGN 4.3 ``discovery`` section of report.json; figure paths (if drawn) named
+    """The ``discovery`` section of report.json; figure paths (if drawn) named
     relative to the run directory (``figures/<name>``)."""
     if outcome.result is None:
         return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},

@@ -77,7 +77,7 @@ class VerdictThresholds:
     noise's in the same band (``torque_excitation``). This last one was added after the
     others, and set from measured flights (docs/verdict.md: on 8 closed-loop flights of
     ``flightgen`` every inertia more than 10 % off had a ratio <= 1.47, every other >= 2.11).
-    It was 2 until 2026-11-26, when a 500 Hz flightgen flight (seed 6005) read I_zz 10.6 %
+    It was 2 until a 500 Hz flightgen flight (seed 6005) read I_zz 10.6 %
     high at r = 2.49 with a 1.7 % standard error. Now 3: up to 1 / r^2 of the logged
     torques' variance may be the controller's answer to the noise, which biases the
     inertia read from them; at r = 3 that is 11 %.

@@ -1,6 +1,6 @@
 """FlightLog: the typed record of one flight, and its CSV / Parquet readers and writers.
 
-Columns (DESIGN.md 4.2, SI units, NaN where a sensor has no sample in that row):
+Columns (SI units, NaN where a sensor has no sample in that row):
 ``t``; ``pos_*``, ``vel_*`` [world]; ``quat_w..z`` (body to world) or ``roll, pitch,
 yaw``; ``gyro_*`` [rad/s, body]; ``acc_*`` [m/s^2, body specific force]; actuation
 ``thrust`` + ``torque_*`` or ``rpm_1..4``; optional ``vbat``, ``contact``; truth in
@@ -178,7 +178,7 @@ def empty_log(t: Array, meta: LogMeta | None = None) -> FlightLog:
 # ----------------------------------------------------------------------------- writing
 
 def log_columns(log: FlightLog) -> dict[str, Array]:
-    """The log as named columns (DESIGN.md 4.2); attitude written as a quaternion and
+    """The log as named columns (those above); attitude written as a quaternion and
     as Euler angles."""
     cols: dict[str, Array] = {"t": log.t}
     for name, arr in (("pos", log.position), ("vel", log.velocity)):
@@ -311,7 +311,7 @@ def _cols3(cols: dict[str, Array], prefix: str, n: int) -> Array:
 MEASUREMENT_GROUPS = (("pos_x", "pos_y", "pos_z"), ("vel_x", "vel_y", "vel_z"),
                       ("quat_w", "quat_x", "quat_y", "quat_z"), ("roll", "pitch", "yaw"),
                       ("gyro_x", "gyro_y", "gyro_z"), ("acc_x", "acc_y", "acc_z"))
-"""Measurement columns that only make sense together (DESIGN 4.2)."""
+"""Measurement columns that only make sense together."""
 
 
 def _check_groups(path: Path, cols: dict[str, Array]) -> None:

@@ -1,5 +1,5 @@
 """Read any flight log pinquad knows: a Crazyflie micro-SD binary log, or a CSV or
-Parquet table (DESIGN 4.2) with its JSON sidecar."""
+Parquet table (the columns of ``pinquad.io.logs``) with its JSON sidecar."""
 
 from __future__ import annotations
 

@@ -17,12 +17,12 @@ from typing import Any
 import numpy as np
 
 REPORT_SCHEMA = "pinquad.report/1"
-"""The ``schema`` of every report.json (DESIGN 4.3). Its keys keep their meaning; keys
+"""The ``schema`` of every report.json. Its keys keep their meaning; keys
 are only ever added (``LOG_REPORT_KEYS``)."""
 
 LOG_REPORT_KEYS: dict[str, str] = {
     "estimates": "the estimate under the final model: discovery's refit when effects were "
-                 "selected, else the base fit (DESIGN 4.3 layout plus the keys below)",
+                 "selected, else the base fit (every report.json's estimate keys plus the keys below)",
     "estimates.verdict": "{'overall', 'reasons', 'parameters': {name: {'verdict', "
                          "'reasons'}}}; verdicts: trusted, not identifiable, model not "
                          "adequate, implausible (pinquad.identification.verdict)",
@@ -52,7 +52,7 @@ LOG_REPORT_KEYS: dict[str, str] = {
                  "scale mass and published inertia); null when none are known",
     "run_logs.log.mocap": "CSV of the raw motion-capture samples: t [s], x, y, z [m]",
 }
-"""Keys a recorded log's report.json (``offline --log``) adds to DESIGN 4.3, by dotted
+"""Keys a recorded log's report.json (``offline --log``) adds to that layout, by dotted
 path, with their meaning."""
 
 

@@ -1,5 +1,5 @@
 """QuadSSM with the lateral body forces of drag and wind in its transition (effect
-discovery's extended model, DESIGN 4.4 ``drag`` and ``wind``)."""
+discovery's extended model, the vocabulary's ``drag`` and ``wind``)."""
 
 from __future__ import annotations
 

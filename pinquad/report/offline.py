@@ -230,7 +230,7 @@ def write_offline_run(writer: RunWriter, results: Sequence[CycleResult],
                       waypoints_start: tuple[Array, Array], seconds: float) -> None:
     """The offline experiment's run directory into ``writer``'s staging directory (the
     caller publishes or aborts): EM-history and trajectory figures, the first cycle of
-    each sensor's log and smoothed means, report.json (DESIGN 4.3; ``estimates`` and
+    each sensor's log and smoothed means, report.json (``pinquad.io.runs.REPORT_SCHEMA``; ``estimates`` and
     ``em`` of the first cycle's first M-step, every cycle under ``cycles``) and report.md.
     source: report.json's ``source`` entries beyond kind, path and sensor;
     waypoints_start: (waypoints (W, 3), start (3,)) [m] of the flown scenario."""

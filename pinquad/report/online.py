@@ -92,7 +92,7 @@ def _seconds(value: float | None) -> str:
 
 def online_report(results: list[OnlineCycle], truth: Array, stats: dict, memory: str,
                   elapsed: float) -> dict:
-    """report.json of the online experiment (DESIGN 4.3): each cycle's converged estimate
+    """report.json of the online experiment (``io.runs.REPORT_SCHEMA``): each cycle's converged estimate
     and update history, the statistics of :func:`online_tables`; memory: how the M-step
     remembered samples that left the window, in words."""
     cycles = []

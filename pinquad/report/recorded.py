@@ -1,5 +1,5 @@
 """What a recorded log's identification prints and writes: the table, the residual
-figure, report.json (DESIGN 4.3) and report.md, and the run directory holding them."""
+figure, report.json (``pinquad.io.runs.REPORT_SCHEMA``) and report.md, and the run directory holding them."""
 
 from __future__ import annotations
 
@@ -287,7 +287,7 @@ def _em(r: Identification) -> dict:
 
 def report_json(result: LogResult, path: str, estep: str, seconds: float,
                 discovery: dict | None, headline: Headline) -> dict:
-    """report.json of a recorded log (DESIGN 4.3): ``estimates`` under the final model
+    """report.json of a recorded log (``pinquad.io.runs.REPORT_SCHEMA``): ``estimates`` under the final model
     (discovery's refit when effects were selected, else the base fit) with its verdict,
     the base fit under ``base`` (same layout), the headline's ``verdict``, every run with
     its details and verdict, exclusions, notes, the kf and fault notes of measured

@@ -1,5 +1,5 @@
 """The simulator's side of the effect vocabulary: physical effects the base rigid-body
-model leaves out (DESIGN 4.4), injected into the true vehicle.
+model leaves out (the effect vocabulary, ``pinquad.core.effect_vocabulary``), injected into the true vehicle.
 
 Each factory returns a ``pinquad.sim.simulator.Disturbance`` with a documented
 coefficient. The estimator's side (features of the extra wrench, folding identified
