@@ -7,8 +7,8 @@ log) moves continuously: over [t_k, t_k+1] the attitude turns with the mean body
 the thrust direction turns with it, and the position moves with the mean velocity. With
 explicit Euler the smoother makes up the difference by taking each rate and velocity half
 a step early or late, and on a smooth trajectory (jerk about -Omega^2 v) that timing error
-leaves a force residual that reads as drag (docs/discovery.md, "The drag bias of
-aggressive flights"). In the order each row needs the next one's result:
+leaves a force residual that reads as drag (docs/discovery.md, "Actuation between
+samples"). In the order each row needs the next one's result:
 
     omega_{k+1}  the model's Euler step (the torques are already interval means)
     Theta_{k+1} = Theta_k + dt E^{-1}(Theta_k) w,          w = (omega_k + omega_{k+1}) / 2
