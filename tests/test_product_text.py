@@ -17,6 +17,9 @@ CHECKED = ("README.md", "docs", "pinquad", "viz", "estimators", "flightgen", "sc
            "pyproject.toml")
 DEVELOPMENT_REFERENCE = re.compile(r"\bstops? [0-9]+|\bissue [0-9]+|DESIGN (§|[0-9])",
                                    re.IGNORECASE)
+# The same references broken across a line (checked on the whole text of each file).
+BROKEN_REFERENCE = re.compile(r"\bstops?\s*\n\s*[0-9]+|\bissue\s*\n\s*[0-9]+|DESIGN\s*\n\s*(§|[0-9])",
+                              re.IGNORECASE)
 MAX_DOC_LINES = 650
 
 
@@ -38,6 +41,8 @@ def test_no_issue_stop_or_design_section_references():
              for p, text in _text_files()
              for n, line in enumerate(text.splitlines(), 1)
              if DEVELOPMENT_REFERENCE.search(line)]
+    found += [f"{p.relative_to(ROOT)}:{text.count(chr(10), 0, m.start()) + 1}: {m.group(0)!r}"
+              for p, text in _text_files() for m in BROKEN_REFERENCE.finditer(text)]
     assert found == [], "development references (history goes to CHANGELOG.md):\n" + "\n".join(found)
 
 
