@@ -16,7 +16,7 @@ from pinquad.models.ssm import QuadSSM
 from pinquad.mstep import updates as identify
 from pinquad.mstep.compiled import inertia_newton as fast_inertia_newton
 from pinquad.mstep.compiled import measurement_variances as fast_measurement_variances
-from pinquad.mstep.compiled import regressor_quadratics
+from pinquad.mstep.compiled import physical, regressor_quadratics
 from pinquad.mstep.updates import _inertia_newton, inertia_newton, regressor_mstep, regressor_stats
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
@@ -118,8 +118,28 @@ def test_compiled_inertia_newton_matches_python(flight):
             for fast in (inertia_newton(mass, a_t, b_t, c_t, start),
                          fast_inertia_newton(mass, np.ascontiguousarray(a_t),
                                              np.ascontiguousarray(b_t),
-                                             np.ascontiguousarray(c_t), start.astype(float))):
+                                             np.ascontiguousarray(c_t), start.astype(float),
+                                             np.zeros(3), np.full(3, np.inf))):
                 _assert_equally_good(fast, ref, tol, mass, a_t, b_t, c_t)
+            # a box that binds: its upper edge below the unconstrained minimiser's largest
+            # entry; both stay inside it and agree
+            hi = np.full(3, 0.8 * np.max(ref))
+            lo = np.full(3, 0.01 * np.min(ref))
+            boxed = _inertia_newton(mass, a_t, b_t, c_t, start, lo, hi)
+            assert np.all(boxed <= hi) and np.all(boxed >= lo)
+            # a descent from the start projected onto the box; near the truth (where J is
+            # convex) also no worse than the unconstrained minimiser projected onto it
+            # (far-off starts end on J's flat stretch towards large inertia, as unboxed)
+            j_boxed = _objective_and_hessian(mass, a_t, b_t, c_t, boxed)[0]
+            near = np.all(np.abs(start / truth - 1.0) <= 0.5)
+            for other in ((np.clip(start, lo, hi), np.clip(ref, lo, hi)) if near
+                          else (np.clip(start, lo, hi),)):
+                if physical(other):
+                    assert j_boxed <= _objective_and_hessian(mass, a_t, b_t, c_t, other)[0] + 1e-12
+            fast = inertia_newton(mass, a_t, b_t, c_t, start, lo, hi)
+            assert np.all(fast <= hi) and np.all(fast >= lo)
+            if near:
+                _assert_equally_good(fast, boxed, 1e-9 * np.abs(boxed), mass, a_t, b_t, c_t)
 
 
 def _assert_equally_good(fast, ref, tol, mass, a_t, b_t, c_t):

@@ -13,6 +13,7 @@ from conftest import offline_on_csv
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.experiments.recorded import RECORDED_PER_PARAMETER
 from pinquad.identification.identify import identify
+from pinquad.identification.search_range import search_range
 from pinquad.io.read import read_log
 from pinquad.models.sources import observations
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
@@ -41,7 +42,7 @@ def test_csv_log_through_the_command_line_equals_in_memory_identification(flight
     ident, _ = identify(observations(back, "B"), PAPER_INITIAL_MASS,
                         np.asarray(PAPER_INITIAL_INERTIA), PAPER_VEHICLE.gravity, "rts",
                         "regressor", 100, information=False,
-                        per_parameter=RECORDED_PER_PARAMETER)
+                        per_parameter=RECORDED_PER_PARAMETER, bounds=search_range(back))
     assert report["estimates"]["mass"] == pytest.approx(ident.mass, rel=1e-9)
     inertia = np.asarray(report["estimates"]["inertia"])
     assert inertia.shape == (3, 3)  # DESIGN.md 4.3: a 3x3 matrix

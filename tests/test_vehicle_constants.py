@@ -17,7 +17,6 @@ from pinquad.core.effect_vocabulary import SIMULATED_DRAG, ground_effect_gain
 from pinquad.core.params import CRAZYFLIE21, PAPER_VEHICLE, vehicle_from_spec
 from pinquad.core.vehicle_file import layout_positions, load_vehicle, parse_vehicle
 from pinquad.discovery.refit import corrected_observations
-from pinquad.experiments.recorded import measured_vehicle
 from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.read import read_log, with_vehicle
@@ -31,6 +30,7 @@ from pinquad.realdata.faults import (
 from pinquad.realdata.observations import build_observations, options_for_vehicle
 from pinquad.realdata.raw import RawFlight, raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient
+from pinquad.realdata.vehicle_check import measured_vehicle
 from pinquad.sim.effects import drag, ground_effect
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -15,7 +15,7 @@ from pinquad.cli import axis_inertia, offline, realdata, realdiscovery, response
 from pinquad.core.paper_results import OFFLINE_INERTIA_BOUND, OFFLINE_MASS_BOUND
 from pinquad.core.params import vehicle_from_spec
 from pinquad.core.vehicle_file import load_vehicle
-from pinquad.experiments.recorded import LogOptions, measured_vehicle, over_max_thrust
+from pinquad.experiments.recorded import LogOptions
 from pinquad.experiments.vehicle_file_mc import (
     FILE_VEHICLE_BAND,
     fly_vehicle_file,
@@ -31,6 +31,7 @@ from pinquad.realdata.observations import (
     options_for_vehicle,
 )
 from pinquad.realdata.raw import raw_flight
+from pinquad.realdata.vehicle_check import measured_vehicle, over_max_thrust
 from pinquad.sim.rotor_log import rotor_speeds
 from pinquad.vehicle.actuators import ActuatorModel
 from pinquad.vehicle.model import load_model

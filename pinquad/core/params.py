@@ -18,6 +18,26 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
+class VehicleRange:
+    """What the vehicle can physically be: mass [kg] (lo, hi) and the inertia diagonal
+    [kg m^2] lo (3,), hi (3,); source: where the nominal values came from, in words. The
+    verdict judges estimates against it, and EM searches inside it."""
+
+    mass: tuple[float, float]
+    inertia_lo: Array
+    inertia_hi: Array
+    source: str
+
+    def clip_mass(self, mass: float) -> float:
+        """mass [kg] projected onto [lo, hi]."""
+        return float(min(max(mass, self.mass[0]), self.mass[1]))
+
+    def clip_inertia(self, inertia_diag: Array) -> Array:
+        """inertia diagonal (3,) [kg m^2] projected onto [lo, hi]."""
+        return np.clip(np.asarray(inertia_diag, dtype=float), self.inertia_lo, self.inertia_hi)
+
+
+@dataclass(frozen=True)
 class Vehicle:
     """Rigid-body parameters of a quadcopter.
 

@@ -22,7 +22,6 @@ others: the paper's m0 = 0.001 kg, I0 = diag(1e-4, 2e-4, 1e-4) kg m^2).
 
 from __future__ import annotations
 
-import math
 from concurrent.futures import Executor, Future
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, replace
@@ -33,7 +32,6 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.core.execution import Backend, open_executor
-from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.discovery.discover import Selection, refit_selection, select_effects
 from pinquad.discovery.null import (
     NullCalibration,
@@ -48,9 +46,11 @@ from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
 from pinquad.identification.identify import Identification, identify
+from pinquad.identification.search_range import search_range
 from pinquad.identification.verdict import VehicleRange, vehicle_range
 from pinquad.io.logs import FlightLog, log_contents
 from pinquad.io.sanity import check_log
+from pinquad.io.timebase import gap_lines
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import floor_contact, interval_inputs, observations
 from pinquad.models.ssm import Observations, Theta
@@ -58,13 +58,12 @@ from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
 from pinquad.realdata.model import RealTheta, corrected, plain_theta
 from pinquad.realdata.observations import (
-    RealDataOptions,
     build_observations,
     options_for_sensor,
-    options_for_vehicle,
 )
 from pinquad.realdata.raw import raw_flight
-from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
+from pinquad.realdata.thrust import ThrustCoefficient
+from pinquad.realdata.vehicle_check import measured_vehicle
 
 Array = NDArray[np.float64]
 
@@ -185,7 +184,8 @@ def _from_measured(ident: RealIdentification, label: str, post: Posterior, theta
         mstep="regressor", mass=ident.mass, inertia=np.diag(ident.inertia), stderr=ident.se_total,
         history_mass=ident.history[:, 0], history_inertia=ident.history[:, 1:4], theta=theta,
         loglik=ident.loglik, converged=ident.converged, seconds=ident.seconds, sensor=label,
-        e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident, notes=(ident.kf.note,))
+        e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident, notes=(ident.kf.note,),
+        failure=ident.failure)
 
 
 def discovery_start(run: Identification) -> DiscoveryStart:
@@ -212,59 +212,6 @@ def log_kind(log: FlightLog) -> str:
     if log.thrust is not None:
         return "simulated"
     return "sdlog" if log.measured is not None else "measured-table"
-
-
-def measured_vehicle(log: FlightLog) -> tuple[RealDataOptions, ThrustCoefficient | None]:
-    """The mixer options and kf of a measured log's vehicle (``log.meta.vehicle``: a
-    shipped name or a vehicle file). The shipped crazyflie21 keeps the defaults (kf from
-    the data directory's thrust stand). Raises ValueError when the file contradicts the
-    log: another number of rotors, or a hover thrust above the file's maximum."""
-    vehicle = log.meta.vehicle
-    assert log.rpm is not None
-    n = log.rpm.shape[1]
-    if not is_vehicle_file(vehicle):
-        if n != len(RealDataOptions().spin):
-            raise ValueError(f"{log.meta.source}: the log has {n} rotor speeds (rpm_1..rpm_{n}) "
-                             f"but vehicle {vehicle!r} (read as the shipped crazyflie21) has "
-                             f"{len(RealDataOptions().spin)} rotors; give the vehicle file that "
-                             "matches the log (--vehicle FILE)")
-        return RealDataOptions(), None
-    spec = load_vehicle(vehicle)
-    options = options_for_vehicle(spec)
-    if n != spec.n_rotors:
-        raise ValueError(f"{log.meta.source}: the log has {n} rotor speeds (rpm_1..rpm_{n}) but "
-                         f"the vehicle file {spec.source} has {spec.n_rotors} rotors")
-    kf = vehicle_thrust_coefficient(spec)
-    top = spec.max_total_thrust()
-    mass = spec.reference.mass if spec.reference.mass is not None else spec.mass
-    if top is not None and mass * log.meta.gravity > top:
-        raise ValueError(f"{spec.source}: hover needs {mass * log.meta.gravity:.3f} N for "
-                         f"{mass * 1e3:.1f} g but the file's rotors give at most {top:.3f} N "
-                         f"({spec.n_rotors} x max_thrust {spec.actuators.max_thrust} N)")  # type: ignore[union-attr]
-    if top is not None:
-        over_max_thrust(log, spec.actuators.max_thrust, kf.kf, spec.source)  # type: ignore[union-attr]
-    return options, kf
-
-
-def over_max_thrust(log: FlightLog, max_thrust: float, kf: float, where: object,
-                    share: float = 0.01) -> None:
-    """Raise ValueError when the log's rotors spin faster than the file's ``max_thrust``
-    [N] allows, omega_max = sqrt(max_thrust / kf) [rad/s], in more than ``share`` of the
-    rows with a reading (a rotor that often makes more thrust than its maximum says the
-    file's kf or max_thrust is not this vehicle's); the message names the column."""
-    assert log.rpm is not None
-    rpm_max = math.sqrt(max_thrust / kf) * 60.0 / (2.0 * math.pi)
-    rpm = np.asarray(log.rpm, dtype=float)
-    finite = np.isfinite(rpm)
-    over = (np.where(finite, rpm, 0.0) > rpm_max).sum(axis=0) / np.maximum(finite.sum(axis=0), 1)
-    if over.max() > share:
-        i = int(np.argmax(over))
-        raise ValueError(f"{log.meta.source}: column rpm_{i + 1} reads above {rpm_max:.0f} "
-                         f"rev/min, the speed of the vehicle file's max_thrust {max_thrust:g} N "
-                         f"at kf = {kf:.4e} N/(rad/s)^2 ({where}), in {100 * over[i]:.1f} % of "
-                         f"its rows (median {np.nanmedian(rpm[:, i]):.0f} rev/min); expected at "
-                         f"most {100 * share:g} %: the file's kf or max_thrust is not this "
-                         "vehicle's")
 
 
 def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
@@ -336,15 +283,17 @@ figures were measured with."""
 
 
 def fit_run(obs: Observations, sensor: str, mstep: str, mass0: float, inertia0: Array,
-            gravity: float, options: LogOptions) -> Identification:
+            gravity: float, options: LogOptions, bounds: VehicleRange | None = None
+            ) -> Identification:
     """One run of a log with thrust and torque columns: EM with ``mstep`` on the
     observations of ``sensor`` from the guess (mass0 [kg], inertia0 (3, 3) [kg m^2]).
-    The regressor M-step is over-relaxed per parameter (``RECORDED_PER_PARAMETER``)."""
+    The regressor M-step is over-relaxed per parameter (``RECORDED_PER_PARAMETER``);
+    EM searches inside ``bounds`` (``identification.search_range``)."""
     if mstep == "full":
         return _full(obs, sensor, mass0, inertia0, gravity, options)
     ident, post = identify(obs, mass0, inertia0, gravity, options.estep, mstep,
                            options.max_iterations, options.information,
-                           per_parameter=RECORDED_PER_PARAMETER)
+                           per_parameter=RECORDED_PER_PARAMETER, bounds=bounds)
     return replace(ident, sensor=sensor, posterior=post, observations=obs)
 
 
@@ -358,27 +307,28 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions,
     contact, singular = floor_contact(log, mass0), near_euler_singularity(log.t, log.euler)
     seen = {sensor: observations(log, sensor, contact, singular) for sensor in sensors}
     tasks = [(sensor, mstep) for sensor in sensors for mstep in options.msteps]
+    box = search_range(log)
     obs = seen[sensors[0]]
     first_mstep = options.msteps[0]
     # every run and the input alternative are EM runs of their own: with an executor,
     # all but the reported run go to its workers while this process fits that one
     later, alternative_job = [], None
     if executor is not None:
-        later = [executor.submit(fit_run, seen[s], s, m, mass0, inertia0, gravity, options)
+        later = [executor.submit(fit_run, seen[s], s, m, mass0, inertia0, gravity, options, box)
                  for s, m in tasks[1:]]
         alternative_job = executor.submit(input_alternative, log, obs, first_mstep, mass0,
-                                          inertia0, options)
-    run = fit_run(obs, sensors[0], first_mstep, mass0, inertia0, gravity, options)
+                                          inertia0, options, box)
+    run = fit_run(obs, sensors[0], first_mstep, mass0, inertia0, gravity, options, box)
     if executor is not None:
         runs = [run, *(f.result() for f in later)]
         alternative = alternative_job.result() if alternative_job is not None else None
     else:
-        runs = [run, *(fit_run(seen[s], s, m, mass0, inertia0, gravity, options)
+        runs = [run, *(fit_run(seen[s], s, m, mass0, inertia0, gravity, options, box)
                        for s, m in tasks[1:])]
-        alternative = input_alternative(log, obs, first_mstep, mass0, inertia0, options)
+        alternative = input_alternative(log, obs, first_mstep, mass0, inertia0, options, box)
     n_ex = int(obs.exclude[: obs.n - 1].sum())
     excluded = (f"{contact.transitions()} transitions: {contact.describe()}",
-                *singular.report_lines(),
+                *singular.report_lines(), *gap_lines(log.t),
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
     return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
                      tuple(log.meta.notes), "simulated", contents=log_contents(log),
@@ -386,7 +336,8 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions,
 
 
 def input_alternative(log: FlightLog, obs: Observations, mstep: str, mass0: float,
-                      inertia0: Array, options: LogOptions) -> Array | None:
+                      inertia0: Array, options: LogOptions, bounds: VehicleRange | None = None
+                      ) -> Array | None:
     """For a log whose actuation is taken as sampled without its sidecar saying so
     (``LogMeta.actuation``, ``actuation_declared``): [m (kg), I_xx, I_yy,
     I_zz (kg m^2)] from EM with the reported run's M-step ``mstep`` (no standard errors)
@@ -400,7 +351,8 @@ def input_alternative(log: FlightLog, obs: Observations, mstep: str, mass0: floa
     held = replace(obs, inputs=interval_inputs(np.column_stack([log.thrust, log.torque]), "held"),
                    samples=None)
     alt, _ = identify(held, mass0, inertia0, log.meta.gravity, options.estep, mstep,
-                      options.max_iterations, False, per_parameter=RECORDED_PER_PARAMETER)
+                      options.max_iterations, False, per_parameter=RECORDED_PER_PARAMETER,
+                      bounds=bounds)
     return np.r_[alt.mass, np.diag(alt.inertia)]
 
 

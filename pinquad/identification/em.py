@@ -9,13 +9,14 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior, StateSpaceModel
+from pinquad.core.params import VehicleRange
 from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
 from pinquad.mstep.updates import MStepResult, relative_change
 
@@ -98,7 +99,7 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
            model_factory: Callable[[Any, Any], StateSpaceModel] = QuadSSM,
            distance: Callable[[Any, Any], float] = relative_change,
            extrapolate: Callable[[Theta, Theta, float], Theta] | None = None,
-           per_parameter: bool = False) -> EMResult:
+           per_parameter: bool = False, bounds: VehicleRange | None = None) -> EMResult:
     """Run EM from theta0 (see module docstring).
 
     With ``accelerate`` (the regressor M-step, or any M-step given its ``extrapolate``)
@@ -122,6 +123,13 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     ~95 (cap 16, before the continuous E-step). On the benchmark's log the refit's two EM
     passes then ran 100 E-steps each without converging; with the cap at 1024 they take
     36 and 3, to a higher likelihood (docs/benchmark.md).
+
+    bounds: the vehicle's plausible range (mass, inertia diagonal). The start and every
+    over-relaxed step are projected onto it; the M-step must keep its own proposal inside
+    (``regressor_mstep``'s ``bounds``, ``bounded_mstep``). Then each iterate maximises the
+    expected complete-data log-likelihood over the box, and the likelihood still never
+    decreases (a generalised EM); a parameter the log does not determine stops at the
+    box's edge instead of running off to 1e80.
 
     When theta0 carries the paper's fixed Q0 (``initial_theta``) and the model is a
     QuadSSM (or a subclass), the first E-step uses the force-free ``KinematicSSM`` (a
@@ -160,7 +168,13 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
         masses.append(mass_of(theta))
         inertias.append(inertia_of(theta))
 
-    theta = theta0
+    def inside(candidate: Theta) -> Theta:
+        if bounds is None or not is_quad:
+            return candidate
+        return replace(candidate, mass=bounds.clip_mass(candidate.mass),
+                       inertia=np.diag(bounds.clip_inertia(np.diag(candidate.inertia))))
+
+    theta = inside(theta0)
     post = e_step(theta)
     eta: float | Array = 1.0
     per_parameter = per_parameter and over_relax and extrapolate is None
@@ -191,13 +205,13 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
                    if last_step is not None else np.ones(em_step.size))
             last_step = em_step
             if np.any(eta > 1.0):
-                step_theta = _unpack(p_old + eta * em_step, proposal)
+                step_theta = inside(_unpack(p_old + eta * em_step, proposal))
         elif relaxing and eta > 1.0:
             if extrapolate is not None:
-                step_theta = extrapolate(theta, proposal, eta)
+                step_theta = inside(extrapolate(theta, proposal, eta))
             else:
                 p_old, p_new = _pack(theta), _pack(proposal)
-                step_theta = _unpack(p_old + eta * (p_new - p_old), proposal)
+                step_theta = inside(_unpack(p_old + eta * (p_new - p_old), proposal))
         new_post = try_e_step(step_theta)
         if step_theta is not proposal and (new_post is None
                                            or not (new_post.loglik >= post.loglik)):

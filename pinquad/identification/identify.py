@@ -3,16 +3,18 @@ the observed information (and the information at the truth, when a simulation gi
 
 from __future__ import annotations
 
+import functools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from estimators.iterated import smooth as iterated_smooth
 from estimators.protocol import Posterior
+from pinquad.core.params import VehicleRange
 from pinquad.estep.fast_smoother import loglik_quad, smooth_quad
-from pinquad.identification.em import EMResult, Smoother, initial_theta, run_em
+from pinquad.identification.em import EMResult, MStep, Smoother, initial_theta, run_em
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
     observed_information,
@@ -21,7 +23,7 @@ from pinquad.identification.fisher import (
 from pinquad.identification.full_inertia import FullIdentification
 from pinquad.identification.verdict import EstimateVerdict
 from pinquad.models.ssm import Observations, Theta
-from pinquad.mstep.updates import paper_mstep, regressor_mstep
+from pinquad.mstep.updates import MStepResult, paper_mstep, regressor_mstep
 
 Array = NDArray[np.float64]
 
@@ -139,19 +141,42 @@ def unmoved_note(mass0: float, inertia0: Array, mass: float, inertia: Array,
     return None
 
 
+def bounded_mstep(mstep: str, bounds: VehicleRange | None) -> MStep:
+    """The M-step ``mstep`` (``MSTEPS``) kept inside ``bounds``: the regressor M-step
+    maximises over the box itself; the paper's closed form is projected onto it (its
+    per-axis updates are not a joint maximiser anyway). None: the M-step as it is."""
+    base = MSTEPS[mstep]
+    if bounds is None:
+        return base
+    if mstep == "regressor":
+        step = functools.partial(regressor_mstep, bounds=bounds)
+        return functools.update_wrapper(step, regressor_mstep)  # keeps EM's over-relaxation
+
+    def projected(post: Posterior, obs: Observations, theta: Theta) -> MStepResult:
+        out = base(post, obs, theta)
+        new = replace(out.theta, mass=bounds.clip_mass(out.theta.mass),
+                      inertia=np.diag(bounds.clip_inertia(np.diag(out.theta.inertia))))
+        return replace(out, theta=new)
+
+    return projected
+
+
 def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, estep: str,
              mstep: str, max_iterations: int, information: bool,
              truth: tuple[float, Array] | None = None,
-             per_parameter: bool = False) -> tuple[Identification, Posterior]:
+             per_parameter: bool = False,
+             bounds: VehicleRange | None = None) -> tuple[Identification, Posterior]:
     """EM on one set of observations, with standard errors (and information at truth).
     per_parameter: the regressor M-step's over-relaxation with one factor per
     log-parameter (``run_em``); False keeps the shared factor the paper's reproduction
-    was measured with."""
+    was measured with. bounds: the vehicle's plausible range, which EM does not leave
+    (``run_em``); None: no range (the paper's reproduction)."""
     t0 = time.perf_counter()
     smoother = get_smoother(estep)
     theta0 = initial_theta(obs, mass0, inertia0, gravity)
-    res: EMResult = run_em(obs, theta0, smoother, MSTEPS[mstep], max_iterations=max_iterations,
-                           per_parameter=per_parameter)
+    res: EMResult = run_em(obs, theta0, smoother, bounded_mstep(mstep, bounds),
+                           max_iterations=max_iterations, per_parameter=per_parameter,
+                           bounds=bounds)
     stderr = np.full(4, np.nan)
     info_truth = None
     if information and mstep == "regressor":

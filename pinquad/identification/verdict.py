@@ -41,7 +41,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from estimators.ekf import predict, update
 from pinquad.core.filters import band_sos
-from pinquad.core.params import VEHICLES
+from pinquad.core.params import VEHICLES, VehicleRange
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.estep.fast_smoother import Innovations, innovations_quad
 from pinquad.models.ssm import Observations, QuadSSM, Theta
@@ -93,17 +93,6 @@ class VerdictThresholds:
 
 
 DEFAULT_THRESHOLDS = VerdictThresholds()
-
-
-@dataclass(frozen=True)
-class VehicleRange:
-    """What the vehicle can physically be: mass [kg] (lo, hi) and the inertia diagonal
-    [kg m^2] lo (3,), hi (3,); source: where the nominal values came from, in words."""
-
-    mass: tuple[float, float]
-    inertia_lo: Array
-    inertia_hi: Array
-    source: str
 
 
 def vehicle_range(vehicle: str, mass_guess: float | None = None,

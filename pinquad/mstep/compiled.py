@@ -216,6 +216,15 @@ def physical(i_diag):
 
 
 @njit(cache=True)
+def _inside(i_diag, lo, hi):
+    """Whether lo <= i_diag <= hi elementwise (the M-step's box)."""
+    for i in range(3):
+        if not (lo[i] <= i_diag[i] <= hi[i]):
+            return False
+    return True
+
+
+@njit(cache=True)
 def _solve3(a, b, x):
     """x = a^{-1} b for a (3, 3) by Gaussian elimination with partial pivoting (what
     LAPACK's gesv does); False, like numpy's LinAlgError, when a pivot is exactly zero."""
@@ -308,11 +317,13 @@ def _parts(mass, a_t, b_t, c_t, i_diag, grad, hess, want_derivatives):
 
 
 @njit(cache=True)
-def inertia_newton(mass, a_t, b_t, c_t, previous):
+def inertia_newton(mass, a_t, b_t, c_t, previous, lo, hi):
     """identify._inertia_newton compiled: the same candidates (previous inertia, the
     unweighted least-squares solution), damped Newton steps, backtracking and stopping
     rule, so the same minimiser up to rounding. a_t (3, 4, 4), b_t (3, 4), c_t (3,) of
-    the torque rows; previous (3,) diagonal inertia. Returns the diagonal inertia (3,)."""
+    the torque rows; previous (3,) diagonal inertia; lo, hi (3,) [kg m^2]: the box the
+    inertia stays in (every trial point is projected onto it; 0 and inf: no box).
+    Returns the diagonal inertia (3,)."""
     grad = np.empty(3)
     hess = np.empty((3, 3))
     a_sum = np.zeros((3, 3))
@@ -322,7 +333,7 @@ def inertia_newton(mass, a_t, b_t, c_t, previous):
             rhs[p] += b_t[j, 1 + p] - a_t[j, 1 + p, 0] * mass
             for r in range(3):
                 a_sum[p, r] += a_t[j, 1 + p, 1 + r]
-    prev = previous.astype(np.float64)
+    prev = np.minimum(np.maximum(previous.astype(np.float64), lo), hi)
     current = np.empty(3)
     have = False
     best = np.inf
@@ -331,7 +342,7 @@ def inertia_newton(mass, a_t, b_t, c_t, previous):
         best = _parts(mass, a_t, b_t, c_t, prev, grad, hess, False)
         have = True
     i_ls = np.empty(3)
-    if _solve3(a_sum, rhs, i_ls) and physical(i_ls):
+    if _solve3(a_sum, rhs, i_ls) and physical(i_ls) and _inside(i_ls, lo, hi):
         q_ls = np.empty(3)
         _q_rows(mass, a_t, b_t, c_t, i_ls, q_ls)
         if q_ls[0] <= 1e-12 * c_t[0] and q_ls[1] <= 1e-12 * c_t[1] and q_ls[2] <= 1e-12 * c_t[2]:
@@ -341,14 +352,34 @@ def inertia_newton(mass, a_t, b_t, c_t, previous):
             current[:] = i_ls
             have = True
     if not have:
-        mean_prev = (prev[0] + prev[1] + prev[2]) / 3.0
+        mean_prev = (previous[0] + previous[1] + previous[2]) / 3.0
         for i in range(3):
-            current[i] = mean_prev
+            current[i] = min(max(mean_prev, lo[i]), hi[i])
     val = _parts(mass, a_t, b_t, c_t, current, grad, hess, True)
     step = np.empty(3)
     trial = np.empty(3)
+    active = np.zeros(3, dtype=np.bool_)
     for _ in range(100):
-        ok = _solve3(hess, grad, step)
+        # projected Newton (Bertsekas 1982): an entry on the box's edge whose gradient
+        # pushes it outwards is held there, Newton runs on the others
+        n_active = 0
+        for i in range(3):
+            active[i] = ((current[i] >= hi[i] and grad[i] < 0.0)
+                         or (current[i] <= lo[i] and grad[i] > 0.0))
+            n_active += active[i]
+        if n_active == 0:
+            ok = _solve3(hess, grad, step)
+        else:
+            h_free = hess.copy()
+            g_free = grad.copy()
+            for i in range(3):
+                if active[i]:
+                    g_free[i] = 0.0
+                    for r in range(3):
+                        h_free[i, r] = 0.0
+                        h_free[r, i] = 0.0
+                    h_free[i, i] = 1.0
+            ok = _solve3(h_free, g_free, step)
         slope = 0.0
         if ok:
             for i in range(3):
@@ -358,16 +389,28 @@ def inertia_newton(mass, a_t, b_t, c_t, previous):
             cmin = min(current[0], current[1], current[2])
             slope = 0.0
             for i in range(3):
-                step[i] = -grad[i] * cmin * cmin
+                step[i] = 0.0 if active[i] else -grad[i] * cmin * cmin
                 slope += grad[i] * step[i]
+        if slope == 0.0:  # every entry held on the edge: a constrained minimum
+            break
         t = 1.0
         accepted = False
         while t > 1e-12:
+            # Armijo on the projected step; unprojected it is t * slope exactly
+            moved = t * slope
+            clipped = False
             for i in range(3):
                 trial[i] = current[i] + t * step[i]
+                if trial[i] < lo[i] or trial[i] > hi[i]:
+                    trial[i] = min(max(trial[i], lo[i]), hi[i])
+                    clipped = True
+            if clipped:
+                moved = 0.0
+                for i in range(3):
+                    moved += grad[i] * (trial[i] - current[i])
             if physical(trial):
                 v_new = _parts(mass, a_t, b_t, c_t, trial, grad, hess, False)
-                if v_new <= val + 1e-4 * t * slope:
+                if v_new <= val + 1e-4 * moved:
                     accepted = True
                     break
             t *= 0.5

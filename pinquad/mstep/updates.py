@@ -49,6 +49,7 @@ from pinquad.core.conventions import (
     rotation_from_euler,
     wrap_angle,
 )
+from pinquad.core.params import VehicleRange
 from pinquad.models.ssm import CHANNEL_SLICES, NoiseModel, Observations, Theta, kinematic_floor
 from pinquad.mstep import compiled
 from pinquad.mstep.stats import QuadraticSums, transition_mask
@@ -258,17 +259,21 @@ class MStepResult:
     wrench_var: Array
 
 
-def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array
-                    ) -> Array:
+def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array,
+                    lo: Array | None = None, hi: Array | None = None) -> Array:
     """Minimise J(I) = 1/2 sum_j log q_j(I) - sum_i log I_i over diagonal inertias.
 
     q_j(I) = pi^T A_j pi - 2 b_j^T pi + c_j with pi = [m, I]; gradient
     g = 1/2 sum_j q_j'/q_j - 1/I and Hessian H = 1/2 sum_j (2 A_j/q_j - q_j' q_j'^T/q_j^2)
     + diag(1/I^2). Damped Newton from the better of the previous inertia and the
     unweighted least-squares solution, with backtracking that keeps the inertia
-    physically consistent (positive, triangle inequalities). For noise-free data the
-    least-squares solution makes every q_j vanish and is returned as is.
+    physically consistent (positive, triangle inequalities) and inside the box lo <= I <=
+    hi [kg m^2] (each trial point projected onto it, Armijo's test on the projected
+    step; None: no box). For noise-free data the least-squares solution makes every q_j
+    vanish and is returned as is.
     """
+    lo = np.zeros(3) if lo is None else np.asarray(lo, dtype=float)
+    hi = np.full(3, np.inf) if hi is None else np.asarray(hi, dtype=float)
     def parts(i_diag: Array) -> tuple[float, Array, Array]:
         pi = np.concatenate([[mass], i_diag])
         q = np.einsum("p,apq,q->a", pi, a_t, pi) - 2.0 * b_t @ pi + c_t
@@ -283,10 +288,10 @@ def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: A
 
     a_sum = a_t[:, 1:4, 1:4].sum(axis=0)
     rhs = (b_t[:, 1:4] - a_t[:, 1:4, 0] * mass).sum(axis=0)
-    candidates = [np.asarray(previous, dtype=float)]
+    candidates = [np.clip(np.asarray(previous, dtype=float), lo, hi)]
     try:
         i_ls = np.linalg.solve(a_sum, rhs)
-        if compiled.physical(np.asarray(i_ls, dtype=float)):
+        if compiled.physical(np.asarray(i_ls, dtype=float)) and np.all((lo <= i_ls) & (i_ls <= hi)):
             pi_ls = np.concatenate([[mass], i_ls])
             q_ls = np.einsum("p,apq,q->a", pi_ls, a_t, pi_ls) - 2.0 * b_t @ pi_ls + c_t
             if np.all(q_ls <= 1e-12 * c_t):
@@ -295,22 +300,36 @@ def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: A
     except np.linalg.LinAlgError:
         pass
     candidates = ([c for c in candidates if compiled.physical(np.asarray(c, dtype=float))]
-                  or [np.full(3, np.mean(previous))])
+                  or [np.clip(np.full(3, np.mean(previous)), lo, hi)])
     current = min(candidates, key=lambda c: parts(c)[0])
     val, grad, hess = parts(current)
     for _ in range(100):
+        # projected Newton: entries on the box's edge pushed outwards are held there
+        active = ((current >= hi) & (grad < 0)) | ((current <= lo) & (grad > 0))
+        h_free, g_free = hess, grad
+        if active.any():
+            h_free, g_free = hess.copy(), np.where(active, 0.0, grad)
+            h_free[active, :] = 0.0
+            h_free[:, active] = 0.0
+            h_free[active, active] = 1.0
         try:
-            step = -np.linalg.solve(hess, grad)
+            step = -np.linalg.solve(h_free, g_free)
             if grad @ step >= 0:  # not a descent direction: fall back to gradient
-                step = -grad * float(np.min(current)) ** 2
+                step = np.where(active, 0.0, -grad * float(np.min(current)) ** 2)
         except np.linalg.LinAlgError:
-            step = -grad * float(np.min(current)) ** 2
+            step = np.where(active, 0.0, -grad * float(np.min(current)) ** 2)
+        if grad @ step == 0.0:  # every entry held on the edge: a constrained minimum
+            break
         t = 1.0
         while t > 1e-12:
             trial = current + t * step
+            moved = t * (grad @ step)
+            if np.any((trial < lo) | (trial > hi)):
+                trial = np.clip(trial, lo, hi)
+                moved = grad @ (trial - current)
             if compiled.physical(np.asarray(trial, dtype=float)):
                 v_new = parts(trial)[0]
-                if v_new <= val + 1e-4 * t * (grad @ step):
+                if v_new <= val + 1e-4 * moved:
                     break
             t *= 0.5
         else:
@@ -323,12 +342,15 @@ def _inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: A
     return current
 
 
-def inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array) -> Array:
+def inertia_newton(mass: float, a_t: Array, b_t: Array, c_t: Array, previous: Array,
+                   lo: Array | None = None, hi: Array | None = None) -> Array:
     """``_inertia_newton``, compiled (``pinquad.mstep.compiled.inertia_newton``: the same
     algorithm, so the same minimiser up to rounding, in ~1 % of the time)."""
     return compiled.inertia_newton(float(mass), np.ascontiguousarray(a_t, dtype=float),
                     np.ascontiguousarray(b_t, dtype=float), np.ascontiguousarray(c_t, dtype=float),
-                    np.array(previous, dtype=float))
+                    np.array(previous, dtype=float),
+                    np.zeros(3) if lo is None else np.array(lo, dtype=float),
+                    np.full(3, np.inf) if hi is None else np.array(hi, dtype=float))
 
 
 def _inertia_from_d(d: Array) -> Array:
@@ -416,23 +438,30 @@ def profiled_mass(stats, fallback: float) -> float:
 
 def regressor_mstep(post: Posterior, obs: Observations, theta: Theta,
                     earlier: QuadraticSums | None = None, *,
-                    stats: QuadraticSums | None = None) -> MStepResult:
+                    stats: QuadraticSums | None = None,
+                    bounds: VehicleRange | None = None) -> MStepResult:
     """Joint ML update of mass, diagonal inertia and all noise variances (see module).
 
     ``earlier``: statistics of transitions no longer in ``obs`` (the online estimator's
     memory of samples that left its window), added to this posterior's for mass and
     inertia and the wrench noise; the measurement variances stay this posterior's own.
     ``stats``: ``expected_quadratics(post, obs, theta.gravity)`` when the caller has
-    computed it already (discovery's effect M-step needs it too), else computed here."""
+    computed it already (discovery's effect M-step needs it too), else computed here.
+    ``bounds``: the vehicle's plausible range; mass and inertia are maximised inside it
+    (the mass's minimiser projected onto its interval, the inertia by projected Newton),
+    so EM cannot leave it (None: positivity and the triangle inequalities only)."""
     if stats is None:
         stats = expected_quadratics(post, obs, theta.gravity)
     if earlier is not None:
         stats = QuadraticSums.of(stats).plus(earlier)
     n = stats.n
     mass = profiled_mass(stats, theta.mass)
+    if bounds is not None:
+        mass = bounds.clip_mass(mass)
 
     a_t, b_t, c_t = stats.a[3:6], stats.b[3:6], stats.c[3:6]
-    inertia = inertia_newton(mass, a_t, b_t, c_t, np.diag(theta.inertia))
+    inertia = inertia_newton(mass, a_t, b_t, c_t, np.diag(theta.inertia),
+                             *(() if bounds is None else (bounds.inertia_lo, bounds.inertia_hi)))
     pi = np.concatenate([[mass], inertia])
     row_var = np.maximum(_row_sums(stats, pi) / n, 0.0)
     noise = update_noise(post, obs, theta, row_var)
