@@ -8,14 +8,15 @@ from dataclasses import replace
 from pathlib import Path
 
 from pinquad.core.vehicle_file import SHIPPED, is_vehicle_file
-from pinquad.io import logs, sdlog
+from pinquad.io import fixed_frequency, logs, sdlog
 from pinquad.io.logs import FlightLog, LogFormatError, vehicle_file_named
 
 
 def read_log(path: str | Path) -> FlightLog:
     """The flight in ``path``, whatever its format (micro-SD logs are recognised by their
-    content, tables by their suffix). Raises LogFormatError naming the file, and the
-    column, row or byte offset, when it is not a readable log."""
+    content, tables by their suffix; a file that is neither a table nor an event-based
+    log and starts like a fixed-frequency header is read as one). Raises LogFormatError
+    naming the file, and the column, row or byte offset, when it is not a readable log."""
     path = Path(path)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file; expected a CSV, Parquet or Crazyflie "
@@ -24,7 +25,15 @@ def read_log(path: str | Path) -> FlightLog:
         raise LogFormatError(f"{path}: is a directory; expected a log file")
     if sdlog.is_sdlog(path):
         return with_sidecar_vehicle(sdlog.read_sdlog(path))
+    if _is_fixed_frequency(path):
+        return with_sidecar_vehicle(fixed_frequency.read_fixed_frequency(path))
     return logs.read_log(path)
+
+
+def _is_fixed_frequency(path: Path) -> bool:
+    """Not a table or sidecar by its suffix, and a fixed-frequency header by its content."""
+    return (path.suffix.lower() not in (".csv", ".parquet", ".json")
+            and fixed_frequency.is_fixed_frequency(path))
 
 
 def is_flight_log(path: Path) -> bool:
