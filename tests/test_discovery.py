@@ -220,14 +220,19 @@ def test_csv_log_round_trip_names_com_offset(tmp_path):
     base = np.diag(np.asarray(report["base"]["inertia"]))
     truth = np.diag(CRAZYFLIE21.inertia)
     np.testing.assert_allclose(inertia, truth, rtol=0.15)
-    assert np.all(np.abs(inertia / truth - 1) < 0.1 * np.abs(base / truth - 1))
+    # the base fit leaves the CoM's torque to I_xx and I_yy, which EM stops on the edge of
+    # the vehicle's range (4x the published); the refit brings them back to a tenth of that
+    off = np.abs(base / truth - 1) > 0.5
+    assert off[0] and off[1]
+    assert np.all(np.abs(inertia / truth - 1)[off] < 0.1 * np.abs(base / truth - 1)[off])
     # the headline is the final model: estimates = the refit, the base fit under "base";
     # the base's orders-of-magnitude inertia is judged implausible, the refit trusted
     est = report["estimates"]
     assert est["mass"] == disc["refit"]["mass"]
     np.testing.assert_array_equal(np.asarray(est["inertia"]), np.asarray(disc["refit"]["inertia"]))
     assert set(report["base"]) == set(est)
-    assert report["base"]["verdict"]["overall"] == "implausible"
+    assert report["base"]["verdict"]["overall"] == "not identifiable"
+    assert any("edge of the range EM searched" in r for r in report["base"]["verdict"]["reasons"])
     assert est["verdict"]["overall"] == "trusted" == report["verdict"]["overall"]
     assert report["runs"][0]["estimates"]["verdict"] == report["base"]["verdict"]
     assert "final" in proc.stdout and "verdict: trusted" in proc.stdout
@@ -242,13 +247,13 @@ def test_csv_log_round_trip_names_com_offset(tmp_path):
     out2 = tmp_path / "run-nodisc"
     proc = _offline("--log", str(path), "--mstep", "regressor", "--no-information", "--no-discover",
                     "--out", str(out2))
-    # without discovery the headline is the base fit, whose inertia is implausible for a
-    # Crazyflie: exit 3, the report written all the same
+    # without discovery the headline is the base fit, whose inertia EM stops on the edge
+    # of a Crazyflie's range: exit 3, the report written all the same
     assert proc.returncode == 3, proc.stderr
     assert "effect discovery" not in proc.stdout
     report2 = json.loads((out2 / "report.json").read_text())
     assert report2["discovery"]["selected"] == []
-    assert report2["verdict"]["overall"] == "implausible"
+    assert report2["verdict"]["overall"] == "not identifiable"
     assert report2["estimates"]["mass"] == report2["base"]["mass"]
 
 

@@ -29,8 +29,10 @@ def test_csv_log_through_the_command_line_equals_in_memory_identification(flight
     out = tmp_path / "run"
     proc = offline_on_csv(flight_b, tmp_path / "flight.csv", out, "--sensor", "B",
                           "--mstep", "regressor", "--no-information", "--no-discover")
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    # --no-information: numbers without standard errors are "not judged", never trusted
+    assert proc.returncode == 3, proc.stderr[-2000:]
     report = json.loads((out / "report.json").read_text())
+    assert report["estimates"]["verdict"]["overall"] == "not judged"
     assert report["source"]["sensor"] == "B" and report["source"]["mstep"] == "regressor"
 
     # The CSV holds repr() floats, but the attitude goes through its quaternion columns

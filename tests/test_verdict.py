@@ -18,6 +18,7 @@ from pinquad.identification.verdict import (
     IMPLAUSIBLE,
     NOT_ADEQUATE,
     NOT_IDENTIFIABLE,
+    NOT_JUDGED,
     TRUSTED,
     VerdictEvidence,
     innovation_consistency,
@@ -91,8 +92,8 @@ def test_standard_error_boundary_against_the_vehicle_range():
     past = judge(M, np.diag(J), np.r_[boundary * 1.04, SMALL_SE[1:]], GOOD, CF)
     assert at.get("mass").trusted
     assert past.get("mass").verdict == NOT_IDENTIFIABLE and "26.0 %" in past.get("mass").reasons[0]
-    # no standard error: nothing to judge it by, the other checks still stand
-    assert judge(M, np.diag(J), np.full(4, np.nan), GOOD, CF).overall == TRUSTED
+    # no standard error: nothing to judge it by, never "trusted"; the other checks still stand
+    assert judge(M, np.diag(J), np.full(4, np.nan), GOOD, CF).overall == NOT_JUDGED
     # an unknown vehicle without sidecar guesses has no range: positivity and triangle only
     assert vehicle_range("unknown") is None
     assert judge(3 * M, np.diag(J), SMALL_SE, GOOD, None).overall == TRUSTED

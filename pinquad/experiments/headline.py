@@ -26,6 +26,8 @@ from pinquad.identification.fisher import (
     standard_errors,
 )
 from pinquad.identification.identify import Identification
+from pinquad.identification.mass_balance import balance_mass
+from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import (
     EstimateVerdict,
     VerdictEvidence,
@@ -85,6 +87,20 @@ def _actuation(result: LogResult) -> str:
     return input_reading(result.kind, result.log)
 
 
+def fit_evidence(result: LogResult, run: Identification) -> dict:
+    """What the fit itself says against trusting a run (``VerdictEvidence`` fields):
+    EM did not converge, or parameters ended on the edge of the range EM searched."""
+    out: dict = {}
+    if not run.converged:
+        why = f" ({run.failure})" if run.failure else ""
+        out["not_converged"] = (f"EM did not converge in {run.e_steps or run.iterations} "
+                                f"E-steps{why}: the estimate is not the likelihood's maximum")
+    if result.search is not None and run.mstep != "full":
+        out["at_bound"] = tuple(at_bound(np.r_[run.mass, np.diag(run.inertia)], result.search))
+        out["bound_source"] = result.search.source
+    return out
+
+
 def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     """The verdict of one run of a log (its own posterior and observations; a run that kept
     none is judged on its values and standard errors alone)."""
@@ -97,8 +113,11 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
         model = None if run.full is None else FullQuadSSM(start.obs, theta)
         ev = data_evidence(start.obs, theta, start.posterior.mean, _band(run), model,
                            _actuation(result))
+        ev = replace(ev, model_free_mass=balance_mass(start.obs, start.posterior.mean,
+                                                       start.theta.gravity))
     if run is result.runs[0]:
         ev = replace(ev, input_alternative=result.input_alternative)
+    ev = replace(ev, **fit_evidence(result, run))
     products = None
     if run.full is not None:
         s = np.asarray(run.full.stderr_inertia)
@@ -126,6 +145,10 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
     ev = replace(data_evidence(obs, theta, found.posterior.mean, _band(run), model,
                                _actuation(result)),
                  input_alternative=result.input_alternative)
+    if result.search is not None:
+        ev = replace(ev, at_bound=tuple(at_bound(np.r_[found.mass, np.diag(found.inertia)],
+                                                 result.search)),
+                     bound_source=result.search.source)
     missing = run.stderr_problem
     if discovery_config(result.kind).refit_em:
         stderr = standard_errors(observed_information(obs, theta, loglik_quad))

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from estimators.protocol import Posterior
 from pinquad.core.execution import Backend, open_executor
 from pinquad.discovery.discover import Selection, refit_selection, select_effects
+from pinquad.discovery.domain import outside_domain, unexplained_residual
 from pinquad.discovery.null import (
     NullCalibration,
     NullSettings,
@@ -46,7 +47,7 @@ from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
 from pinquad.identification.identify import Identification, identify
-from pinquad.identification.search_range import search_range
+from pinquad.identification.search_range import outside_range, search_range, unconverged
 from pinquad.identification.verdict import VehicleRange, vehicle_range
 from pinquad.io.logs import FlightLog, log_contents
 from pinquad.io.sanity import check_log
@@ -54,6 +55,7 @@ from pinquad.io.timebase import gap_lines
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import floor_contact, interval_inputs, observations
 from pinquad.models.ssm import Observations, Theta
+from pinquad.mstep.stats import transition_mask
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
 from pinquad.realdata.model import RealTheta, corrected, plain_theta
@@ -122,7 +124,8 @@ class LogResult:
     key ``DISCOVERY_SETTINGS`` and the report dispatch on), the thrust coefficient and
     actuation-fault notes of a measured flight, and contents: what the recorded log carries, in words
     (``log_contents``; ``log`` is the log as the E-step saw it, for a measured flight
-    resampled with the thrust and torques its rotor speeds give). Discovery starts from
+    resampled with the thrust and torques its rotor speeds give), search: the range EM
+    searched (``identification.search_range``; None: unbounded). Discovery starts from
     ``discovery_start(runs[0])``."""
 
     runs: tuple[Identification, ...]
@@ -137,6 +140,7 @@ class LogResult:
     faults: tuple[str, ...] = ()
     input_alternative: Array | None = None
     contents: str = ""
+    search: VehicleRange | None = None
 
 
 DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
@@ -332,7 +336,7 @@ def _with_applied_wrench(log: FlightLog, options: LogOptions,
                 f"total: {n_ex} of {obs.n - 1} transitions excluded")
     return LogResult(tuple(runs), log, obs, run.posterior.mean, guess, excluded,
                      tuple(log.meta.notes), "simulated", contents=log_contents(log),
-                     input_alternative=alternative)
+                     input_alternative=alternative, search=box)
 
 
 def input_alternative(log: FlightLog, obs: Observations, mstep: str, mass0: float,
@@ -403,6 +407,8 @@ class DiscoveryOutcome:
     result: DiscoveryResult | None
     error: str | None = None
     null: NullCalibration | None = None
+    unphysical: tuple[dict, ...] = ()
+    not_run: str | None = None
 
 
 def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:
@@ -433,11 +439,29 @@ def run_discovery(result: LogResult, null: NullSettings | None = None,
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
-    actuation = input_reading(result.kind, result.log)
     vrange = plausible_range(result)
+    base = result.runs[0]
+    if unconverged(base) is not None:
+        return DiscoveryOutcome(None, not_run=unconverged(base))
+    actuation = input_reading(result.kind, result.log)
     bounds = None if vrange is None else (vrange.inertia_lo, vrange.inertia_hi)
-    return discover_calibrated(start, discovery_config(result.kind, actuation), null, actuation,
-                               executor, bounds)
+    outcome = discover_calibrated(start, discovery_config(result.kind, actuation), null,
+                                  actuation, executor, bounds)
+    # a base fit outside the physical set is kept for discovery only when a selected
+    # effect brings the refit inside it (a missing effect can push the base fit out)
+    odd = outside_range(np.r_[base.mass, np.diag(base.inertia)], result.search, vrange)
+    found = outcome.result
+    if odd is not None and found is not None:
+        still = (outside_range(np.r_[found.mass, np.diag(found.inertia)], result.search,
+                               vrange) if found.selected else odd)
+        if still is not None:
+            return DiscoveryOutcome(None, not_run=(
+                f"the base fit's {odd}, and "
+                + (f"the refit with {', '.join(found.selected)} still has {still}"
+                   if found.selected else "no effect explains why")
+                + ": the log does not determine the fit, and effects read from its residual "
+                "would not be there"))
+    return outcome
 
 
 def input_reading(kind: str, log: FlightLog) -> str:
@@ -476,33 +500,53 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
         # 1e-106 m); with nothing selected the base fit itself is the answer
         return plausible if sel.selected else theta
 
+    heights = post.mean[np.flatnonzero(transition_mask(obs)), 2]
+    unphysical: list[dict] = []
     try:
-        sel = select_effects(obs, theta, post, cfg, start_inertia)
-        ahead: tuple[Selection, Future] | None = None
-        while sel.selected and null.replicates:
-            done = {e for c in calibrations for e in c.observed}
-            fresh = [e for e in sel.selected if e not in done]
-            if not fresh:
+        while True:  # until every selected effect's fit is inside its physical domain
+            found = _select_and_refit(obs, theta, post, cfg, null, actuation, executor,
+                                      inertia_bounds, start_inertia, calibrations, refit_from)
+            bad = outside_domain(found, heights, obs.ground_radius)
+            if not bad:
                 break
-            if executor is not None:
-                ahead = (sel, executor.submit(refit_selection, obs, refit_from(sel), post,
-                                              sel, None, cfg))
-            gains = first_round_gains(sel)
-            cal = calibrate(obs, theta, post, {e: gains[e] for e in fresh}, cfg, null,
-                            actuation, executor, inertia_bounds)
-            calibrations.append(cal)
-            if not cal.rejected:
-                break
-            rejected = {e for c in calibrations for e in c.rejected}
-            cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in rejected))
-            sel = select_effects(obs, theta, post, cfg, start_inertia)
-        if ahead is not None and ahead[0] is sel:
-            found = ahead[1].result()
-        else:
-            found = refit_selection(obs, refit_from(sel), post, sel, None, cfg)
+            unphysical += [unexplained_residual(found, e, why) for e, why in bad.items()]
+            cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in bad))
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return DiscoveryOutcome(None, f"discovery failed numerically: {exc}")
-    return DiscoveryOutcome(found, null=combine(calibrations) if calibrations else None)
+    return DiscoveryOutcome(found, null=combine(calibrations) if calibrations else None,
+                            unphysical=tuple(unphysical))
+
+
+def _select_and_refit(obs: Observations, theta: Theta, post: Posterior, cfg: DiscoveryConfig,
+                      null: NullSettings, actuation: str, executor: Executor | None,
+                      inertia_bounds: tuple[Array, Array] | None, start_inertia: Array | None,
+                      calibrations: list[NullCalibration], refit_from) -> DiscoveryResult:
+    """``discover_calibrated``'s selection against the null and its refit (calibrations
+    appended to ``calibrations``; effects they rejected stay out)."""
+    rejected = {e for c in calibrations for e in c.rejected}
+    cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in rejected))
+    sel = select_effects(obs, theta, post, cfg, start_inertia)
+    ahead: tuple[Selection, Future] | None = None
+    while sel.selected and null.replicates:
+        done = {e for c in calibrations for e in c.observed}
+        fresh = [e for e in sel.selected if e not in done]
+        if not fresh:
+            break
+        if executor is not None:
+            ahead = (sel, executor.submit(refit_selection, obs, refit_from(sel), post,
+                                          sel, None, cfg))
+        gains = first_round_gains(sel)
+        cal = calibrate(obs, theta, post, {e: gains[e] for e in fresh}, cfg, null,
+                        actuation, executor, inertia_bounds)
+        calibrations.append(cal)
+        if not cal.rejected:
+            break
+        rejected = {e for c in calibrations for e in c.rejected}
+        cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in rejected))
+        sel = select_effects(obs, theta, post, cfg, start_inertia)
+    if ahead is not None and ahead[0] is sel:
+        return ahead[1].result()
+    return refit_selection(obs, refit_from(sel), post, sel, None, cfg)
 
 
 def measured_effects(obs: Observations, theta: RealTheta, posterior: Posterior,
@@ -535,8 +579,9 @@ def discovery_section(outcome: DiscoveryOutcome) -> dict:
     relative to the run directory (``figures/<name>``)."""
     if outcome.result is None:
         return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
-                "validation": "not run", "error": outcome.error}
+                "validation": "not run", "error": outcome.error, "not_run": outcome.not_run}
     section = outcome.result.to_report()
+    section["unphysical"] = list(outcome.unphysical)
     section["figures"] = [f"figures/{Path(f).name}" for f in section["figures"]]
     if outcome.null is not None:
         section["null_calibration"] = outcome.null.to_report()

@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.params import VEHICLES, VehicleRange
 from pinquad.core.vehicle_file import is_vehicle_file
+from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import FlightLog
 
@@ -79,3 +80,33 @@ def at_bound(values: Array, bounds: VehicleRange) -> list[str]:
     v = np.asarray(values, dtype=float)
     edge = (np.abs(v - lo) <= EDGE_RTOL * lo) | (np.abs(v - hi) <= EDGE_RTOL * hi)
     return [n for n, e in zip(("mass", "I_xx", "I_yy", "I_zz"), edge, strict=True) if e]
+
+
+def unconverged(run: Identification) -> str | None:
+    """Why a base fit is no ground for effect discovery at all: EM did not converge (its
+    residual is that of an arbitrary point, not of the model's best fit); None when it
+    converged."""
+    if run.converged:
+        return None
+    why = run.failure or "EM stopped at its E-step limit"
+    return (f"the base fit did not converge ({why}): discovery needs a base fit at the "
+            "likelihood's maximum")
+
+
+def outside_range(values: Array, search: VehicleRange | None,
+                  vrange: VehicleRange | None) -> str | None:
+    """Why a fit of [m, I_xx, I_yy, I_zz] (``values`` (4,)) is not physical: a parameter on
+    the edge of the range EM searched, or outside the vehicle's plausible range; None
+    when it is neither."""
+    edge = [] if search is None else at_bound(values, search)
+    if edge:
+        return (f"{', '.join(edge)} ended on the edge of the range EM searched "
+                f"({search.source})")  # type: ignore[union-attr]
+    if vrange is not None:
+        lo = np.r_[vrange.mass[0], vrange.inertia_lo]
+        hi = np.r_[vrange.mass[1], vrange.inertia_hi]
+        out = [n for n, v, a, b in zip(("mass", "I_xx", "I_yy", "I_zz"), values, lo, hi,
+                                       strict=True) if not a <= v <= b]
+        if out:
+            return f"{', '.join(out)} outside the vehicle's plausible range ({vrange.source})"
+    return None

@@ -53,7 +53,10 @@ TRUSTED = "trusted"
 IMPLAUSIBLE = "implausible"
 NOT_ADEQUATE = "model not adequate"
 NOT_IDENTIFIABLE = "not identifiable"
-VERDICTS = (TRUSTED, IMPLAUSIBLE, NOT_ADEQUATE, NOT_IDENTIFIABLE)
+NOT_JUDGED = "not judged"
+VERDICTS = (TRUSTED, NOT_JUDGED, IMPLAUSIBLE, NOT_ADEQUATE, NOT_IDENTIFIABLE)
+NO_STDERR = ("no standard error (point estimates only, as the paper's closed-form M-step "
+             "gives): nothing to judge the number by")
 """The verdicts, least severe first (the overall verdict is the most severe)."""
 
 DIAGONAL = ("I_xx", "I_yy", "I_zz")
@@ -138,7 +141,11 @@ class VerdictEvidence:
     standard errors between the two rests on what the log does not record;
     torque_excitation (3,) [-]: the logged torques' rms against the process noise's per
     body axis (``torque_excitation``; NaN: not computed), on the band excitation_band
-    (in words).
+    (in words); at_bound: the names of [m, I_xx, I_yy, I_zz] that ended on the edge of
+    the range EM searched (``search_range``), described by bound_source; not_converged:
+    why the fit is not the likelihood's maximum (EM stopped before it converged), else
+    None; model_free_mass (value, standard error) [kg] or None: the mass that balances
+    the flight's mean vertical force without the dynamic model (``mass_balance``).
     """
 
     torque_share: Array = field(default_factory=lambda: np.full(3, np.nan))
@@ -147,6 +154,10 @@ class VerdictEvidence:
     input_alternative: Array | None = None
     torque_excitation: Array = field(default_factory=lambda: np.full(3, np.nan))
     excitation_band: str = ""
+    at_bound: tuple[str, ...] = ()
+    bound_source: str = ""
+    not_converged: str | None = None
+    model_free_mass: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -240,6 +251,38 @@ def _input_check(name: str, index: int, value: float, se: float, evidence: Verdi
             f"mean ({100 * (alt - value) / value:+.0f} %)"]
 
 
+def _fit_checks(name: str, evidence: VerdictEvidence) -> list[str]:
+    """Reasons the fit itself gives that parameter ``name`` is not determined: EM did not
+    converge, or the parameter ended on the edge of the range EM searched."""
+    out = [] if evidence.not_converged is None else [evidence.not_converged]
+    if name in evidence.at_bound:
+        out.append(f"ended on the edge of the range EM searched ({evidence.bound_source}): "
+                   "the log does not determine it, the number is the edge, not a fit")
+    return out
+
+
+def _balance_check(mass: float, se: float, evidence: VerdictEvidence) -> list[str]:
+    """The mass against the model-free mass balance: they disagree when they differ by
+    more than 2 combined standard errors, |m - m_bal| > 2 sqrt(se^2 + se_bal^2)."""
+    if evidence.model_free_mass is None or not np.isfinite(se):
+        return []
+    m_bal, se_bal = evidence.model_free_mass
+    if not (np.isfinite(m_bal) and np.isfinite(se_bal)):
+        return []
+    combined = float(np.hypot(se, se_bal))
+    if abs(mass - m_bal) <= 2.0 * combined:
+        return []
+    return [f"the model-free mass balance (mean vertical thrust over gravity plus vertical "
+            f"acceleration, no dynamic model) gives {m_bal * 1e3:.4g} +- {se_bal * 1e3:.2g} g, "
+            f"{abs(mass - m_bal) / combined:.1f} combined standard errors away: the two "
+            "readings of the same forces disagree"]
+
+
+def _judged(se: float, missing_stderr: str | None) -> list[str]:
+    """A number without a standard error that nobody asked for is not judged."""
+    return [NO_STDERR] if not np.isfinite(se) and not missing_stderr else []
+
+
 def _judge(name: str, value: float, se: float, checks: dict[str, list[str]]) -> ParameterVerdict:
     failed = [v for v in VERDICTS[1:] if checks.get(v)]
     reasons = tuple(r for v in reversed(VERDICTS[1:]) for r in checks.get(v, []))
@@ -276,11 +319,14 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
                          f"({vrange.source})")
     ident = [] if vrange is None else _range_check("mass", stderr[0], *vrange.mass, 1e3, "g", th)
     ident += _input_check("mass", 0, mass, stderr[0], evidence, 1e3, "g", th)
+    ident += _fit_checks("mass", evidence)
     if missing_stderr and not np.isfinite(stderr[0]):
         ident.append(missing_stderr)
     params.append(_judge("mass", mass, stderr[0], {
-        NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th),
-        IMPLAUSIBLE: bad_value}))
+        NOT_IDENTIFIABLE: ident,
+        NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th) + _balance_check(mass, stderr[0],
+                                                                               evidence),
+        IMPLAUSIBLE: bad_value, NOT_JUDGED: _judged(stderr[0], missing_stderr)}))
 
     # the tensor as a whole: positive definite, principal moments obey the triangle inequality
     tensor: list[str] = []
@@ -307,6 +353,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         ident = [] if vrange is None else _range_check(
             name, stderr[i + 1], vrange.inertia_lo[i], vrange.inertia_hi[i], 1e6, "e-6 kg m^2", th)
         ident += _input_check(name, i + 1, value, stderr[i + 1], evidence, 1e6, "e-6 kg m^2", th)
+        ident += _fit_checks(name, evidence)
         if missing_stderr and not np.isfinite(stderr[i + 1]):
             ident.append(missing_stderr)
         if np.isfinite(excitation[i]) and excitation[i] < th.min_torque_excitation:
@@ -320,7 +367,8 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
                             f"acceleration about body {name[-1]} ({evidence.torque_band}; at "
                             f"least {100 * th.min_torque_share:.0f} % needed)")
         params.append(_judge(name, value, stderr[i + 1], {
-            NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: rotation, IMPLAUSIBLE: implausible}))
+            NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: rotation, IMPLAUSIBLE: implausible,
+            NOT_JUDGED: _judged(stderr[i + 1], missing_stderr)}))
     if stderr_products is not None:
         for (name, i, j), se in zip(PRODUCTS, np.asarray(stderr_products, dtype=float),
                                     strict=True):

@@ -242,15 +242,20 @@ def null_lines(null: dict) -> list[str]:
 
 def discovery_summary(section: dict) -> str:
     """A few printed lines: what was selected, its coefficients and the held-out RMS."""
+    if section.get("not_run"):
+        return f"effect discovery: not run: {section['not_run']}"
     if "error" in section:
         return f"effect discovery: {section['error']}"
     sel = section["selected"]
     null = section.get("null_calibration", {})
+    odd = unphysical_lines(section.get("unphysical", ()))
     if not sel:
         calibrated = bool(null.get("replicates"))
         head = ("effect discovery: no significant unmodelled effect (held-out test"
                 + (", null calibration)" if calibrated else ")"))
-        return "\n".join([head, *(null_lines(null) if calibrated else [])])
+        if odd:
+            head = "effect discovery: no physical effect explains the residual"
+        return "\n".join([head, *odd, *(null_lines(null) if calibrated else [])])
     lines = [f"effect discovery: selected {', '.join(s['effect'] for s in sel)}"]
     for s in sel:
         co = ", ".join(f"{n} = {v:.4g} ± {s['stderr'][n]:.2g} {s['units'][n]}"
@@ -265,8 +270,21 @@ def discovery_summary(section: dict) -> str:
     b, a = section["residual_rms_before"], section["residual_rms_after"]
     lines.append("  held-out residual RMS before -> after: " + ", ".join(
         f"{k} {b[k]:.3g} -> {a[k]:.3g}" for k in b))
+    lines.extend(odd)
     lines.extend(null_lines(null))
     return "\n".join(lines)
+
+
+def unphysical_lines(entries) -> list[str]:
+    """What an effect whose best fit is outside its physical domain leaves unexplained."""
+    lines = []
+    for e in entries:
+        fit = ", ".join(f"{k} = {v:.4g}" for k, v in e["closest_unphysical_fit"].items())
+        rows = ", ".join(f"{k} rms {r['rms_before']:.3g} ({100 * r['share']:.0f} % of it)"
+                         for k, r in e["unexplained_rows"].items())
+        lines.append(f"  not kept: {e['effect']} ({fit}): {e['reason']}")
+        lines.append(f"    unexplained residual it would have taken: {rows or 'none held out'}")
+    return lines
 
 
 
