@@ -1,7 +1,8 @@
 """What the command lines share: the check of ``--out`` before any work
 (``output_problem``), the execution backend's options (``--jobs``, ``--scheduler``,
 ``--cluster``: ``add_backend_arguments``), the online commands'
-``--memory`` value and its description (the measured-flight diagnostics' log arguments
+``--memory`` value and its description, the one-paragraph message of an exit-2 failure
+that names the log (``failure_message``; the measured-flight diagnostics' log arguments
 are in ``pinquad.cli.measured``)."""
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+
+import numpy as np
 
 from pinquad.cli.help import positive_int
 from pinquad.core.execution import INSTALL_HINT, Backend, BackendError, parse_cluster_spec
@@ -93,3 +96,19 @@ def check_band(parser: argparse.ArgumentParser, band: Sequence[float] | None) ->
     if band is not None and not 0.0 <= band[0] < band[1]:
         parser.error(f"--band LO HI: expected 0 <= LO < HI [Hz] (LO = 0: low-pass only); "
                      f"got {band[0]:g} {band[1]:g}")
+
+
+def failure_message(exc: BaseException, path: object | None = None) -> str:
+    """The one-paragraph message of an exit-2 failure that names ``path`` (the log, or
+    None when no file is involved): the exception's text on one line, prefixed with the
+    path unless it names it already; a numerical failure of the fit (numpy's
+    LinAlgError, FloatingPointError) says what it means for the log and what to check."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if isinstance(exc, (np.linalg.LinAlgError, FloatingPointError)):
+        text = (f"the fit failed numerically ({text}): the log's actuation and measurements "
+                "do not fit a rigid-body model from the initial guess; check the rotor "
+                "numbering and spin directions (--vehicle FILE), the units of each column, "
+                "and the sidecar's mass_guess / inertia_guess")
+    if path is not None and str(path) not in text:
+        text = f"{path}: {text}"
+    return text

@@ -30,10 +30,13 @@ from concurrent.futures import Executor
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 from pinquad.cli.batch import BATCH_EXIT_CODES, is_batch, run_batch
-from pinquad.cli.common import add_backend_arguments, backend_from_args, check_band
+from pinquad.cli.common import (
+    add_backend_arguments,
+    backend_from_args,
+    check_band,
+    failure_message,
+)
 from pinquad.cli.file_vehicle import run_file_vehicle
 from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
 from pinquad.core.execution import open_executor
@@ -49,7 +52,7 @@ from pinquad.experiments.recorded import (
     run_discovery,
     worker_pool,
 )
-from pinquad.io.logs import FlightLog, LogFormatError
+from pinquad.io.logs import FlightLog
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.report.discovery import draw_discovery_figures
@@ -219,12 +222,7 @@ def _identify_and_report(args: argparse.Namespace, log: FlightLog, options: LogO
                          t0: float) -> int:
     """``run_log`` after the log is read: identification, discovery (``pool``: the
     worker processes of both, or None), the run directory."""
-    try:
-        result = identify_log(log, options, pool)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError(f"{args.log}: EM failed numerically ({exc}); the log's actuation and "
-                         "measurements do not fit a rigid-body model from the initial "
-                         "guess (give mass_guess / inertia_guess in the sidecar)") from None
+    result = identify_log(log, options, pool)  # a numerical failure: main's exit-2 message
     seconds = time.perf_counter() - t0
     print(f"log: {result.contents}; {result.obs.n} steps of {result.obs.dt * 1e3:.0f} ms")
     print(f"initial guess: {result.guess}")
@@ -289,9 +287,8 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(f"--vehicle {args.vehicle}: the Monte Carlo experiment flies paper, "
                          "crazyflie21 or a vehicle file (.toml)")
         return run_simulation(args)
-    except LogFormatError as exc:
-        return _fail(str(exc))
-    except (FileExistsError, FileNotFoundError, ValueError) as exc:
-        return _fail(str(exc))
+    except (FileExistsError, FileNotFoundError, ValueError, FloatingPointError) as exc:
+        # LogFormatError and numpy's LinAlgError are ValueErrors: each names the log
+        return _fail(failure_message(exc, args.log if isinstance(args.log, Path) else None))
     except KeyboardInterrupt:
         return _fail("interrupted")

@@ -5,7 +5,8 @@ Columns (SI units, NaN where a sensor has no sample in that row):
 yaw``; ``gyro_*`` [rad/s, body]; ``acc_*`` [m/s^2, body specific force]; actuation
 ``thrust`` + ``torque_*`` or ``rpm_1..4``; optional ``vbat``, ``contact``; truth in
 ``true_*`` columns, never read by estimators. A JSON sidecar ``<log>.json`` carries
-``vehicle``, ``mass_guess``, ``inertia_guess``, ``gravity``.
+``vehicle``, ``mass_guess``, ``inertia_guess`` (3x3, or its diagonal as three numbers),
+``gravity``.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from pinquad.core.conventions import (
 from pinquad.core.params import VEHICLES
 from pinquad.core.vehicle_file import VehicleFileError, is_vehicle_file, load_vehicle
 from pinquad.io.runs import atomic_write_bytes
+from pinquad.io.timebase import irregular_note, relative_time, stored_resolution_problem
 
 Array = NDArray[np.float64]
 
@@ -55,7 +57,8 @@ class LogMeta:
     says which (False: ``sampled`` is an assumption, and the verdict checks what rests on
     it); vehicle_named: whether the log
     itself names the vehicle (False: no sidecar or no ``vehicle`` in it, and ``vehicle``
-    is the default ``paper``, not the log's).
+    is the default ``paper``, not the log's); t_origin [s]: the file's time of its first
+    row (the log's ``t`` counts from it: ``pinquad.io.timebase.relative_time``).
     """
 
     vehicle: str = "paper"
@@ -67,6 +70,7 @@ class LogMeta:
     actuation: str = "held"
     actuation_declared: bool = True
     vehicle_named: bool = True
+    t_origin: float = 0.0
 
 
 ACTUATION = ("held", "sampled")
@@ -259,12 +263,16 @@ def _read_table(path: Path) -> dict[str, Array]:
         except Exception as exc:  # pyarrow raises several types for corrupt files
             raise LogFormatError(f"{path}: not a readable Parquet file ({exc})") from None
         out = {}
+        t_type = table.schema.field("t").type if "t" in table.column_names else None
+        bits = t_type.bit_width if t_type is not None and pa.types.is_floating(t_type) else 64
         for name in table.column_names:
             try:
                 out[name] = np.asarray(table.column(name).to_numpy(zero_copy_only=False), dtype=float)
             except (TypeError, ValueError):
                 raise LogFormatError(
                     f"{path}: column {name!r} is not numeric; expected numbers") from None
+        if "t" in out and (problem := stored_resolution_problem(out["t"], bits)):
+            raise LogFormatError(f"{path}: column 't' {problem}")
         return out
     if suffix == ".csv":
         return _read_csv(path)
@@ -342,6 +350,23 @@ def _sidecar_number(side: Path, raw: dict, key: str) -> float | None:
     return float(value)
 
 
+def _inertia_guess(side: Path, value: object) -> Array | None:
+    """The sidecar's ``inertia_guess`` as (3, 3) [kg m^2]: a 3x3 list, or a list of three
+    numbers (the diagonal, I_xx, I_yy, I_zz); None when absent or null."""
+    if value is None:
+        return None
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (ValueError, TypeError):
+        arr = np.zeros(0)
+    if arr.shape == (3,):
+        return np.diag(arr)
+    if arr.shape == (3, 3):
+        return arr
+    raise LogFormatError(f"{side}: key 'inertia_guess' is {value!r}; expected a 3x3 list of "
+                         "numbers or a list of three (the diagonal I_xx, I_yy, I_zz) [kg m^2]")
+
+
 def vehicle_file_named(vehicle: str, base: Path, where: Path | str) -> str:
     """The absolute path of a vehicle file named by a sidecar or an option (relative to
     ``base``), checked by reading it. Raises LogFormatError naming ``where``."""
@@ -367,11 +392,7 @@ def _read_sidecar(path: Path) -> LogMeta:
         raise LogFormatError(f"{side}: is a JSON {type(raw).__name__}; expected an object "
                              '{"vehicle": ..., "mass_guess": ..., "inertia_guess": ..., '
                              '"gravity": ...}')
-    inertia = raw.get("inertia_guess")
-    try:
-        inertia_arr = None if inertia is None else np.asarray(inertia, dtype=float).reshape(3, 3)
-    except (ValueError, TypeError):
-        raise LogFormatError(f"{side}: 'inertia_guess' must be a 3x3 list of numbers") from None
+    inertia_arr = _inertia_guess(side, raw.get("inertia_guess"))
     if inertia_arr is not None and not np.isfinite(inertia_arr).all():
         raise LogFormatError(f"{side}: 'inertia_guess' must hold finite numbers")
     vehicle = raw.get("vehicle", "paper")
@@ -436,6 +457,7 @@ def read_log(path: str | Path) -> FlightLog:
         raise LogFormatError(
             f"{path}: column 't' is not strictly increasing at row {bad + 1} "
             f"(t = {t[bad - 1]!r} then {t[bad]!r})")
+    t, t_origin = relative_time(t)  # float64, before anything differences or bins t
     if all(f"quat_{a}" in cols for a in "wxyz"):
         quat = np.column_stack([cols[f"quat_{a}"] for a in "wxyz"])
         euler = np.full((n, 3), np.nan)
@@ -487,8 +509,14 @@ def read_log(path: str | Path) -> FlightLog:
         t=t, position=_cols3(cols, "pos", n), velocity=_cols3(cols, "vel", n), euler=euler,
         gyro=_cols3(cols, "gyro", n), accel=_cols3(cols, "acc", n), thrust=thrust,
         torque=torque, rpm=rpm, vbat=cols.get("vbat"), contact=contact, truth=truth,
-        onboard=onboard, meta=_read_sidecar(path),
+        onboard=onboard, meta=_with_time_notes(replace(_read_sidecar(path), t_origin=t_origin), t),
     )
+
+
+def _with_time_notes(meta: LogMeta, t: Array) -> LogMeta:
+    """meta with a note on irregular time stamps (``timebase.irregular_note``) if any."""
+    note = irregular_note(t)
+    return meta if note is None else replace(meta, notes=(*meta.notes, note))
 
 
 def log_contents(log: FlightLog) -> str:

@@ -60,6 +60,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.io.timebase import sampling_interval
+
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
@@ -200,7 +202,7 @@ def detect_floor_contact(t: Array, height: Array, vertical_velocity: Array | Non
                          horizontal_speed: Array | None = None) -> ContactDetection:
     """Find the steps where the vehicle rests on or strikes the floor (module docstring).
 
-    t (N,) [s] uniform; height (N,) [m] world z (NaN: not sampled); vertical_velocity
+    t (N,) [s] (dt: their median step); height (N,) [m] world z (NaN: not sampled); vertical_velocity
     (N,) [m/s] or None (then differentiated from the height); horizontal_speed (N,)
     [m/s] or None (not used, NaN rows interpolated); thrust (N,) [N]; tilt (N,)
     R_33 [-] or None (level); mass_guess [kg]; gravity [m/s^2]. NaN thrust or tilt
@@ -214,7 +216,7 @@ def detect_floor_contact(t: Array, height: Array, vertical_velocity: Array | Non
     if n < 3 or not np.isfinite(z).any():
         return ContactDetection(none, none, none, none, float("nan"), float(mass_guess),
                                 "guess", float("nan"), float("nan"))
-    dt = float((t[-1] - t[0]) / (n - 1))
+    dt = sampling_interval(t)  # the log's own step: a gap or jitter does not stretch it
     v = None if vertical_velocity is None else _fill(t, np.asarray(vertical_velocity, float))
     if v is None or not np.isfinite(v).any():
         v = np.gradient(z, t)

@@ -20,6 +20,7 @@ from estimators.ekf import run_filter
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.effect_vocabulary import vehicle_ground_radius
 from pinquad.io.logs import FlightLog
+from pinquad.io.timebase import gap_steps, uniform_step
 from pinquad.models.attitude_range import SingularAttitude
 from pinquad.models.contact import (
     ContactDetection,
@@ -133,7 +134,7 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     ``contact.rows``; without it, the log's contact flags, else none (the data-based
     detection needs a mass guess: pass ``floor_contact(log, mass_guess)``). Transitions
     touching ``singular.rows`` (``attitude_range.near_euler_singularity``) are excluded
-    and resets too. The inputs are
+    and resets too, as are the steps over a log gap (``io.timebase.gap_steps``). The inputs are
     what each transition applies (``interval_inputs`` by ``log.meta.actuation``); a
     sampled log's rows themselves are kept as ``samples``, and its flight is continuous
     (``Observations.continuous``).
@@ -161,6 +162,11 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
             x0[sl] = _first_valid(ys[:, 3 * i:3 * i + 3])
     exclude = np.zeros(log.n, dtype=bool)
     resets = np.zeros(log.n, dtype=bool)
+    # a log gap (io.timebase, judged on the log's own step) is no transition of the
+    # flight: the rows are taken as evenly spaced at their mean step outside gaps
+    # (io.timebase.uniform_step; jitter is not carried), so a gap would be one such step
+    exclude[:-1] |= gap_steps(log.t)
+    resets[:-1] |= gap_steps(log.t)
     rows = contact.rows if contact is not None else log.contact
     if rows is not None:
         # a transition touching the floor at either end is not free flight
@@ -181,6 +187,6 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     radius = vehicle_ground_radius(log.meta.vehicle if log.meta.vehicle_named else None)
     # a sampled log is a faster controller's record of a continuous flight; a held one is
     # pinquad's simulator, which moves by explicit Euler at the log's step
-    return Observations(t=log.t, dt=log.dt, inputs=inputs, channels=channels, ys=ys, x0=x0,
+    return Observations(t=log.t, dt=uniform_step(log.t), inputs=inputs, channels=channels, ys=ys, x0=x0,
                         p0=p0, exclude=exclude, resets=resets, ground_radius=radius,
                         samples=samples, continuous=log.meta.actuation == "sampled")

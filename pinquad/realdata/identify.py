@@ -28,6 +28,7 @@ from pinquad.identification.identify import get_smoother, loglik_function
 from pinquad.identification.verdict import EstimateVerdict, VerdictEvidence
 from pinquad.models.ssm import Theta
 from pinquad.realdata.band_mstep import BandStats, RealMStep
+from pinquad.realdata.input_holes import GAP_REASON
 from pinquad.realdata.mass_balance import MotorSplit, motor_split, quasi_static_mass
 from pinquad.realdata.model import RealTheta, corrected, real_model
 from pinquad.realdata.observations import RealObservations
@@ -80,7 +81,9 @@ class RealIdentification:
     was judged on besides the errors (set by the table, so that ``realdata.consistency``
     can judge again); vehicle: the vehicle whose range it was judged against;
     scatter_scale (4,): the between-flight scale factors S that multiply the statistical
-    errors inside ``se_total`` (``realdata.consistency``; None: not compared).
+    errors inside ``se_total`` (``realdata.consistency``; None: not compared); failure:
+    why EM stopped early (its E-step broke down), with the log's gaps when it has any, or
+    None.
     """
 
     name: str
@@ -113,6 +116,7 @@ class RealIdentification:
     evidence: VerdictEvidence | None = None
     vehicle: str = "crazyflie21"
     scatter_scale: Array | None = None
+    failure: str | None = None
 
     @property
     def params(self) -> Array:
@@ -144,8 +148,9 @@ def used_rotor_inertia(fitted: RealTheta | None, fixed: float | None) -> float:
     """J_r [kg m^2] a measured flight was identified with: the EM's fitted value
     (``fitted``, the final RealTheta when J_r was fitted; NaN if its band fit was not
     finite), else the fixed value (0 included), else NaN (none)."""
-    if fitted is not None:
-        return float(fitted.rotor_inertia) if fitted.rotor_inertia is not None else float("nan")
+    if fitted is not None:  # EM that stopped before its first M-step holds a plain Theta
+        jr = getattr(fitted, "rotor_inertia", None)
+        return float(jr) if jr is not None else float("nan")
     return float(fixed) if fixed is not None else float("nan")
 
 
@@ -204,5 +209,16 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         seconds=time.perf_counter() - t0, band=band,
         rotor_inertia=used_rotor_inertia(theta if fit_jr else None, fixed_jr),
         band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None,
-        quasi_static_mass=quasi_static_mass(real), motor_split=motor_split(real))
+        quasi_static_mass=quasi_static_mass(real), motor_split=motor_split(real),
+        failure=failure_with_gaps(res.failure, real.exclusions))
     return out, res.posterior, theta
+
+def failure_with_gaps(failure: str | None, exclusions: tuple) -> str | None:
+    """EM's failure (None: none) with the log's gaps (``realdata.input_holes``), which a
+    smoother crossing them without a measurement is the likeliest cause of."""
+    gaps = [e.reason for e in exclusions if e.reason.startswith(GAP_REASON) and e.transitions]
+    if failure is None or not gaps:
+        return failure
+    gap = gaps[0].removeprefix(GAP_REASON + ": ").removesuffix(" (resets for the E-step)")
+    return (f"{failure}; the log has {gap}, which the smoother crosses without any "
+            "measurement (cut the log at the gap)")

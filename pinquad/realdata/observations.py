@@ -20,11 +20,11 @@ the take-off / landing around it (height below ``contact_height`` at low speed, 
 below flight speed, or found resting on / striking the floor by the detector shared with
 logs that carry thrust and torques, ``models.contact``; widened by ``contact_margin``
 seconds), implausible rotor readings
-(``faults.detect_actuation_faults``) unless repaired from the PWM commands, bins with no
-actuation sample (the input there is interpolated only so the E-step can pass over it;
-where every sample of the bin was flagged implausible and not rebuilt, the transition is
-also a reset, ``Observations.resets``: the smoother does not carry the flight dynamics
-across an input the log says was something else).
+(``faults.detect_actuation_faults``) unless repaired from the PWM commands, log gaps and
+bins without a finite actuation value (``realdata.input_holes``; a gap, or a bin whose
+every sample was flagged implausible and not rebuilt, is also a reset,
+``Observations.resets``: the smoother does not carry the flight dynamics across it); a
+bin without a row outside a gap (jitter, a slow log) gets an interpolated input.
 """
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ from pinquad.core.conventions import GRAVITY, rotation_from_euler
 from pinquad.core.vehicle_file import VehicleSpec
 from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
 from pinquad.io.sdlog import is_sdlog, read_sdflight
+from pinquad.io.timebase import gap_steps
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.contact import ContactSettings, detect_floor_contact
 from pinquad.models.ssm import Observations
@@ -51,6 +52,7 @@ from pinquad.realdata.faults import (
     diagonal_partners,
     reconstruct_rpm,
 )
+from pinquad.realdata.input_holes import input_holes
 from pinquad.realdata.raw import PoseSamples, RawFlight, raw_from_sdflight, raw_from_simulated
 from pinquad.realdata.resample import (
     bin_mean,
@@ -199,7 +201,6 @@ def options_for_sensor(sensor: str | None, base: RealDataOptions | None = None
     return replace(base, channels=channels, onboard_pos=onboard)
 
 
-
 # ----------------------------------------------------------------------------- result
 
 @dataclass(frozen=True)
@@ -324,7 +325,7 @@ def rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float], held: bool =
                        ) -> Array:
     """(N,) sum_i spin_i d(omega_i)/dt [rad/s^2] from rotor speeds rpm (N, n) [rev/min] at
     times t (N,) [s]: central differences of sampled readings, NaN where a neighbouring
-    interval is a log gap (longer than twice the median step) or a speed is not finite.
+    interval is a log gap (``pinquad.io.timebase.gap_steps``) or a speed is not finite.
 
     ``held``: each row's speed holds until the next row (a zero-order hold, the
     simulator's rotor log), so the speed steps at t_i from omega_{i-1} to omega_i and the
@@ -344,7 +345,7 @@ def rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float], held: bool =
     if t.size < 3:
         return np.full(t.size, np.nan)
     step = np.diff(t)
-    gap = step > 2.0 * float(np.median(step))
+    gap = gap_steps(t)
     if held:
         acc = np.full(t.size, np.nan)
         acc[1:] = (np.diff(omega, axis=0) / step[:, None]) @ np.asarray(spin, dtype=float)
@@ -510,19 +511,19 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
             "rebuilt from PWM (none excluded)", 0))
 
     nan_in = np.isnan(inputs).any(axis=1)
-    ex = nan_in & ~exclude
-    exclusions.append(Exclusion("no actuation sample in the 10 ms bin (log gaps) or "
-                                "non-finite rotor speed", int(ex[:n_tr].sum())))
-    exclude |= nan_in
+    holes = input_holes(t_src, grid, dt, nan_in)  # log gaps judged on the log's own step
+    for reason, ex in holes.exclusions():
+        exclusions.append(Exclusion(reason, int((ex & ~exclude)[:n_tr].sum())))
+        exclude |= ex
     # A bin whose every actuation sample was flagged implausible and not rebuilt (a rotor
     # read as stopped in flight) gets an interpolated input only so the E-step can pass
     # over it: the log says the wrench there was something else, which it cannot give. The
     # transition is a reset (ssm.RESET_VAR), as a touch-down is: carried through the
     # flight dynamics, the made-up torque drags the smoothed rates away from the gyro and
     # inflates its variance for the whole flight (a simulated 250 mm quad's take-off with
-    # stopped rotors: I_zz +9.4 % instead of +1.1 %). A log gap (no sample at all) keeps
-    # its interpolated input: between readings on either side it is a good one.
-    resets = (nan_in & flagged) | singular.touching()
+    # stopped rotors: I_zz +9.4 % instead of +1.1 %). A log gap is a reset (input_holes).
+    resets = (nan_in & flagged) | singular.touching() | holes.gap
+    notes.extend(n for n in (holes.note(dt),) if n)
     if nan_in.all():
         raise ValueError(f"{source}: no usable actuation sample in the whole log "
                          f"({report.n_flagged} of {log.n} rotor readings implausible); "

@@ -9,15 +9,20 @@ from numpy.typing import NDArray
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
+BIN_TOLERANCE = 1e-4
+"""A sample this fraction of a bin (1 us of a 10 ms bin) before a bin's edge is on it."""
+
 
 def bin_mean(t: Array, values: Array, start: Array, dt: float, k: int) -> Array:
     """(k, C) mean of the finite values with start[j] <= t < start[j] + dt; NaN if none.
 
     start is a uniform grid (start[j] = start[0] + j dt), so each sample's bin is
-    floor((t - start[0]) / dt).
+    floor((t - start[0]) / dt + ``BIN_TOLERANCE``): a sample stamped on a bin's edge
+    belongs to the bin it starts even when its stamp's rounding (a float64 Unix time
+    resolves 2.4e-7 s) puts it a hair before.
     """
     values = np.asarray(values, dtype=float).reshape(t.size, -1)
-    idx = np.floor((t - start[0]) / dt + 1e-9).astype(np.int64)
+    idx = np.floor((t - start[0]) / dt + BIN_TOLERANCE).astype(np.int64)
     inside = (idx >= 0) & (idx < k)
     out = np.full((k, values.shape[1]), np.nan)
     for c in range(values.shape[1]):

@@ -1,0 +1,201 @@
+"""A real logger's time stamps: clock jitter of a few ms and Unix-time offsets must create
+no log gap and leave the estimate where it was; a real 2 s gap is still found
+(``pinquad.io.timebase``, docs/bad_input.md)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from flightgen import FlightSpec, generate, write_csv
+from pinquad.api import identify
+from pinquad.io.logs import LogFormatError, read_log, write_log
+from pinquad.io.read import read_log as read_any
+from pinquad.io.timebase import find_gaps, gap_steps, relative_time
+from pinquad.realdata.observations import build_observations
+from pinquad.realdata.raw import raw_flight
+
+JANA00 = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie" / "imrc_brushed" / "jana00"
+OFFSETS = (0.0, 1e6, 1.7e9)
+JITTER = st.floats(0.5e-3, 4e-3)
+FEW = settings(max_examples=3, deadline=None, derandomize=True, database=None,
+               suppress_health_check=list(HealthCheck))
+
+
+def jittered(t: np.ndarray, amplitude: float, offset: float, seed: int) -> np.ndarray:
+    """t + uniform(-amplitude, amplitude), sorted (rows keep their order, t strictly
+    increasing), plus offset [s]."""
+    rng = np.random.default_rng(seed)
+    out = np.sort(t + rng.uniform(-amplitude, amplitude, t.size))
+    assert (np.diff(out) > 0).all()
+    return out + offset
+
+
+def with_hole(t: np.ndarray, start: float, seconds: float) -> np.ndarray:
+    """Rows kept outside [start, start + seconds)."""
+    return (t < start) | (t >= start + seconds)
+
+
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@given(rate=st.sampled_from([50.0, 100.0, 250.0, 500.0, 1000.0]), amplitude=JITTER,
+       offset=st.sampled_from(OFFSETS), seed=st.integers(0, 2**16))
+def test_jitter_and_epoch_offsets_make_no_gap_but_a_2_s_hole_is_one(rate, amplitude, offset,
+                                                                     seed):
+    t = jittered(np.arange(0.0, 20.0, 1.0 / rate), amplitude, offset, seed)
+    rel, t0 = relative_time(t)
+    assert t0 == t[0] and rel[0] == 0.0
+    assert not gap_steps(rel).any()
+    holed = rel[with_hole(rel, 7.0, 2.0)]
+    gaps = find_gaps(holed)
+    hole = gaps.ends[0] - gaps.starts[0]  # 2 s plus up to one step, give or take the jitter
+    assert gaps.count == 1 and 2.0 - 2 * amplitude <= hole <= 2.0 + 2.0 / rate + 2 * amplitude
+
+
+def test_unix_time_is_read_relative_to_the_first_row_in_float64(tmp_path):
+    flight = generate(FlightSpec(duration=1.0, dt=0.001, seed=1, log_rate=100))
+    log = read_log(write_csv(flight, tmp_path / "f.csv"))
+    for offset in OFFSETS[1:]:
+        back = read_log(write_log(replace(log, t=log.t + offset), tmp_path / f"{offset:g}.parquet"))
+        np.testing.assert_allclose(back.t, log.t, rtol=0, atol=1e-6)
+        assert back.meta.t_origin == offset
+
+
+def test_float32_unix_time_is_refused_naming_the_column(tmp_path):
+    path = tmp_path / "f32.parquet"
+    t = (1.7e9 + np.arange(200) * 0.01).astype(np.float32)
+    pq.write_table(pa.table({"t": t, "gyro_x": np.zeros(200), "gyro_y": np.zeros(200),
+                             "gyro_z": np.zeros(200), "thrust": np.ones(200),
+                             "torque_x": np.zeros(200), "torque_y": np.zeros(200),
+                             "torque_z": np.zeros(200)}), path)
+    with pytest.raises(LogFormatError, match=r"f32\.parquet: column 't' is stored as 32-bit"):
+        read_log(path)
+
+
+def test_sidecar_inertia_guess_may_be_its_diagonal(tmp_path):
+    flight = generate(FlightSpec(duration=1.0, dt=0.001, seed=1, log_rate=100))
+    path = write_csv(flight, tmp_path / "f.csv")
+    side = Path(str(path) + ".json")
+    raw = json.loads(side.read_text())
+    raw["inertia_guess"] = [1.6e-5, 1.7e-5, 2.9e-5]
+    side.write_text(json.dumps(raw))
+    np.testing.assert_array_equal(read_log(path).meta.inertia_guess,
+                                  np.diag([1.6e-5, 1.7e-5, 2.9e-5]))
+    raw["inertia_guess"] = [1.0, 2.0]
+    side.write_text(json.dumps(raw))
+    with pytest.raises(LogFormatError, match=r"f\.csv\.json: key 'inertia_guess' is \[1\.0, 2\.0\]"):
+        read_log(path)
+
+
+# ----------------------------------------------------------------- a real IMRC flight
+
+@pytest.fixture(scope="session")
+def real_export(tmp_path_factory):
+    """jana00's ~500 Hz rows as pinquad's own Parquet log (rotor speeds), its estimate
+    with standard errors."""
+    if not JANA00.exists():
+        pytest.skip("shared IMRC data not present")
+    log = replace(read_any(JANA00), measured=None)
+    path = write_log(log, tmp_path_factory.mktemp("imrc") / "jana00.parquet")
+    return read_log(path), identify(read_log(path))
+
+
+def _changes(log, base) -> np.ndarray:
+    run = identify(log, information=False)
+    new = np.r_[run.mass, np.diag(run.inertia)]
+    return np.abs(new - np.r_[base.mass, np.diag(base.inertia)]) / np.asarray(base.stderr)
+
+
+def _gap_transitions(log) -> int:
+    real = build_observations(raw_flight(log))
+    return sum(e.transitions for e in real.exclusions if e.reason.startswith("log gaps"))
+
+
+@FEW
+@given(offset=st.sampled_from(OFFSETS[1:]))
+def test_a_real_flights_estimate_ignores_an_epoch_offset(real_export, offset):
+    log, base = real_export
+    back = replace(log, t=relative_time(log.t + offset)[0])
+    assert _gap_transitions(back) == 0
+    assert _changes(back, base).max() <= 0.1
+
+
+@pytest.mark.xfail(reason="jitter moves jana00's estimate by up to ~1 standard error "
+                   "(scripts/time_robustness.py); no gap is created")
+@FEW
+@given(amplitude=JITTER, offset=st.sampled_from(OFFSETS), seed=st.integers(0, 100))
+def test_a_real_flights_jitter_makes_no_gap_and_keeps_mass_and_roll_pitch_inertia(
+        real_export, amplitude, offset, seed):
+    log, base = real_export
+    moved = replace(log, t=relative_time(jittered(log.t, amplitude, offset, seed))[0])
+    assert _gap_transitions(moved) == 0
+    assert _changes(moved, base)[:3].max() <= 0.1
+
+
+@pytest.mark.xfail(strict=True, reason="I_zz of jana00 moves by 0.2-0.9 standard errors "
+                   "under 0.5-4 ms jitter: the rotor acceleration (J_r's yaw torque) is a "
+                   "per-row central difference over the jittered stamps")
+def test_a_real_flights_yaw_inertia_ignores_2_ms_jitter(real_export):
+    log, base = real_export
+    moved = replace(log, t=jittered(log.t, 2e-3, 0.0, seed=2000))
+    assert _changes(moved, base)[3] <= 0.1
+
+
+def test_a_real_2_s_gap_is_found_and_named(real_export):
+    log, _ = real_export
+    cut = log.slice(0, log.n)
+    keep = with_hole(cut.t, 3.0, 2.0)
+    holed = replace(cut, t=cut.t[keep], position=cut.position[keep],
+                    velocity=cut.velocity[keep], euler=cut.euler[keep], gyro=cut.gyro[keep],
+                    accel=cut.accel[keep], rpm=cut.rpm[keep],
+                    vbat=None if cut.vbat is None else cut.vbat[keep])
+    real = build_observations(raw_flight(holed))
+    gap = [e for e in real.exclusions if e.reason.startswith("log gaps")]
+    assert gap and gap[0].transitions >= 200 and "2.00" in gap[0].reason
+    assert real.obs.resets[:-1].sum() >= 200
+
+
+# ----------------------------------------------------------------- a flightgen flight
+
+@pytest.fixture(scope="session")
+def flightgen_export(tmp_path_factory):
+    flight = generate(FlightSpec(duration=6.0, dt=0.001, seed=3, log_rate=100))
+    path = write_csv(flight, tmp_path_factory.mktemp("fg") / "fg.csv", mass_guess=0.03)
+    log = read_log(path)
+    return log, identify(log)
+
+
+@pytest.mark.xfail(reason="a 100 Hz flightgen log's I_yy moves by several standard errors "
+                   "under 0.5-4 ms jitter: the thrust/torque path takes rows as evenly "
+                   "spaced, and more than the E-step's dt reads the stamps")
+@FEW
+@given(amplitude=JITTER, offset=st.sampled_from(OFFSETS), seed=st.integers(0, 100))
+def test_a_flightgen_flights_estimate_ignores_jitter_and_epoch_offsets(flightgen_export,
+                                                                       amplitude, offset,
+                                                                       seed):
+    log, base = flightgen_export
+    moved = replace(log, t=relative_time(jittered(log.t, amplitude, offset, seed))[0])
+    assert not gap_steps(moved.t).any()
+    assert _changes(moved, base).max() <= 0.1
+
+
+def test_a_flightgen_flights_2_s_gap_is_excluded_and_a_reset(flightgen_export):
+    from pinquad.models.sources import observations
+
+    log, _ = flightgen_export
+    keep = np.flatnonzero(with_hole(log.t, 2.0, 2.0))
+    holed = log.slice(0, log.n)
+    holed = replace(holed, t=log.t[keep], position=log.position[keep],
+                    velocity=log.velocity[keep], euler=log.euler[keep], gyro=log.gyro[keep],
+                    accel=log.accel[keep], thrust=log.thrust[keep], torque=log.torque[keep],
+                    truth=None if log.truth is None else log.truth[keep])
+    obs = observations(holed, "B")
+    assert obs.exclude[:-1].sum() == 1 and obs.resets[:-1].sum() == 1
+    assert identify(holed, information=False).failure is None
