@@ -84,4 +84,6 @@ def sidecar(vehicle: Vehicle, mass_guess: float | None = None,
     return {"vehicle": vehicle.name, "mass_guess": mass_guess,
             "inertia_guess": None if inertia_guess is None
             else np.asarray(inertia_guess, dtype=float).tolist(),
-            "gravity": GRAVITY}
+            "gravity": GRAVITY,
+            # the thrust and torque columns are the wrench the generator applied, exactly
+            "calibration": {"thrust": 0.0, "yaw_torque": 0.0, "arm": 0.0}}

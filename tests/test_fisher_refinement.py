@@ -16,7 +16,7 @@ from pinquad.identification.fisher import (
     observed_information,
     standard_errors,
 )
-from pinquad.identification.verdict import NOT_IDENTIFIABLE, TRUSTED, VerdictEvidence, judge
+from pinquad.identification.verdict import NOT_IDENTIFIABLE, NOT_JUDGED, TRUSTED, VerdictEvidence, judge
 from pinquad.models.ssm import Theta
 
 THETA = Theta(0.035, np.diag([16.6e-6, 16.7e-6, 29.3e-6]), None, 9.81)
@@ -64,7 +64,8 @@ def test_a_missing_standard_error_that_was_asked_for_is_not_trusted():
     se = np.array([np.nan, 1e-7, np.nan, 1e-7])
     quiet = judge(0.035, inertia, se, VerdictEvidence(), None)
     asked = judge(0.035, inertia, se, VerdictEvidence(), None, missing_stderr=STDERR_UNAVAILABLE)
-    assert quiet.get("mass").verdict == TRUSTED  # not computed: no check by standard error
+    # not computed, not asked for: nothing to judge the number by, never trusted
+    assert quiet.get("mass").verdict == NOT_JUDGED
     assert asked.get("mass").verdict == NOT_IDENTIFIABLE
     assert asked.get("mass").reasons == (STDERR_UNAVAILABLE,)
     assert asked.get("I_xx").verdict == TRUSTED and asked.get("I_yy").verdict == NOT_IDENTIFIABLE

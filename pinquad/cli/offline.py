@@ -43,11 +43,11 @@ from pinquad.core.execution import open_executor
 from pinquad.core.params import PAPER_SCENARIO
 from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.null import NullSettings
+from pinquad.experiments.discovery_report import discovery_section
 from pinquad.experiments.headline import headline
 from pinquad.experiments.offline_mc import CycleJob, run_cycles
 from pinquad.experiments.recorded import (
     LogOptions,
-    discovery_section,
     identify_log,
     run_discovery,
     worker_pool,

@@ -20,7 +20,9 @@ from pinquad.core import paper_results as paper
 from pinquad.core.execution import BackendError, open_executor
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
 from pinquad.experiments.online import newest_offline_report, offline_ranges, run_online_cycle
-from pinquad.experiments.online_replay import stream_em
+from pinquad.experiments.online_replay import replay_verdict, stream_fit
+from pinquad.identification.search_range import search_range
+from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import LogFormatError
 from pinquad.io.read import read_log
 from pinquad.io.runs import REPORT_SCHEMA, OutputError, RunWriter, atomic_write_json, new_run_dir
@@ -122,12 +124,17 @@ def replay(args: argparse.Namespace) -> int:
     try:
         writer = RunWriter(args.out) if args.out else None  # --out checked before any work
         path = args.log
+        measured_thrust = None
         if path.exists() and path.is_file() and is_sdlog(path):
             measured = read_log(path)
             check_log(measured)
             real = build_observations(raw_flight(measured))
             obs, gravity, rotor_acc = real.obs, real.log.meta.gravity, real.rotor_acc
             mass0, inertia0, _ = default_guess("crazyflie21")
+            meta = real.log.meta
+            bounds = vrange = vehicle_range("crazyflie21")
+            measured_thrust = (real.kf.rel_se,
+                               real.options.yaw_ratio_se / real.options.yaw_ratio)
         else:
             rotor_acc = None
             log = read_log(path)
@@ -138,11 +145,15 @@ def replay(args: argparse.Namespace) -> int:
             mass0 = log.meta.mass_guess or PAPER_INITIAL_MASS
             inertia0 = (log.meta.inertia_guess if log.meta.inertia_guess is not None
                         else PAPER_INITIAL_INERTIA)
+            meta, bounds = log.meta, search_range(log)
+            vrange = vehicle_range(meta.vehicle if meta.vehicle_named else "",
+                                   meta.mass_guess, meta.inertia_guess)
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    hist, lat = stream_em(obs, mass0, inertia0, gravity, memory_s=args.memory,
-                          rotor_acc=rotor_acc)
+    fit = stream_fit(obs, mass0, inertia0, gravity, memory_s=args.memory,
+                     rotor_acc=rotor_acc, bounds=bounds)
+    hist, lat = fit.history, fit.latencies
     if hist.size == 0:
         print(f"error: {args.log}: too short to replay (fewer than 50 samples)", file=sys.stderr)
         return 2
@@ -159,6 +170,14 @@ def replay(args: argparse.Namespace) -> int:
     for i in np.unique(np.linspace(0, hist.shape[0] - 1, 12).astype(int)):
         r = hist[i]
         print(f"| {r[1]:.2f} | {r[2]:.5g} | {r[3]:.4g} | {r[4]:.4g} | {r[5]:.4g} |")
+    verdict, budget = replay_verdict(fit, meta, vrange, bounds, measured_thrust)
+    total = budget.total
+    print(f"\nfinal estimate (last window of {fit.window.n} samples): mass "  # type: ignore[union-attr]
+          f"{hist[-1, 2] * 1e3:.3f} ± {total[0] * 1e3:.3g} g, inertia diagonal "
+          + ", ".join(f"{hist[-1, 3 + i] * 1e6:.4g} ± {total[1 + i] * 1e6:.3g}" for i in range(3))
+          + f" e-6 kg m^2\nverdict: {verdict.overall}")
+    for reason in verdict.reasons:
+        print(f"  {reason}")
     if writer is not None:
         with writer:
             atomic_write_json(writer.path("report.json"), {
@@ -166,7 +185,12 @@ def replay(args: argparse.Namespace) -> int:
                 "source": {"kind": "log", "path": str(args.log), "mode": "online-replay",
                            "estep": "rts", "mstep": mstep, "memory": memory},
                 "estimates": {"mass": float(hist[-1, 2]), "inertia": np.diag(hist[-1, 3:6]).tolist(),
-                              "com": None},
+                              "com": None,
+                              "stderr": {"mass": float(total[0]),
+                                         "inertia_diag": total[1:].tolist()},
+                              "stderr_parts": budget.to_report(),
+                              "verdict": verdict.to_report()},
+                "verdict": verdict.to_report(),
                 "em": {"iterations": int(hist.shape[0]), "loglik": [], "converged": False},
                 "discovery": {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
                               "validation": "not run in replay"},
@@ -177,4 +201,8 @@ def replay(args: argparse.Namespace) -> int:
                                         "inertia_diag": hist[:, 3:6].tolist()}}],
             })
             writer.publish()
+    if not verdict.trusted:
+        print(f"exit code 3: the final estimate is {verdict.overall} (its verdict says why)",
+              file=sys.stderr)
+        return 3
     return 0

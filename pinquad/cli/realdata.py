@@ -22,7 +22,7 @@ from pinquad.cli.help import non_negative_int
 from pinquad.core.execution import open_executor
 from pinquad.core.vehicle_file import load_vehicle
 from pinquad.discovery.null import NullSettings
-from pinquad.experiments.recorded import measured_effects
+from pinquad.experiments.discovery_report import measured_effects
 from pinquad.io.datadir import missing_data_hint
 from pinquad.io.logs import LogFormatError, vehicle_file_named
 from pinquad.io.read import is_flight_log

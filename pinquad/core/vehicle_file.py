@@ -122,6 +122,26 @@ class Aero:
 
 
 @dataclass(frozen=True)
+class Uncertainty:
+    """What the file says of the uncertainty of what a flight of this vehicle assumes (the
+    optional ``[uncertainty]`` table), each a relative standard uncertainty [-] or None
+    (not stated: pinquad's default, ``identification.budget``).
+
+    arm: of the arm length that turns rotor thrust differences into roll and pitch
+    torque; commanded_thrust / commanded_yaw_torque: of a log's commanded thrust and yaw
+    torque (what the vehicle's controller believes it asks for) against what acts;
+    model_error (4,) or empty: of [m, I_xx, I_yy, I_zz] between flights of this vehicle
+    beyond their own errors (the model's error that one flight cannot see), as measured
+    over several flights (``python -m pinquad.realdata`` prints it).
+    """
+
+    arm: float | None = None
+    commanded_thrust: float | None = None
+    commanded_yaw_torque: float | None = None
+    model_error: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
 class VehicleSpec:
     """A vehicle file, read.
 
@@ -151,6 +171,7 @@ class VehicleSpec:
     description: str = ""
     faults: FaultSettings = FaultSettings()
     aero: Aero = Aero()
+    uncertainty: Uncertainty = Uncertainty()
 
     @property
     def ground_effect_radius(self) -> float:
@@ -346,6 +367,23 @@ def _aero(r: _Reader) -> Aero:
                                       required=False))
 
 
+def _uncertainty(r: _Reader) -> Uncertainty:
+    table = r.table("uncertainty")
+    rel = " [-], a relative standard uncertainty"
+    values = {k: r.number(table, "uncertainty", k, required=False, positive=False, unit=rel)
+              for k in ("arm", "commanded_thrust", "commanded_yaw_torque")}
+    for k, v in values.items():
+        if v is not None and not 0.0 <= v < 1.0:
+            raise r.fail(f"uncertainty.{k}", "a relative uncertainty in [0, 1)", v)
+    model = table.get("model_error", [])
+    if not (isinstance(model, list) and len(model) in (0, 4) and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v < 1.0
+            for v in model)):
+        raise r.fail("uncertainty.model_error", "[m, Ixx, Iyy, Izz], four relative "
+                     "uncertainties in [0, 1)", model)
+    return Uncertainty(model_error=tuple(float(v) for v in model), **values)
+
+
 def parse_vehicle(text: str, path: Path) -> VehicleSpec:
     """A :class:`VehicleSpec` from TOML ``text`` (``path`` names it in errors and anchors
     relative paths). Raises VehicleFileError."""
@@ -392,7 +430,7 @@ def parse_vehicle(text: str, path: Path) -> VehicleSpec:
             mass_note=r.text(ref, "reference", "mass_note"),
             inertia_note=r.text(ref, "reference", "inertia_note")),
         urdf=urdf, description=r.text(data, "", "description"), faults=_faults(r),
-        aero=_aero(r))
+        aero=_aero(r), uncertainty=_uncertainty(r))
 
 
 def _urdf_inertial(urdf: Path, path: Path) -> tuple[float, Array]:

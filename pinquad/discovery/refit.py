@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.core.params import VehicleRange
 from pinquad.discovery.library import TransitionData, applied_lag, wrench_features
 from pinquad.discovery.residuals import step_blocks
 from pinquad.discovery.result import DEFAULT_CONFIG, DiscoveryConfig
@@ -67,7 +68,7 @@ def corrected_observations(obs: Observations, state: Array, coefficients: dict[s
     return replace(obs, inputs=inputs, ys=ys, samples=None)
 
 
-def effect_mstep(coefficients: dict[str, Array]):
+def effect_mstep(coefficients: dict[str, Array], bounds: VehicleRange | None = None):
     """The regressor M-step (``pinquad.mstep.updates.regressor_mstep``) with the lateral wrench
     noise of an ``EffectSSM``: the body x/y force rows' variance is re-estimated from the
     residual the drag / wind forces f_k leave,
@@ -81,14 +82,14 @@ def effect_mstep(coefficients: dict[str, Array]):
     instead of from q_j alone, which would re-inflate the noise by the very forces the
     extended model now explains. One pass over the posterior serves both (the expected
     quadratics). Without drag or wind in ``coefficients`` it is ``regressor_mstep``
-    itself."""
+    itself. bounds: the range mass and inertia are searched in (``regressor_mstep``)."""
     wrench_effects = [e for e in ("drag", "wind") if e in coefficients]
-    if not wrench_effects:
-        return regressor_mstep
 
     def mstep(post: Posterior, obs: Observations, theta: Theta):
         stats = expected_quadratics(post, obs, theta.gravity)
-        out = regressor_mstep(post, obs, theta, stats=stats)
+        out = regressor_mstep(post, obs, theta, stats=stats, bounds=bounds)
+        if not wrench_effects:
+            return out
         new = out.theta
         idx = np.flatnonzero(transition_mask(obs))
         data = TransitionData.of(obs, post.mean[idx], idx)
@@ -182,7 +183,7 @@ def _joint_refinement(obs: Observations, exclude: NDArray[np.bool_], coeffs: dic
     for _ in range(cfg.joint_iterations):
         corr = replace(corrected_observations(obs, post.mean, coeffs), exclude=exclude)
         post = smoother(model_factory(coeffs)(corr, theta), corr.ys)
-        theta = effect_mstep(coeffs)(post, corr, theta).theta
+        theta = effect_mstep(coeffs, cfg.search)(post, corr, theta).theta
         new, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train,
                                           sampling=cfg.sampling_nuisance)
         change = max(float(np.max(np.abs(new[e] - coeffs[e])
@@ -244,8 +245,9 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
                        exclude=exclude)
         # one over-relaxation factor per parameter: the force noise creeps down from the
         # warm-up's inflated start while the measurement noise has settled
-        em = run_em(corr, theta, smoother, effect_mstep(coeffs), max_iterations=cfg.em_iterations,
-                    tol=1e-5, tol_loglik=1e-7, model_factory=factory, per_parameter=True)
+        em = run_em(corr, theta, smoother, effect_mstep(coeffs, cfg.search),
+                    max_iterations=cfg.em_iterations, tol=1e-5, tol_loglik=1e-7,
+                    model_factory=factory, per_parameter=True, bounds=cfg.search)
         b_used = coeffs.get("gyro_bias")
         theta, post = em.theta, em.posterior
         coeffs, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train,

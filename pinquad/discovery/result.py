@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.core.effect_vocabulary import EFFECT_NAMES
+from pinquad.core.params import VehicleRange
 from pinquad.discovery.library import SPECS
 from pinquad.models.ssm import Theta
 
@@ -77,7 +78,9 @@ class DiscoveryConfig:
     controller's zero-order hold (half its period: 0.25 ms at 2 kHz, 1 ms at 500 Hz) and
     the radio or ESC update. On flightgen's 500 Hz logs, whose 2 kHz controller holds
     each command for 0.5 ms, 0.3-0.8 ms "lags" passed every other test beside the
-    injected drag, ground effect or wind (added after those runs).
+    injected drag, ground effect or wind (added after those runs); search: the range
+    the refit's EM searches mass and inertia in (``identification.search_range``; None:
+    unbounded).
     """
 
     block_seconds: float = 2.0
@@ -96,6 +99,7 @@ class DiscoveryConfig:
     two_fold: bool = True
     min_lag_intervals: float = 0.25
     min_lag_seconds: float = 0.002
+    search: VehicleRange | None = None
 
 
 DEFAULT_CONFIG = DiscoveryConfig()

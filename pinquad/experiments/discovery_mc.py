@@ -45,9 +45,9 @@ from numpy.typing import NDArray
 
 from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO
 from pinquad.discovery.discover import base_heldout_rms
+from pinquad.experiments.discovery_report import discovery_section
 from pinquad.experiments.recorded import (
     LogOptions,
-    discovery_section,
     discovery_start,
     identify_log,
     run_discovery,

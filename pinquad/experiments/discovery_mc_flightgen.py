@@ -40,10 +40,10 @@ from flightgen import CRAZYFLIE, Effects, Flight, FlightSpec, generate, write_cs
 from flightgen.rotation import quats_to_rots
 from flightgen.trajectory import excursion
 from pinquad.experiments.discovery_mc import in_order
+from pinquad.experiments.discovery_report import discovery_section
 from pinquad.experiments.headline import headline
 from pinquad.experiments.recorded import (
     LogOptions,
-    discovery_section,
     identify_log,
     initial_guess,
     run_discovery,

@@ -20,6 +20,7 @@ from pinquad.experiments.recorded import (
     input_reading,
     plausible_range,
 )
+from pinquad.identification.budget import ErrorBudget, calibration_of, error_budget
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
     observed_information,
@@ -42,8 +43,9 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class Estimate:
     """One estimate of the vehicle: mass [kg], inertia (3, 3) [kg m^2], com (3,) [m] or
-    None, stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not computed), stderr_note: how it
-    was computed, model: the model it was fitted under, in words; verdict."""
+    None, stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not computed; the budget's total),
+    stderr_note: how it was computed, model: the model it was fitted under, in words;
+    verdict; budget: stderr by named part (None: no budget)."""
 
     mass: float
     inertia: Array
@@ -52,12 +54,14 @@ class Estimate:
     stderr_note: str
     model: str
     verdict: EstimateVerdict
+    budget: ErrorBudget | None = None
 
     def to_report(self) -> dict:
         """report.json's estimate layout (``estimates``, plus the verdict)."""
         return {"mass": self.mass, "inertia": np.asarray(self.inertia).tolist(),
                 "com": None if self.com is None else np.asarray(self.com).tolist(),
                 "stderr": {"mass": self.stderr[0], "inertia_diag": self.stderr[1:].tolist()},
+                "stderr_parts": None if self.budget is None else self.budget.to_report(),
                 "stderr_note": self.stderr_note, "model": self.model,
                 "verdict": self.verdict.to_report()}
 
@@ -85,6 +89,24 @@ def _band(run: Identification) -> tuple[float, float] | None:
 def _actuation(result: LogResult) -> str:
     """How the log's inputs acted between rows, as the E-step read them."""
     return input_reading(result.kind, result.log)
+
+
+def run_budget(result: LogResult, run: Identification, values: Array | None = None,
+               statistical: Array | None = None) -> ErrorBudget:
+    """The error budget (``identification.budget``) of a run of the log, or of an estimate
+    built on it (``values`` (4,) with its ``statistical`` errors; default the run's own):
+    a measured flight's statistical part is its information/jackknife error, its thrust
+    part kf's; a log with thrust and torque columns takes its sidecar's, its vehicle
+    file's or the default calibration; the reported run carries the input reading."""
+    values = np.r_[run.mass, np.diag(run.inertia)] if values is None else values
+    ident = run.measured
+    if ident is not None:
+        cal = calibration_of(result.log.meta, (ident.kf.rel_se, ident.yaw_rel))
+        stat = ident.se_stat if statistical is None else statistical
+        return error_budget(values, stat, cal, repair_rel=ident.repair_rel)
+    alt = result.input_alternative if run is result.runs[0] else None
+    stat = np.asarray(run.stderr, dtype=float) if statistical is None else statistical
+    return error_budget(values, stat, calibration_of(result.log.meta), alt)
 
 
 def fit_evidence(result: LogResult, run: Identification) -> dict:
@@ -122,18 +144,20 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     if run.full is not None:
         s = np.asarray(run.full.stderr_inertia)
         products = np.array([s[0, 1], s[0, 2], s[1, 2]])
-    return judge(run.mass, run.inertia, run.stderr, ev, plausible_range(result), products,
-                 missing_stderr=run.stderr_problem)
+    return judge(run.mass, run.inertia, run_budget(result, run).total, ev,
+                 plausible_range(result), products, missing_stderr=run.stderr_problem)
 
 
 def _base(result: LogResult, verdict: EstimateVerdict) -> Estimate:
     run = result.runs[0]
-    note = ("statistical (observed information or block jackknife) combined with kf's "
-            "uncertainty" if run.measured is not None
-            else "observed information of the EKF likelihood")
-    return Estimate(run.mass, np.asarray(run.inertia), run.com, np.asarray(run.stderr, dtype=float),
+    note = ("total of stderr_parts: statistical (observed information or block jackknife) "
+            "with what the estimate assumed" if run.measured is not None
+            else "total of stderr_parts: statistical (observed information of the EKF "
+            "likelihood) with what the estimate assumed")
+    budget = run_budget(result, run)
+    return Estimate(run.mass, np.asarray(run.inertia), run.com, budget.total,
                     note, f"base rigid-body model ({run.mstep} M-step, sensor {run.sensor})",
-                    verdict)
+                    verdict, budget)
 
 
 def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimate:
@@ -160,10 +184,17 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
         stderr = base.stderr
         note = ("the base fit's (discovery keeps the base inertia and refits the mass on the "
                 "base posterior's force rows)")
+    if run.measured is not None and not discovery_config(result.kind).refit_em:
+        statistical = run.measured.se_stat
+    else:
+        statistical = np.asarray(stderr, dtype=float)
+    budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
+    stderr = budget.total
     verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result),
                     missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,
-                    f"base model plus {', '.join(found.selected)} (discovery's refit)", verdict)
+                    f"base model plus {', '.join(found.selected)} (discovery's refit)", verdict,
+                    budget)
 
 
 def headline(result: LogResult, outcome: DiscoveryOutcome | None) -> Headline:

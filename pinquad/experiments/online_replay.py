@@ -5,17 +5,29 @@ pinquad.online --log PATH``; no controller feedback): every ``every`` samples, E
 
 from __future__ import annotations
 
+import functools
 import math
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.core.params import VehicleRange
+from pinquad.estep.fast_smoother import loglik_quad
+from pinquad.identification.budget import ErrorBudget, calibration_of, error_budget
 from pinquad.identification.em import initial_theta
+from pinquad.identification.fisher import (
+    STDERR_UNAVAILABLE,
+    observed_information,
+    standard_errors,
+)
 from pinquad.identification.identify import get_smoother
+from pinquad.identification.search_range import at_bound
+from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge
 from pinquad.identification.window import window_em, window_prior
+from pinquad.io.logs import LogMeta
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.updates import regressor_mstep, remember_leaving
 from pinquad.realdata.band_mstep import RealMStep
@@ -56,12 +68,39 @@ def _measured_model(win: Observations, theta: Theta) -> QuadSSM:
     return QuadSSM(corrected(win, theta), theta)
 
 
+@dataclass(frozen=True)
+class StreamFit:
+    """A replayed stream: history (U, 6) [k, t, m, Ixx, Iyy, Izz] and latencies (U,) [s]
+    per update; theta, posterior and window: the last update's parameters, its E-step
+    and the observations it saw (None when the log was too short for one)."""
+
+    history: Array
+    latencies: Array
+    theta: Theta | None = None
+    posterior: Posterior | None = None
+    window: Observations | None = None
+
+
 def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
               window: int = 800, every: int = 4, min_samples: int = 50,
               iterations: int = 1, memory_s: float | None = math.inf,
-              rotor_acc: Array | None = None) -> tuple[Array, Array]:
-    """History (U, 6) [k, t, m, Ixx, Iyy, Izz] and latencies (U,) [s] of the stream;
-    memory_s as ``online.OnlineConfig.memory_s``.
+              rotor_acc: Array | None = None, bounds: VehicleRange | None = None
+              ) -> tuple[Array, Array]:
+    """History and latencies of ``stream_fit`` (its arguments)."""
+    fit = stream_fit(obs, mass0, inertia0, gravity, window, every, min_samples, iterations,
+                     memory_s, rotor_acc, bounds)
+    return fit.history, fit.latencies
+
+
+def stream_fit(obs: Observations, mass0: float, inertia0: Array, gravity: float,
+               window: int = 800, every: int = 4, min_samples: int = 50,
+               iterations: int = 1, memory_s: float | None = math.inf,
+               rotor_acc: Array | None = None, bounds: VehicleRange | None = None
+               ) -> StreamFit:
+    """The stream's history, latencies and last update (``StreamFit``); memory_s as
+    ``online.OnlineConfig.memory_s``. bounds: the range every window's EM searches mass
+    and inertia in (``regressor_mstep``'s; a measured flight's M-step is projected onto
+    it), None: unbounded.
 
     rotor_acc (N,) [rad/s^2]: given for a measured flight (``RealObservations``): each
     window then gets the measured-flight M-step (``realdata.RealMStep``: band-passed
@@ -85,15 +124,55 @@ def stream_em(obs: Observations, mass0: float, inertia0: Array, gravity: float,
         warm_up = theta is None
         if warm_up:
             theta = initial_theta(win, mass0, inertia0, gravity)
-        mstep, model_of = regressor_mstep, QuadSSM
+            if bounds is not None:
+                theta = _inside(theta, bounds)
+        mstep, model_of = functools.partial(regressor_mstep, bounds=bounds), QuadSSM
         if rotor_acc is not None:
             theta = _measured_theta(theta, previous, start, win, rotor_acc[start:k + 1])
             mstep, model_of = RealMStep(rotor_acc=rotor_acc[start:k + 1]), _measured_model
         theta, post = window_em(win, theta, warm_up, iterations, smoother, mstep, earlier,
                                 model_of)
+        if bounds is not None:
+            theta = _inside(theta, bounds)
         previous = (start, post, win)
         lat.append(time.perf_counter() - t0)
         rows.append([k, obs.t[k], theta.mass, *np.diag(theta.inertia)])
-    return np.asarray(rows), np.asarray(lat)
+    last = (None, None, None) if previous is None else (theta, previous[1], previous[2])
+    return StreamFit(np.asarray(rows), np.asarray(lat), *last)
 
 
+def _inside(theta: Theta, bounds: VehicleRange) -> Theta:
+    """theta's mass and inertia diagonal projected onto ``bounds``."""
+    return replace(theta, mass=bounds.clip_mass(theta.mass),
+                   inertia=np.diag(bounds.clip_inertia(np.diag(theta.inertia))))
+
+
+
+
+def replay_verdict(fit: StreamFit, meta: LogMeta, vrange: VehicleRange | None,
+                   bounds: VehicleRange | None, measured_thrust: tuple[float, float] | None = None
+                   ) -> tuple[EstimateVerdict, ErrorBudget]:
+    """The verdict on a replay's final estimate, judged on its last window: statistical
+    errors from the observed information of the window's EKF likelihood, combined with
+    what the log assumed (``identification.budget``; measured_thrust: (kf's, the yaw
+    ratio's) relative uncertainty of a rotor-speed flight), the window's evidence
+    (torque shares, innovations) and whether EM ended on the edge of ``bounds``;
+    vrange: the vehicle's plausible range (None: none known)."""
+    assert fit.theta is not None and fit.window is not None and fit.posterior is not None
+    theta, win = fit.theta, fit.window
+    if measured_thrust is not None:  # the nuisance moment moves into the torques
+        win = corrected(win, theta)
+    plain = Theta(theta.mass, np.asarray(theta.inertia), theta.noise, theta.gravity)
+    values = np.r_[plain.mass, np.diag(plain.inertia)]
+    try:
+        stat = standard_errors(observed_information(win, plain, loglik_quad))
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+        stat = np.full(4, np.nan)
+    budget = error_budget(values, stat, calibration_of(meta, measured_thrust))
+    evidence = data_evidence(win, plain, fit.posterior.mean)
+    if bounds is not None:
+        evidence = replace(evidence, at_bound=tuple(at_bound(values, bounds)),
+                           bound_source=bounds.source)
+    verdict = judge(plain.mass, plain.inertia, budget.total, evidence, vrange,
+                    missing_stderr=STDERR_UNAVAILABLE)
+    return verdict, budget

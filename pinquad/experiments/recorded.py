@@ -409,6 +409,7 @@ class DiscoveryOutcome:
     null: NullCalibration | None = None
     unphysical: tuple[dict, ...] = ()
     not_run: str | None = None
+    note: str | None = None
 
 
 def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:
@@ -445,23 +446,39 @@ def run_discovery(result: LogResult, null: NullSettings | None = None,
         return DiscoveryOutcome(None, not_run=unconverged(base))
     actuation = input_reading(result.kind, result.log)
     bounds = None if vrange is None else (vrange.inertia_lo, vrange.inertia_hi)
-    outcome = discover_calibrated(start, discovery_config(result.kind, actuation), null,
-                                  actuation, executor, bounds)
+    cfg = replace(discovery_config(result.kind, actuation), search=result.search)
+    outcome = discover_calibrated(start, cfg, null, actuation, executor, bounds)
     # a base fit outside the physical set is kept for discovery only when a selected
-    # effect brings the refit inside it (a missing effect can push the base fit out)
-    odd = outside_range(np.r_[base.mass, np.diag(base.inertia)], result.search, vrange)
+    # effect brings the refit inside it (a missing effect can push the base fit out);
+    # else, with the mass sound, only the effects of the force rows, which rest on it
+    values = np.r_[base.mass, np.diag(base.inertia)]
+    odd = outside_range(values, result.search, vrange)
     found = outcome.result
-    if odd is not None and found is not None:
-        still = (outside_range(np.r_[found.mass, np.diag(found.inertia)], result.search,
-                               vrange) if found.selected else odd)
-        if still is not None:
-            return DiscoveryOutcome(None, not_run=(
-                f"the base fit's {odd}, and "
-                + (f"the refit with {', '.join(found.selected)} still has {still}"
-                   if found.selected else "no effect explains why")
-                + ": the log does not determine the fit, and effects read from its residual "
-                "would not be there"))
-    return outcome
+    if odd is None or found is None:
+        return outcome
+    still = (outside_range(np.r_[found.mass, np.diag(found.inertia)], result.search, vrange)
+             if found.selected else odd)
+    if still is None:
+        return outcome
+    if outside_range(values, result.search, vrange, ("mass",)) is None:
+        cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c in FORCE_EFFECTS))
+        forces = discover_calibrated(start, cfg, null, actuation, executor, bounds)
+        kept = forces.result
+        if kept is None or outside_range(np.r_[kept.mass, np.diag(kept.inertia)],
+                                         result.search, vrange, ("mass",)) is None:
+            return replace(forces, note=(
+                f"the base fit's {odd}: only effects on the force rows "
+                f"({', '.join(FORCE_EFFECTS)}), which rest on the mass, were looked for"))
+    return DiscoveryOutcome(None, not_run=(
+        f"the base fit's {odd}, and "
+        + (f"the refit with {', '.join(found.selected)} still has {still}"
+           if found.selected else "no effect explains why")
+        + ": the log does not determine the fit, and effects read from its residual "
+        "would not be there"))
+
+
+FORCE_EFFECTS = ("drag", "ground_effect", "wind")
+"""Effects on the force rows only: they rest on the mass, not on the inertia."""
 
 
 def input_reading(kind: str, log: FlightLog) -> str:
@@ -547,48 +564,3 @@ def _select_and_refit(obs: Observations, theta: Theta, post: Posterior, cfg: Dis
     if ahead is not None and ahead[0] is sel:
         return ahead[1].result()
     return refit_selection(obs, refit_from(sel), post, sel, None, cfg)
-
-
-def measured_effects(obs: Observations, theta: RealTheta, posterior: Posterior,
-                     null: NullSettings | None = None) -> dict:
-    """Effect discovery with its null calibration on a measured flight's base fit (its
-    nuisance moment moved into the torques, as ``discovery_start``), summarised for the
-    real-vehicle table: ``selected`` [{effect, heldout_gain, null_gain_max, p_value}],
-    ``rejected`` (effects the null explained), ``replicates``, ``seed``, ``error``."""
-    outcome = discover_calibrated(start_from(obs, theta, posterior), discovery_config("sdlog"),
-                                  null)
-    cal = outcome.null
-    out: dict = {"selected": [], "rejected": [] if cal is None else list(cal.rejected),
-                 "replicates": 0 if cal is None else cal.replicates,
-                 "seed": None if cal is None else cal.seed, "error": outcome.error}
-    if outcome.result is None:
-        return out
-    gains = first_round_gains(outcome.result)
-    for e in outcome.result.selected:
-        entry = {"effect": e, "heldout_gain": gains.get(e), "null_gain_max": None,
-                 "p_value": None}
-        if cal is not None and e in cal.null_gains:
-            entry["null_gain_max"] = float(np.max(cal.null_gains[e]))
-            entry["p_value"] = cal.p_value[e]
-        out["selected"].append(entry)
-    return out
-
-
-def discovery_section(outcome: DiscoveryOutcome) -> dict:
-    """The ``discovery`` section of report.json; figure paths (if drawn) named
-    relative to the run directory (``figures/<name>``)."""
-    if outcome.result is None:
-        return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
-                "validation": "not run", "error": outcome.error, "not_run": outcome.not_run}
-    section = outcome.result.to_report()
-    section["unphysical"] = list(outcome.unphysical)
-    section["figures"] = [f"figures/{Path(f).name}" for f in section["figures"]]
-    if outcome.null is not None:
-        section["null_calibration"] = outcome.null.to_report()
-        for entry in section["selected"]:
-            entry["evidence"]["null_p_value"] = outcome.null.p_value.get(entry["effect"])
-    else:
-        section["null_calibration"] = {"replicates": 0, "note": (
-            "nothing selected: no calibration needed" if not section["selected"]
-            else "not calibrated against the null (--null-replicates 0)")}
-    return section

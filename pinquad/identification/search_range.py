@@ -4,8 +4,8 @@ A log whose torques explain little of the angular acceleration leaves the likeli
 nearly flat towards large inertia: unbounded, EM follows it to 1e80 kg m^2. EM therefore
 searches inside a range (``run_em``'s ``bounds``):
 
-* a named vehicle (a shipped one or a vehicle file): its plausible range
-  (``verdict.vehicle_range``, what the verdict judges against);
+* the range the verdict judges against (``verdict.vehicle_range``): a named vehicle's
+  (a shipped one or a vehicle file), else the one around the sidecar's guesses;
 * otherwise a range that holds any multirotor of the log's own hover mass,
 
       m_hover = median(F) / g over the airborne rows,
@@ -23,8 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.params import VEHICLES, VehicleRange
-from pinquad.core.vehicle_file import is_vehicle_file
+from pinquad.core.params import VehicleRange
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import FlightLog
@@ -67,8 +66,10 @@ def search_range(log: FlightLog) -> VehicleRange | None:
     """The range EM searches for ``log``'s mass and inertia (module docstring); None for a
     log with no named vehicle and no thrust column (its EM is not bounded here)."""
     meta = log.meta
-    if meta.vehicle_named and (meta.vehicle in VEHICLES or is_vehicle_file(meta.vehicle)):
-        return vehicle_range(meta.vehicle)
+    named = vehicle_range(meta.vehicle if meta.vehicle_named else "", meta.mass_guess,
+                          meta.inertia_guess)
+    if named is not None:
+        return named
     mass = hover_mass(log)
     return None if mass is None else generic_range(mass)
 
@@ -94,11 +95,12 @@ def unconverged(run: Identification) -> str | None:
 
 
 def outside_range(values: Array, search: VehicleRange | None,
-                  vrange: VehicleRange | None) -> str | None:
+                  vrange: VehicleRange | None,
+                  names: tuple[str, ...] = ("mass", "I_xx", "I_yy", "I_zz")) -> str | None:
     """Why a fit of [m, I_xx, I_yy, I_zz] (``values`` (4,)) is not physical: a parameter on
     the edge of the range EM searched, or outside the vehicle's plausible range; None
-    when it is neither."""
-    edge = [] if search is None else at_bound(values, search)
+    when it is neither (only the parameters in ``names`` are looked at)."""
+    edge = [] if search is None else [n for n in at_bound(values, search) if n in names]
     if edge:
         return (f"{', '.join(edge)} ended on the edge of the range EM searched "
                 f"({search.source})")  # type: ignore[union-attr]
@@ -106,7 +108,7 @@ def outside_range(values: Array, search: VehicleRange | None,
         lo = np.r_[vrange.mass[0], vrange.inertia_lo]
         hi = np.r_[vrange.mass[1], vrange.inertia_hi]
         out = [n for n, v, a, b in zip(("mass", "I_xx", "I_yy", "I_zz"), values, lo, hi,
-                                       strict=True) if not a <= v <= b]
+                                       strict=True) if not a <= v <= b and n in names]
         if out:
             return f"{', '.join(out)} outside the vehicle's plausible range ({vrange.source})"
     return None

@@ -377,6 +377,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
             if vrange is not None:  # |I_ij| <= I_kk / 2 for any rigid body
                 half = 0.5 * vrange.inertia_hi[k]
                 ident = _range_check(name, se, -half, half, 1e6, "e-6 kg m^2", th)
+            ident += _fit_checks(name, evidence)
             quiet = [a for a in (i, j) if np.isfinite(excitation[a])
                      and excitation[a] < th.min_torque_excitation]
             if quiet:

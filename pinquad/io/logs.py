@@ -58,7 +58,12 @@ class LogMeta:
     it); vehicle_named: whether the log
     itself names the vehicle (False: no sidecar or no ``vehicle`` in it, and ``vehicle``
     is the default ``paper``, not the log's); t_origin [s]: the file's time of its first
-    row (the log's ``t`` counts from it: ``pinquad.io.timebase.relative_time``).
+    row (the log's ``t`` counts from it: ``pinquad.io.timebase.relative_time``);
+    calibration: the relative standard uncertainties [-] of the logged thrust, yaw torque
+    and the arm length behind the roll and pitch torques, as the sidecar's
+    ``calibration`` declares them (0, 0, 0: the applied wrench exactly, as a simulator
+    logs it), or None (not declared: the vehicle file's or pinquad's defaults,
+    ``identification.budget``).
     """
 
     vehicle: str = "paper"
@@ -70,6 +75,7 @@ class LogMeta:
     actuation: str = "held"
     actuation_declared: bool = True
     vehicle_named: bool = True
+    calibration: tuple[float, float, float] | None = None
     t_origin: float = 0.0
 
 
@@ -228,6 +234,8 @@ def sidecar(meta: LogMeta) -> dict:
         "inertia_guess": None if meta.inertia_guess is None else np.asarray(meta.inertia_guess).tolist(),
         "gravity": meta.gravity,
         "actuation": meta.actuation,
+        **({} if meta.calibration is None else {"calibration": dict(zip(
+            CALIBRATION_KEYS, meta.calibration, strict=True))}),
     }
 
 
@@ -430,7 +438,28 @@ def _read_sidecar(path: Path) -> LogMeta:
         actuation=actuation,
         actuation_declared="actuation" in raw,
         vehicle_named="vehicle" in raw,
+        calibration=_calibration(side, raw.get("calibration")),
     )
+
+
+CALIBRATION_KEYS = ("thrust", "yaw_torque", "arm")
+"""The sidecar's ``calibration`` keys (``LogMeta.calibration``)."""
+
+
+def _calibration(side: Path, raw: object) -> tuple[float, float, float] | None:
+    """The sidecar's ``calibration`` object, {"thrust": r, "yaw_torque": r, "arm": r},
+    relative standard uncertainties in [0, 1) (None when absent)."""
+    if raw is None:
+        return None
+    ok = isinstance(raw, dict) and set(raw) == set(CALIBRATION_KEYS) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v < 1.0
+        for v in raw.values())
+    if not ok:
+        raise LogFormatError(f"{side}: key 'calibration' is {raw!r}; expected "
+                             '{"thrust": r, "yaw_torque": r, "arm": r}, relative standard '
+                             "uncertainties in [0, 1) of the logged thrust, yaw torque and "
+                             "arm length (0: the applied wrench exactly)")
+    return tuple(float(raw[k]) for k in CALIBRATION_KEYS)  # type: ignore[return-value]
 
 
 def read_log(path: str | Path) -> FlightLog:

@@ -33,6 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
 from pinquad.identification.verdict import TRUSTED, judge, vehicle_range
@@ -64,13 +65,15 @@ class FlightScatter:
     dof: int
     p_value: float
     scale: float
+    model_error: float = 0.0
 
     def describe(self) -> str:
         factor, unit = UNITS[PARAMETERS.index(self.parameter)]
         each = ", ".join(f"{n} {factor * v:.4g} ± {factor * s:.2g}"
                          for n, v, s in zip(self.logs, self.values, self.stderr, strict=True))
-        verdict = (f"statistical errors scaled by S = {self.scale:.2f}" if self.scale > 1.0
-                   else "within their errors (S = 1)")
+        verdict = (f"statistical errors scaled by S = {self.scale:.2f}; model error between "
+                   f"flights {100 * self.model_error:.1f} % of the value (``model_error``)"
+                   if self.scale > 1.0 else "within their errors (S = 1)")
         return (f"{self.parameter}, {self.group} ({each} {unit}): weighted mean "
                 f"{factor * self.mean:.4g} {unit}, chi2 {self.chi2:.1f} on {self.dof} dof "
                 f"(p {self.p_value:.2g}): {verdict}")
@@ -90,7 +93,37 @@ def flight_scatter(parameter: str, group: str, logs: Sequence[str], values: Arra
     chi2 = float(np.sum(w * (x - mean) ** 2))
     dof = x.size - 1
     return FlightScatter(parameter, group, tuple(logs), x, s, mean, chi2, dof,
-                         float(chi2_dist.sf(chi2, dof)), max(1.0, math.sqrt(chi2 / dof)))
+                         float(chi2_dist.sf(chi2, dof)), max(1.0, math.sqrt(chi2 / dof)),
+                         model_error(x, s))
+
+
+def model_error(values: Array, stderr: Array) -> float:
+    """The relative model error r [-] between flights: the spread each flight carries
+    beyond its statistical error s_i, taken in proportion to the value, that makes the
+    scatter what the errors say,
+
+        sum_i (x_i - mu_r)^2 / (s_i^2 + r^2 mu_r^2) = L - 1,
+        mu_r = sum_i x_i / (s_i^2 + r^2 mu_r^2) / sum_i 1 / (s_i^2 + r^2 mu_r^2)
+
+    (0 when the flights scatter within their errors). A single flight's error budget
+    carries it as its ``between_flights`` part (the vehicle file's ``[uncertainty]
+    model_error``)."""
+    x, s = np.asarray(values, dtype=float), np.asarray(stderr, dtype=float)
+    dof = x.size - 1
+
+    def excess(r: float) -> float:
+        mu = float(np.mean(x))
+        for _ in range(50):
+            w = 1.0 / (s**2 + (r * mu) ** 2)
+            mu = float(np.sum(w * x) / np.sum(w))
+        return float(np.sum(w * (x - mu) ** 2)) - dof
+
+    if excess(0.0) <= 0.0:
+        return 0.0
+    hi = 1.0
+    while excess(hi) > 0.0 and hi < 1e3:
+        hi *= 2.0
+    return float(brentq(excess, 0.0, hi, xtol=1e-6))
 
 
 def scaled_total(se_total: float, se_stat: float, scale: float) -> float:

@@ -81,7 +81,9 @@ class RealIdentification:
     was judged on besides the errors (set by the table, so that ``realdata.consistency``
     can judge again); vehicle: the vehicle whose range it was judged against;
     scatter_scale (4,): the between-flight scale factors S that multiply the statistical
-    errors inside ``se_total`` (``realdata.consistency``; None: not compared); failure:
+    errors inside ``se_total`` (``realdata.consistency``; None: not compared); yaw_rel
+    [-]: the yaw ratio's relative uncertainty and repair_rel (4,) [-] or None: the PWM
+    repair's, both inside ``se_total``; failure:
     why EM stopped early (its E-step broke down), with the log's gaps when it has any, or
     None.
     """
@@ -116,6 +118,8 @@ class RealIdentification:
     evidence: VerdictEvidence | None = None
     vehicle: str = "crazyflie21"
     scatter_scale: Array | None = None
+    yaw_rel: float = 0.0
+    repair_rel: Array | None = None
     failure: str | None = None
 
     @property
@@ -191,11 +195,11 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         se_info = standard_errors(info)
     se_jack = mstep.jackknife(res.posterior, obs, theta)
     se_stat = np.fmax(se_info, se_jack)
-    se_total = total_standard_errors(params, se_stat, real.kf.rel_se,
-                                     yaw_rel=real.options.yaw_ratio_se / real.options.yaw_ratio,
-                                     repair_rel=np.asarray(real.options.repair_rel_se)
-                                     if real.repaired and real.options.repair_rel_se
-                                     else None)
+    yaw_rel = real.options.yaw_ratio_se / real.options.yaw_ratio
+    repair_rel = (np.asarray(real.options.repair_rel_se)
+                  if real.repaired and real.options.repair_rel_se else None)
+    se_total = total_standard_errors(params, se_stat, real.kf.rel_se, yaw_rel=yaw_rel,
+                                     repair_rel=repair_rel)
     history = np.column_stack([np.concatenate([[mass0], res.mass]),
                                np.vstack([np.diag(inertia0), res.inertia_diag])])
     coef = getattr(theta, "moment_coef", None)
@@ -210,8 +214,10 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         rotor_inertia=used_rotor_inertia(theta if fit_jr else None, fixed_jr),
         band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None,
         quasi_static_mass=quasi_static_mass(real), motor_split=motor_split(real),
-        failure=failure_with_gaps(res.failure, real.exclusions))
+        failure=failure_with_gaps(res.failure, real.exclusions), yaw_rel=yaw_rel,
+        repair_rel=repair_rel)
     return out, res.posterior, theta
+
 
 def failure_with_gaps(failure: str | None, exclusions: tuple) -> str | None:
     """EM's failure (None: none) with the log's gaps (``realdata.input_holes``), which a

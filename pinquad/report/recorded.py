@@ -13,6 +13,7 @@ from pinquad.core.conventions import wrap_angle
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.experiments.headline import Headline
 from pinquad.experiments.recorded import DiscoveryOutcome, LogResult
+from pinquad.identification.budget import ErrorBudget
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import PRODUCTS, EstimateVerdict, ParameterVerdict
 from pinquad.io.logs import write_log
@@ -249,6 +250,8 @@ def discovery_summary(section: dict) -> str:
     sel = section["selected"]
     null = section.get("null_calibration", {})
     odd = unphysical_lines(section.get("unphysical", ()))
+    if section.get("note"):
+        odd.insert(0, f"  note: {section['note']}")
     if not sel:
         calibrated = bool(null.get("replicates"))
         head = ("effect discovery: no significant unmodelled effect (held-out test"
@@ -352,7 +355,22 @@ def headline_summary(headline: Headline) -> str:
                  for i, n in enumerate(("I_xx", "I_yy", "I_zz"))) + " e-6 kg m^2",
              f"verdict: {f.verdict.overall}"]
     lines += [f"  {r}" for r in f.verdict.reasons]
+    if f.budget is not None:
+        lines += budget_lines(f.budget)
     return "\n".join(lines)
+
+
+def budget_lines(budget: ErrorBudget) -> list[str]:
+    """The error budget printed: each parameter's total and its non-zero parts."""
+    total = budget.total
+    lines = ["error budget (standard errors; the total is their root sum of squares):"]
+    for i, (name, scale, unit) in enumerate((("mass", 1e3, "g"), ("I_xx", 1e6, "e-6 kg m^2"),
+                                             ("I_yy", 1e6, "e-6 kg m^2"),
+                                             ("I_zz", 1e6, "e-6 kg m^2"))):
+        parts = ", ".join(f"{k} {v[i] * scale:.3g}" for k, v in budget.parts.items()
+                          if np.isfinite(v[i]) and v[i] > 0)
+        lines.append(f"  {name}: {total[i] * scale:.3g} {unit} ({parts or 'none'})")
+    return lines
 
 
 def report_markdown(result: LogResult, path: str, discovery: dict | None,

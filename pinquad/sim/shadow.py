@@ -137,7 +137,8 @@ def _fly(x0, x_ref, euler_step, u_ff, dt, substeps, mass, inertia, inertia_inv, 
                     f_des[a] = (r_ref[a, 2] * u[0]
                                 + mass * (kp * (ref[a] - x[a]) + kd * (ref[3 + a] - x[3 + a])))
                 thrust = f_des[0] * r[0, 2] + f_des[1] * r[1, 2] + f_des[2] * r[2, 2]
-                norm = math.sqrt(f_des[0] ** 2 + f_des[1] ** 2 + f_des[2] ** 2)
+                # no desired force (motors off on the floor): no tilt to correct
+                norm = max(math.sqrt(f_des[0] ** 2 + f_des[1] ** 2 + f_des[2] ** 2), 1e-300)
                 # tilt error b3 x b3_des in the world frame, then into the body frame
                 cx = (r[1, 2] * f_des[2] - r[2, 2] * f_des[1]) / norm
                 cy = (r[2, 2] * f_des[0] - r[0, 2] * f_des[2]) / norm

@@ -345,7 +345,8 @@ def flight_log(flight: Flight, mass_guess: float | None = None,
     buf = flight.onboard
     meta = LogMeta(vehicle=cfg.vehicle.name, mass_guess=mass_guess,
                    inertia_guess=None if inertia_guess is None else np.asarray(inertia_guess),
-                   gravity=cfg.vehicle.gravity, source=f"simulation (sensor {cfg.sensor})")
+                   gravity=cfg.vehicle.gravity, source=f"simulation (sensor {cfg.sensor})",
+                   calibration=(0.0, 0.0, 0.0))  # the applied wrench, exactly
     return FlightLog(
         t=flight.t.copy(), position=buf.position.copy(), velocity=buf.velocity.copy(),
         euler=buf.euler.copy(), gyro=buf.gyro.copy(), accel=buf.accel.copy(),
