@@ -16,7 +16,8 @@ is a named part of the standard error of p = [m, I_xx, I_yy, I_zz]:
 
 and the total is their root sum of squares (the parts are independent). The relative
 uncertainties r come from, in order: the log's sidecar (``calibration``: a simulator
-declares 0), the vehicle file (``[actuators]`` kf_se, yaw_ratio_se; ``[uncertainty]``),
+declares 0, and then the vehicle's model error, measured on its real flights, does not
+apply either), the vehicle file (``[actuators]`` kf_se, yaw_ratio_se; ``[uncertainty]``),
 else the defaults below, which the report names as defaults.
 """
 
@@ -112,6 +113,11 @@ def calibration_of(meta: LogMeta, measured_thrust: tuple[float, float] | None = 
         thrust, yaw, arm = meta.calibration
         for k in ("thrust", "yaw_torque", "arm"):
             sources[k] = "the log's sidecar (calibration)"
+        if not any(meta.calibration):  # a simulator's log: the rigid-body model is its truth
+            model = np.zeros(4)
+            sources["between_flights"] = ("0: the log declares its wrench exact (a "
+                                          "simulation), the vehicle's measured model error "
+                                          "is that of its real flights")
         return Calibration(thrust, yaw, arm, model, sources)
     if measured_thrust is not None:
         thrust, yaw = measured_thrust
