@@ -51,6 +51,10 @@ def one(log: Path, out: Path, extra: list[str]) -> dict:
             verdicts={k: v["verdict"] for k, v in est["verdict"]["parameters"].items()},
             overall=est["verdict"]["overall"],
             max_inertia=max(float(np.max(np.diag(np.asarray(e["inertia"])))) for e in entries),
+            # the largest inertia entry anywhere over its axis's upper edge of the search range
+            over_range=(max(float(np.max(np.diag(np.asarray(e["inertia"]))
+                                         / np.asarray(rep["search_range"]["inertia_hi"])))
+                            for e in entries) if rep.get("search_range") else float("nan")),
             effects=[s["effect"] for s in rep["discovery"]["selected"]],
             not_run=rep["discovery"].get("not_run"),
             unphysical=[u["effect"] for u in rep["discovery"].get("unphysical", [])])
@@ -70,7 +74,8 @@ def one(log: Path, out: Path, extra: list[str]) -> dict:
 
 def table(rows: list[dict]) -> str:
     lines = ["| log | exit | mass [g] (total se: parts) | I_xx, I_yy, I_zz [e-6 kg m^2] | "
-             "verdicts m/xx/yy/zz | largest inertia anywhere | effects kept | online: "
+             "verdicts m/xx/yy/zz | largest inertia anywhere (/ its range's top) | "
+             "effects kept | online: "
              "verdict, mass, largest inertia | bad text |", "|---" * 9 + "|"]
     short = {"trusted": "T", "not identifiable": "NI", "implausible": "IMP",
              "model not adequate": "NA", "not judged": "NJ"}
@@ -90,24 +95,28 @@ def table(rows: list[dict]) -> str:
                   f"{1e6 * r.get('online_max_inertia', np.nan):.4g} (exit {r['online_exit']})")
         lines.append(f"| {r['log']} | {r['exit']} | {1e3 * r['mass']:.2f} ± "
                      f"{1e3 * r['mass_se']:.2f} ({parts}) | {inertia} | {verdicts} | "
-                     f"{1e6 * r['max_inertia']:.4g} | {effects} | {online} | "
+                     f"{1e6 * r['max_inertia']:.4g} ({r['over_range']:.3f}) | {effects} | "
+                     f"{online} | "
                      f"{', '.join(r['bad_text']) or 'none'} |")
     return "\n".join(lines)
 
 
-def izz_chi2(rows: list[dict]) -> str:
-    trusted = [r for r in rows if "verdicts" in r and r["verdicts"]["I_zz"] == "trusted"]
-    if len(trusted) < 2:
-        return f"trusted I_zz: {len(trusted)} log(s), no chi-square"
-    x = np.array([r["inertia"][2] for r in trusted])
-    s = np.array([r["inertia_se"][2] for r in trusted])
+def chi2_line(rows: list[dict], index: int, name: str, trusted_only: bool) -> str:
+    """Chi-square of one inertia entry about its weighted mean, with total errors."""
+    use = [r for r in rows if "verdicts" in r
+           and (not trusted_only or r["verdicts"][name] == "trusted")]
+    what = "trusted" if trusted_only else "all"
+    if len(use) < 2:
+        return f"{what} {name}: {len(use)} log(s), no chi-square"
+    x = np.array([r["inertia"][index] for r in use])
+    s = np.array([r["inertia_se"][index] for r in use])
     w = 1 / s**2
     mu = float(np.sum(w * x) / np.sum(w))
     chi2 = float(np.sum(w * (x - mu) ** 2))
     worst = float(np.max(np.abs(x - mu) / s))
-    return (f"trusted I_zz on {len(trusted)} logs ({', '.join(r['log'] for r in trusted)}): "
-            f"weighted mean {1e6 * mu:.3g} e-6 kg m^2, chi-square {chi2:.2f} on "
-            f"{len(trusted) - 1} dof, largest |x - mean| / total se {worst:.2f}")
+    return (f"{what} {name} on {len(use)} logs: weighted mean {1e6 * mu:.3g} e-6 kg m^2, "
+            f"chi-square {chi2:.2f} on {len(use) - 1} dof (total errors), largest "
+            f"|x - mean| / total se {worst:.2f}")
 
 
 def main() -> int:
@@ -131,11 +140,14 @@ def main() -> int:
             print(table(rows))
             masses = [r for r in rows if "mass" in r]
             print(f"\nlogs {len(rows)}, with a report {len(masses)}; LAPACK/traceback text in "
-                  f"{sum(bool(r['bad_text']) for r in rows)}")
+                  f"{sum(bool(r['bad_text']) for r in rows)}; largest inertia entry anywhere "
+                  f"over its range's top: {max(r['over_range'] for r in masses):.4f}")
             if "IMRC" in title:
                 off = [abs(r["mass"] / 0.0347 - 1) for r in masses]
                 print(f"mass against the scale's 34.7 g: largest |error| {100 * max(off):.2f} %")
-                print(izz_chi2(rows))
+                for i, name in enumerate(("I_xx", "I_yy", "I_zz")):
+                    print(chi2_line(rows, i, name, True))
+                    print(chi2_line(rows, i, name, False))
             else:
                 parrot = [r for r in masses if "cf10" in r["log"]]
                 for r in parrot:

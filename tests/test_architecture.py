@@ -130,7 +130,10 @@ def test_no_import_cycle():
 def test_layers_import_only_downward():
     """import-linter's contracts (pyproject.toml): the layers, estimators knowing nothing
     of pinquad, the viewer running no estimation."""
-    exe = shutil.which("lint-imports")
+    # beside the interpreter running the tests first (a venv's python called without the
+    # venv on PATH), else on PATH
+    beside = Path(sys.executable).parent / "lint-imports"
+    exe = str(beside) if beside.is_file() else shutil.which("lint-imports")
     assert exe, "import-linter is a test dependency: pip install '.[test]'"
     out = subprocess.run([exe, "--no-cache"], cwd=ROOT, capture_output=True, text=True,
                          env={"PYTHONPATH": str(ROOT), "PATH": str(Path(exe).parent)})

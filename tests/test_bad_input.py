@@ -23,7 +23,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -336,13 +335,11 @@ def test_out_under_a_read_only_directory_or_naming_a_file_exits_2(flight_b, tmp_
     a_file.write_text("x")
     for out, words in ((read_only_directory(tmp_path) / "run", "ermission denied"),
                        (a_file, "is a file")):
-        t0 = time.perf_counter()
         code = offline_cli.main(["--log", str(path), "--out", str(out), "--no-discover"])
         out_err = capsys.readouterr()
         assert code == 2 and words in out_err.err, out_err.err
         # found before any work: nothing was identified
         assert "log type" not in out_err.out
-        assert time.perf_counter() - t0 < 5.0
     assert not Path("/sys/.run.lock").exists()
 
 
@@ -388,11 +385,9 @@ def test_every_command_checks_out_before_any_work(command, out_is_dir, tmp_path,
     if not out_is_dir:
         out = tmp_path / "file.txt"
         out.write_text("x")
-    t0 = time.perf_counter()
     assert module.main(["--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert str(out) in err and ("is a directory" in err or "is a file" in err), err
-    assert time.perf_counter() - t0 < 5.0
 
 
 SIGTERM_SCRIPT = """
@@ -419,8 +414,6 @@ def test_sigterm_while_writing_removes_the_staging_directory(tmp_path):
 
 
 @pytest.mark.parametrize("host", ["8.8.8.8", "no-such-host.invalid"])
-def test_viewer_exits_2_within_seconds_when_it_cannot_bind(host, tmp_path, capsys):
-    t0 = time.perf_counter()
+def test_viewer_exits_2_when_it_cannot_bind(host, tmp_path, capsys):
     assert viz_main([str(tmp_path), "--host", host]) == 2
     assert f"--host {host}" in capsys.readouterr().err
-    assert time.perf_counter() - t0 < 10.0

@@ -186,3 +186,15 @@ def test_another_labs_near_floor_flight(tmp_path):
     selected = {s["effect"]: s for s in report["discovery"]["selected"]}
     assert "ground_effect" in selected
     assert selected["ground_effect"]["coefficients"]["k_ge"] > 0
+
+
+def test_remaining_move_of_a_linearly_converging_em():
+    """Iterates x_k = 1 + 0.5^k: the rest of the way after x_K is 0.5^K exactly; a stalled
+    or diverging sequence has an infinite rest; a finished one none."""
+    from pinquad.identification.em import remaining_move
+
+    k = np.arange(10)
+    hist = np.column_stack([1 + 0.5**k, np.full(10, 2.0), 1 + k.astype(float)])
+    rest = remaining_move(hist)
+    assert rest[0] == pytest.approx(0.5**9, rel=1e-9)
+    assert rest[1] == 0.0 and np.isinf(rest[2])

@@ -50,10 +50,12 @@ def discovery_section(outcome: DiscoveryOutcome) -> dict:
     relative to the run directory (``figures/<name>``)."""
     if outcome.result is None:
         return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
-                "validation": "not run", "error": outcome.error, "not_run": outcome.not_run}
+                "validation": "not run", "error": outcome.error, "not_run": outcome.not_run,
+                "note": outcome.note, "unphysical": list(outcome.unphysical)}
     section = outcome.result.to_report()
     section["unphysical"] = list(outcome.unphysical)
     section["note"] = outcome.note
+    section["not_run"] = None
     section["figures"] = [f"figures/{Path(f).name}" for f in section["figures"]]
     if outcome.null is not None:
         section["null_calibration"] = outcome.null.to_report()

@@ -28,7 +28,7 @@ from pinquad.identification.fisher import (
 )
 from pinquad.identification.identify import Identification
 from pinquad.identification.mass_balance import balance_mass
-from pinquad.identification.search_range import at_bound
+from pinquad.identification.search_range import at_bound, unconverged
 from pinquad.identification.verdict import (
     EstimateVerdict,
     VerdictEvidence,
@@ -111,9 +111,12 @@ def run_budget(result: LogResult, run: Identification, values: Array | None = No
 
 def fit_evidence(result: LogResult, run: Identification) -> dict:
     """What the fit itself says against trusting a run (``VerdictEvidence`` fields):
-    EM did not converge, or parameters ended on the edge of the range EM searched."""
+    EM did not converge (unless its iterates have settled: the rest of the way,
+    ``em.remaining_move``, is under ``SETTLED_SHARE`` of every statistical standard
+    error, as when only a noise variance still creeps), or parameters ended on the edge
+    of the range EM searched."""
     out: dict = {}
-    if not run.converged:
+    if unconverged(run) is not None:
         why = f" ({run.failure})" if run.failure else ""
         out["not_converged"] = (f"EM did not converge in {run.e_steps or run.iterations} "
                                 f"E-steps{why}: the estimate is not the likelihood's maximum")
@@ -144,7 +147,9 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     if run.full is not None:
         s = np.asarray(run.full.stderr_inertia)
         products = np.array([s[0, 1], s[0, 2], s[1, 2]])
-    return judge(run.mass, run.inertia, run_budget(result, run).total, ev,
+    budget = run_budget(result, run)
+    ev = replace(ev, input_free_stderr=budget.total_without("input_reading"))
+    return judge(run.mass, run.inertia, budget.total, ev,
                  plausible_range(result), products, missing_stderr=run.stderr_problem)
 
 
@@ -190,6 +195,7 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
         statistical = np.asarray(stderr, dtype=float)
     budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
     stderr = budget.total
+    ev = replace(ev, input_free_stderr=budget.total_without("input_reading"))
     verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result),
                     missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,

@@ -229,6 +229,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
                          "with the regressor or paper M-step")
     runs: list[Identification] = []
     first = None
+    box = vehicle_range(log.meta.vehicle)  # the paper M-step's closed form is projected onto it
     for sensor in sensors:
         real = build_observations(raw, options_for_sensor(sensor, base), kf)
         label = sensor or ",".join(real.obs.channels)
@@ -244,7 +245,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
             # the paper's M-step knows no air-speed moment: the regressor run's is added
             obs = real.obs if theta is None else corrected(real.obs, theta)
             ident_p, post_p = identify(obs, mass0, inertia0, log.meta.gravity, options.estep,
-                                       "paper", options.max_iterations, False)
+                                       "paper", options.max_iterations, False, bounds=box)
             torques = ("with the regressor run's nuisance moment" if theta is not None
                        else "rotor torques only")
             runs.append(replace(ident_p, sensor=label, posterior=post_p, observations=obs,
@@ -255,7 +256,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
     real, smoothed = first
     return LogResult(tuple(runs), real.log, real.obs, smoothed, guess, real.excluded,
                      real.notes, kind, kf=real.kf, faults=tuple(real.faults.notes),
-                     contents=log_contents(log))
+                     contents=log_contents(log), search=box)
 
 
 def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity: float,

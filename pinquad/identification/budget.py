@@ -72,7 +72,12 @@ class ErrorBudget:
     @property
     def total(self) -> Array:
         """sqrt(sum of the parts' squares) (4,); NaN where the statistical part is."""
-        return np.sqrt(sum(np.asarray(p, dtype=float) ** 2 for p in self.parts.values()))
+        return self.total_without()
+
+    def total_without(self, *parts: str) -> Array:
+        """The total without the named parts (4,)."""
+        return np.sqrt(sum(np.asarray(p, dtype=float) ** 2 for k, p in self.parts.items()
+                           if k not in parts))
 
     def to_report(self) -> dict:
         """report.json's ``stderr_parts``: per part, the mass's and the inertia

@@ -243,3 +243,23 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
                       if ll[i] < ll[i - 1] - 1e-6 * abs(ll[i - 1]))
     return EMResult(theta, post, np.asarray(masses[1:]), np.vstack(inertias[1:]), ll,
                     converged, decreases, n_esteps, failure)
+
+
+SETTLED_SHARE = 0.1
+"""An unconverged EM whose estimate would still move by less than this share of each
+parameter's statistical standard error has settled (``remaining_move``)."""
+
+
+def remaining_move(history: Array) -> Array:
+    """How far EM's iterates (K, p) would still move per parameter (p,) if it went on, from
+    their last two steps d_{K-1}, d_{K-2}: under linear convergence at rate
+    rho = |d_{K-1}| / |d_{K-2}| the rest of the way is |d_{K-1}| rho / (1 - rho) (inf when
+    rho >= 1 or fewer than three iterates)."""
+    h = np.asarray(history, dtype=float)
+    if h.shape[0] < 3:
+        return np.full(h.shape[1], np.inf)
+    last, before = np.abs(h[-1] - h[-2]), np.abs(h[-2] - h[-3])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.where(before > 0, last / before, np.where(last > 0, np.inf, 0.0))
+        return np.where(rho < 1.0, last * rho / (1.0 - rho), np.where(last > 0, np.inf, 0.0))
+

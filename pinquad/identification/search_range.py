@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.params import VehicleRange
+from pinquad.identification.em import SETTLED_SHARE, remaining_move
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import FlightLog
@@ -84,10 +85,18 @@ def at_bound(values: Array, bounds: VehicleRange) -> list[str]:
 
 
 def unconverged(run: Identification) -> str | None:
-    """Why a base fit is no ground for effect discovery at all: EM did not converge (its
-    residual is that of an arbitrary point, not of the model's best fit); None when it
-    converged."""
+    """Why a fit is not the likelihood's maximum (and no ground for effect discovery: its
+    residual is that of an arbitrary point): EM did not converge and its iterates have not
+    settled; None when it converged, or when the rest of the way (``em.remaining_move``)
+    is under ``SETTLED_SHARE`` of every statistical standard error (only a noise variance
+    still creeps)."""
     if run.converged:
+        return None
+    history = np.column_stack([run.history_mass, run.history_inertia])
+    stat = (getattr(run.measured, "se_stat", None) if run.measured is not None
+            else np.asarray(run.stderr, dtype=float))
+    if (run.failure is None and stat is not None and np.all(np.isfinite(stat))
+            and np.all(remaining_move(history) < SETTLED_SHARE * np.asarray(stat))):
         return None
     why = run.failure or "EM stopped at its E-step limit"
     return (f"the base fit did not converge ({why}): discovery needs a base fit at the "

@@ -145,7 +145,10 @@ class VerdictEvidence:
     the range EM searched (``search_range``), described by bound_source; not_converged:
     why the fit is not the likelihood's maximum (EM stopped before it converged), else
     None; model_free_mass (value, standard error) [kg] or None: the mass that balances
-    the flight's mean vertical force without the dynamic model (``mass_balance``).
+    the flight's mean vertical force without the dynamic model (``mass_balance``);
+    input_free_stderr (4,) or None: the standard errors without the input reading's part,
+    which the input alternative's shift is compared with (an error that counts the
+    shift would always cover it).
     """
 
     torque_share: Array = field(default_factory=lambda: np.full(3, np.nan))
@@ -158,6 +161,7 @@ class VerdictEvidence:
     bound_source: str = ""
     not_converged: str | None = None
     model_free_mass: tuple[float, float] | None = None
+    input_free_stderr: Array | None = None
 
 
 @dataclass(frozen=True)
@@ -242,6 +246,8 @@ def _input_check(name: str, index: int, value: float, se: float, evidence: Verdi
                  scale: float, unit: str, th: VerdictThresholds) -> list[str]:
     if evidence.input_alternative is None:
         return []
+    if evidence.input_free_stderr is not None:  # the budget's total counts the shift itself
+        se = float(evidence.input_free_stderr[index])
     alt = float(evidence.input_alternative[index])
     shift = abs(value - alt)
     if shift <= th.max_input_shift * abs(value) or (np.isfinite(se) and shift <= 2.0 * se):

@@ -24,8 +24,24 @@ LOG_REPORT_KEYS: dict[str, str] = {
     "estimates": "the estimate under the final model: discovery's refit when effects were "
                  "selected, else the base fit (every report.json's estimate keys plus the keys below)",
     "estimates.verdict": "{'overall', 'reasons', 'parameters': {name: {'verdict', "
-                         "'reasons'}}}; verdicts: trusted, not identifiable, model not "
-                         "adequate, implausible (pinquad.identification.verdict)",
+                         "'reasons'}}}; verdicts: trusted, not judged, not identifiable, "
+                         "model not adequate, implausible (pinquad.identification.verdict)",
+    "estimates.stderr_parts": "the error budget: {part: {'mass' [kg], 'inertia_diag' [kg m^2] "
+                              "(3)}} for statistical, thrust_calibration, "
+                              "yaw_torque_coefficient, arm_length, input_reading, "
+                              "between_flights (and rotor_speed_repair); 'assumed': the "
+                              "relative uncertainties and where each came from; "
+                              "estimates.stderr is their root sum of squares "
+                              "(pinquad.identification.budget)",
+    "search_range": "where EM searched mass and inertia: {'mass': [lo, hi] [kg], "
+                    "'inertia_lo', 'inertia_hi' (3) [kg m^2], 'source'}; null: unbounded "
+                    "(pinquad.identification.search_range)",
+    "discovery.not_run": "why discovery did not run on this base fit (unconverged, or outside "
+                         "the physical set and no effect brings it inside), else null",
+    "discovery.note": "what discovery looked for when the base fit's inertia is undetermined",
+    "discovery.unphysical": "effects whose best fit is outside their physical domain, not "
+                            "kept: [{'effect', 'reason', 'closest_unphysical_fit', 'stderr', "
+                            "'unexplained_rows': {axis: {'rms_before', 'rms_after', 'share'}}}]",
     "estimates.model": "the model the estimate was fitted under, in words",
     "estimates.stderr_note": "how its standard errors were computed",
     "base": "the base fit (the first run), the same layout as estimates",
@@ -227,6 +243,11 @@ class RunWriter:
         if self._staging is None:
             self._staging = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.",
                                                   dir=self.target.parent))
+            # mkdtemp's folder is private to its owner; a run directory gets the
+            # permissions any new folder of the user gets
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(self._staging, 0o777 & ~umask)
         return self._staging
 
     def path(self, name: str) -> Path:

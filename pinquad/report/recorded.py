@@ -312,7 +312,8 @@ def report_json(result: LogResult, path: str, estep: str, seconds: float,
     (discovery's refit when effects were selected, else the base fit) with its verdict,
     the base fit under ``base`` (same layout), the headline's ``verdict``, every run with
     its details and verdict, exclusions, notes, the kf and fault notes of measured
-    flights, and the discovery section (``not run`` when None)."""
+    flights, the discovery section (``not run`` when None) and ``search_range``: where EM
+    searched mass and inertia (None: unbounded)."""
     main = result.runs[0]
     report = {
         "schema": REPORT_SCHEMA,
@@ -325,7 +326,8 @@ def report_json(result: LogResult, path: str, estep: str, seconds: float,
         "em": _em(main),
         "discovery": discovery if discovery is not None else {
             "selected": [], "residual_rms_before": {}, "residual_rms_after": {},
-            "validation": "not run"},
+            "validation": "not run", "not_run": "not asked for", "note": None,
+            "unphysical": []},
         "excluded": list(result.excluded),
         "cycles": [],
         "run_logs": {"log": {"log": "logs/flight.parquet",
@@ -336,6 +338,9 @@ def report_json(result: LogResult, path: str, estep: str, seconds: float,
                  for r, v in zip(result.runs, headline.run_verdicts, strict=True)],
         "notes": list(result.notes),
         "seconds": seconds,
+        "search_range": None if result.search is None else {
+            "mass": list(result.search.mass), "inertia_lo": result.search.inertia_lo.tolist(),
+            "inertia_hi": result.search.inertia_hi.tolist(), "source": result.search.source},
     }
     if result.kf is not None:
         kf = result.kf
