@@ -253,7 +253,8 @@ def test_offline_cli_identifies_a_real_log(tmp_path):
     assert len(est["stderr"]["inertia_diag"]) == 3 and est["stderr"]["mass"] > 0
     assert set(report["em"]) >= {"iterations", "loglik", "converged"}
     assert report["discovery"] == {"selected": [], "residual_rms_before": {},
-                                   "residual_rms_after": {}, "validation": "not run"}
+                                   "residual_rms_after": {}, "validation": "not run",
+                                   "not_run": "not asked for", "note": None, "unphysical": []}
     assert report["cycles"] == [] and report["excluded"]
     # the model-free mass check rides along: within 0.5 % of EM's mass on this clean log,
     # and with every rotor measured the measured motors carry all of it
