@@ -213,7 +213,7 @@ def start_from(obs: Observations, theta: Theta | RealTheta, posterior: Posterior
 def log_kind(log: FlightLog) -> str:
     """``simulated`` (thrust and torque columns), ``sdlog`` (a Crazyflie micro-SD log) or
     ``measured-table`` (a table of rotor speeds): what ``identify_log`` dispatches on."""
-    if log.thrust is not None:
+    if log.thrust is not None and not (log.meta.wrench_from_rpm and log.rpm is not None):
         return "simulated"
     return "sdlog" if log.measured is not None else "measured-table"
 
@@ -254,7 +254,8 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
                 first = (real, post_p.mean)
     assert first is not None
     real, smoothed = first
-    return LogResult(tuple(runs), real.log, real.obs, smoothed, guess, real.excluded,
+    exported = replace(real.log, meta=replace(real.log.meta, wrench_from_rpm=True))
+    return LogResult(tuple(runs), exported, real.obs, smoothed, guess, real.excluded,
                      real.notes, kind, kf=real.kf, faults=tuple(real.faults.notes),
                      contents=log_contents(log), search=box)
 
@@ -374,7 +375,8 @@ def identify_log(log: FlightLog, options: LogOptions | None = None,
     kind = log_kind(log)
     if kind == "simulated":
         return _with_applied_wrench(log, options, executor)
-    return _measured(log, options, kind)
+    # an export's thrust and torques are its rotor speeds' own: identified from the latter
+    return _measured(replace(log, thrust=None, torque=None), options, kind)
 
 
 SAMPLED_NUISANCE = (0,)

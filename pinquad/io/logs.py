@@ -11,6 +11,7 @@ yaw``; ``gyro_*`` [rad/s, body]; ``acc_*`` [m/s^2, body specific force]; actuati
 
 from __future__ import annotations
 
+import csv
 import io
 import json
 import math
@@ -63,7 +64,10 @@ class LogMeta:
     and the arm length behind the roll and pitch torques, as the sidecar's
     ``calibration`` declares them (0, 0, 0: the applied wrench exactly, as a simulator
     logs it), or None (not declared: the vehicle file's or pinquad's defaults,
-    ``identification.budget``).
+    ``identification.budget``); wrench_from_rpm: the thrust and torque columns were
+    computed from the rotor speeds (pinquad's export of a measured flight; sidecar
+    ``"wrench": "from rpm"``): the log is identified from its rotor speeds, as the
+    flight it was exported from.
     """
 
     vehicle: str = "paper"
@@ -76,6 +80,7 @@ class LogMeta:
     actuation_declared: bool = True
     vehicle_named: bool = True
     calibration: tuple[float, float, float] | None = None
+    wrench_from_rpm: bool = False
     t_origin: float = 0.0
 
 
@@ -236,6 +241,7 @@ def sidecar(meta: LogMeta) -> dict:
         "actuation": meta.actuation,
         **({} if meta.calibration is None else {"calibration": dict(zip(
             CALIBRATION_KEYS, meta.calibration, strict=True))}),
+        **({"wrench": WRENCH_FROM_RPM} if meta.wrench_from_rpm else {}),
     }
 
 
@@ -289,20 +295,25 @@ def _read_table(path: Path) -> dict[str, Array]:
 
 
 def _read_csv(path: Path) -> dict[str, Array]:
+    """The columns of a CSV file (the standard library's reader: quoted names and cells, as
+    spreadsheets and pyarrow write them, read as their text)."""
     # utf-8-sig: a spreadsheet's byte-order mark is not part of the first column's name
     text = path.read_text(encoding="utf-8-sig", errors="replace")
-    lines = [ln for ln in text.splitlines() if ln.strip()]
-    if not lines:
+    try:
+        rows = [(n, row) for n, row in _numbered_rows(text) if any(c.strip() for c in row)]
+    except csv.Error as exc:
+        raise LogFormatError(f"{path}: not a CSV table ({exc}); expected comma-separated "
+                             "numbers under a header row of column names") from None
+    if not rows:
         raise LogFormatError(f"{path}: empty file; expected a header row with column names")
-    header = [h.strip() for h in lines[0].split(",")]
-    if len(lines) < 2:
+    header = [h.strip() for h in rows[0][1]]
+    if len(rows) < 2:
         raise LogFormatError(f"{path}: no data rows after the header")
-    data = np.full((len(lines) - 1, len(header)), np.nan)
-    for r, line in enumerate(lines[1:]):
-        cells = line.split(",")
+    data = np.full((len(rows) - 1, len(header)), np.nan)
+    for r, (line, cells) in enumerate(rows[1:]):
         if len(cells) != len(header):
             raise LogFormatError(
-                f"{path}: line {r + 2} has {len(cells)} fields; expected {len(header)} "
+                f"{path}: line {line} has {len(cells)} fields; expected {len(header)} "
                 f"(one per header column)")
         for c, cell in enumerate(cells):
             cell = cell.strip()
@@ -312,9 +323,15 @@ def _read_csv(path: Path) -> dict[str, Array]:
                 data[r, c] = float(cell)
             except ValueError:
                 raise LogFormatError(
-                    f"{path}: line {r + 2}, column {header[c]!r}: {cell!r} is not a number"
+                    f"{path}: line {line}, column {header[c]!r}: {cell!r} is not a number"
                 ) from None
     return {name: data[:, i] for i, name in enumerate(header)}
+
+
+def _numbered_rows(text: str) -> list[tuple[int, list[str]]]:
+    """(line number of its end, cells) of every CSV row of ``text``."""
+    reader = csv.reader(io.StringIO(text))
+    return [(reader.line_num, row) for row in reader]
 
 
 def _cols3(cols: dict[str, Array], prefix: str, n: int) -> Array:
@@ -439,7 +456,23 @@ def _read_sidecar(path: Path) -> LogMeta:
         actuation_declared="actuation" in raw,
         vehicle_named="vehicle" in raw,
         calibration=_calibration(side, raw.get("calibration")),
+        wrench_from_rpm=_wrench_from_rpm(side, raw.get("wrench")),
     )
+
+
+WRENCH_FROM_RPM = "from rpm"
+"""The sidecar's ``wrench`` value of a log whose thrust and torques were computed from
+its rotor speeds (``LogMeta.wrench_from_rpm``)."""
+
+
+def _wrench_from_rpm(side: Path, raw: object) -> bool:
+    if raw is None:
+        return False
+    if raw != WRENCH_FROM_RPM:
+        raise LogFormatError(f"{side}: key 'wrench' is {raw!r}; expected {WRENCH_FROM_RPM!r} "
+                             "(the thrust and torque columns were computed from rpm_1..) or "
+                             "no such key (they are the applied or commanded wrench)")
+    return True
 
 
 CALIBRATION_KEYS = ("thrust", "yaw_torque", "arm")
@@ -470,6 +503,7 @@ def read_log(path: str | Path) -> FlightLog:
     if path.is_dir():
         raise LogFormatError(f"{path}: is a directory; expected a log file")
     cols = _read_table(path)
+    meta = _read_sidecar(path)
     if "t" not in cols:
         raise LogFormatError(f"{path}: missing required column 't' (time in seconds)")
     _check_groups(path, cols)
@@ -499,7 +533,9 @@ def read_log(path: str | Path) -> FlightLog:
         euler = _nan3(n)
 
     thrust = torque = rpm = None
-    if "thrust" in cols:
+    # an export's thrust and torques were computed from its rotor speeds: read those
+    from_rpm = meta.wrench_from_rpm and "rpm_1" in cols
+    if "thrust" in cols and not from_rpm:
         missing = [f"torque_{a}" for a in "xyz" if f"torque_{a}" not in cols]
         if missing:
             raise LogFormatError(f"{path}: has 'thrust' but lacks {', '.join(missing)}")
@@ -538,7 +574,7 @@ def read_log(path: str | Path) -> FlightLog:
         t=t, position=_cols3(cols, "pos", n), velocity=_cols3(cols, "vel", n), euler=euler,
         gyro=_cols3(cols, "gyro", n), accel=_cols3(cols, "acc", n), thrust=thrust,
         torque=torque, rpm=rpm, vbat=cols.get("vbat"), contact=contact, truth=truth,
-        onboard=onboard, meta=_with_time_notes(replace(_read_sidecar(path), t_origin=t_origin), t),
+        onboard=onboard, meta=_with_time_notes(replace(meta, t_origin=t_origin), t),
     )
 
 
