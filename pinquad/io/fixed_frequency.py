@@ -77,6 +77,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import euler_from_rotation, rotation_from_quat_wxyz
 from pinquad.io.logs import FlightLog, LogFormatError, LogMeta
+from pinquad.io.sdlog import STRUCT_TYPES as _TYPES
 
 Array = NDArray[np.float64]
 
@@ -87,11 +88,6 @@ TIME_VARIABLE = "tick"
 """The logger's time stamp variable (uint32, us on the Neural-Swarm flights)."""
 MS_BELOW = 50.0
 """A median tick step below this is read as milliseconds (1 kHz ticks), else as us."""
-_TYPES: dict[str, str] = {
-    "b": "<i1", "B": "<u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4",
-    "l": "<i4", "L": "<u4", "q": "<i8", "Q": "<u8", "e": "<f2", "f": "<f4", "d": "<f8",
-    "?": "<u1",
-}
 _DECL_RE = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_.\[\]]*)\((?P<type>.)\)$")
 _SIGNATURE = re.compile(rb"\([bBhHiIlLqQefd?]\),")
 _MAX_NAME = 128

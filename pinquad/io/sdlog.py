@@ -50,12 +50,14 @@ GRID_EVENT = "fixedFrequency"
 POSE_EVENT = "estPose"
 """The event carrying the motion-capture pose sent to the vehicle (about 100 Hz)."""
 
-# struct format character -> little-endian numpy dtype of the stored value.
-_TYPES: dict[str, str] = {
+STRUCT_TYPES: dict[str, str] = {
     "b": "<i1", "B": "<u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4",
     "l": "<i4", "L": "<u4", "q": "<i8", "Q": "<u8", "e": "<f2", "f": "<f4", "d": "<f8",
     "?": "<u1",
 }
+"""struct format character -> little-endian numpy dtype of the stored value (both
+micro-SD layouts declare their variables as ``name(T)``)."""
+_TYPES = STRUCT_TYPES
 _TIMESTAMP = {1: ("<u4", 1e-3), 2: ("<u8", 1e-6)}  # version -> (dtype, seconds per tick)
 _VAR_RE = re.compile(r"^(?P<name>[^()]+)\((?P<type>.)\)$")
 
