@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.core.execution import Backend, open_executor
+from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.discover import Selection, refit_selection, select_effects
 from pinquad.discovery.domain import outside_domain, unexplained_residual
 from pinquad.discovery.null import (
@@ -229,7 +230,10 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
                          "with the regressor or paper M-step")
     runs: list[Identification] = []
     first = None
-    box = vehicle_range(log.meta.vehicle)  # the paper M-step's closed form is projected onto it
+    # the paper M-step's closed form is projected onto the range of the vehicle whose
+    # mixer reads the rotor speeds (a name that is not a file reads as crazyflie21)
+    vehicle = log.meta.vehicle
+    box = vehicle_range(vehicle if is_vehicle_file(vehicle) else "crazyflie21")
     for sensor in sensors:
         real = build_observations(raw, options_for_sensor(sensor, base), kf)
         label = sensor or ",".join(real.obs.channels)
