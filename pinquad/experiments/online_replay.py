@@ -169,7 +169,9 @@ def replay_verdict(fit: StreamFit, meta: LogMeta, vrange: VehicleRange | None,
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
         stat = np.full(4, np.nan)
     budget = error_budget(values, stat, calibration_of(meta, measured_thrust))
-    evidence = data_evidence(win, plain, fit.posterior.mean)
+    # a measured flight's window M-step reads the inertia from its torque band only
+    band = None if measured_thrust is None else RealMStep().band
+    evidence = data_evidence(win, plain, fit.posterior.mean, band)
     if bounds is not None:
         evidence = replace(evidence, at_bound=tuple(at_bound(values, bounds)),
                            bound_source=bounds.source)
