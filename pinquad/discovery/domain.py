@@ -26,6 +26,8 @@ NON_NEGATIVE = {"drag": (0, 1, 2), "ground_effect": (0,), "motor_lag": (0,)}
 """Effect -> the indices of its coefficients that cannot be negative."""
 GROUND_REACH = 4.0
 """Ground effect needs data below this many effect radii above the floor [-]."""
+FORCE_EFFECTS = ("drag", "ground_effect", "wind")
+"""Effects on the force rows only: they rest on the mass, not on the inertia."""
 DOMAIN_SE = 2.0
 """Standard errors beyond the domain's edge that make a coefficient outside it."""
 

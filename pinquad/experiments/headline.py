@@ -26,9 +26,9 @@ from pinquad.identification.fisher import (
     observed_information,
     standard_errors,
 )
-from pinquad.identification.identify import Identification
+from pinquad.identification.identify import Identification, unconverged
 from pinquad.identification.mass_balance import balance_mass
-from pinquad.identification.search_range import at_bound, unconverged
+from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import (
     EstimateVerdict,
     VerdictEvidence,
@@ -180,19 +180,17 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
                      bound_source=result.search.source)
     missing = run.stderr_problem
     if discovery_config(result.kind).refit_em:
-        stderr = standard_errors(observed_information(obs, theta, loglik_quad))
+        statistical = standard_errors(observed_information(obs, theta, loglik_quad))
         missing = STDERR_UNAVAILABLE
         note = ("observed information of the EKF likelihood on the observations with the "
                 "selected effects' thrust and torque folded in (body x/y forces of drag or "
                 "wind are not in this likelihood)")
-    else:
-        stderr = base.stderr
+    else:  # the base fit's statistical errors (a measured flight's, when it is one)
+        assert base.budget is not None
+        statistical = (run.measured.se_stat if run.measured is not None
+                       else base.budget.parts["statistical"])
         note = ("the base fit's (discovery keeps the base inertia and refits the mass on the "
                 "base posterior's force rows)")
-    if run.measured is not None and not discovery_config(result.kind).refit_em:
-        statistical = run.measured.se_stat
-    else:
-        statistical = np.asarray(stderr, dtype=float)
     budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
     stderr = budget.total
     ev = replace(ev, input_free_stderr=budget.total_without("input_reading"))

@@ -17,7 +17,7 @@ from estimators.protocol import Posterior
 from pinquad.core.params import VehicleRange
 from pinquad.estep.fast_smoother import loglik_quad
 from pinquad.identification.budget import ErrorBudget, calibration_of, error_budget
-from pinquad.identification.em import initial_theta
+from pinquad.identification.em import initial_theta, project
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
     observed_information,
@@ -125,7 +125,7 @@ def stream_fit(obs: Observations, mass0: float, inertia0: Array, gravity: float,
         if warm_up:
             theta = initial_theta(win, mass0, inertia0, gravity)
             if bounds is not None:
-                theta = _inside(theta, bounds)
+                theta = project(theta, bounds)
         mstep, model_of = functools.partial(regressor_mstep, bounds=bounds), QuadSSM
         if rotor_acc is not None:
             theta = _measured_theta(theta, previous, start, win, rotor_acc[start:k + 1])
@@ -133,20 +133,12 @@ def stream_fit(obs: Observations, mass0: float, inertia0: Array, gravity: float,
         theta, post = window_em(win, theta, warm_up, iterations, smoother, mstep, earlier,
                                 model_of)
         if bounds is not None:
-            theta = _inside(theta, bounds)
+            theta = project(theta, bounds)
         previous = (start, post, win)
         lat.append(time.perf_counter() - t0)
         rows.append([k, obs.t[k], theta.mass, *np.diag(theta.inertia)])
     last = (None, None, None) if previous is None else (theta, previous[1], previous[2])
     return StreamFit(np.asarray(rows), np.asarray(lat), *last)
-
-
-def _inside(theta: Theta, bounds: VehicleRange) -> Theta:
-    """theta's mass and inertia diagonal projected onto ``bounds``."""
-    return replace(theta, mass=bounds.clip_mass(theta.mass),
-                   inertia=np.diag(bounds.clip_inertia(np.diag(theta.inertia))))
-
-
 
 
 def replay_verdict(fit: StreamFit, meta: LogMeta, vrange: VehicleRange | None,

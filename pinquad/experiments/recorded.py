@@ -34,7 +34,7 @@ from estimators.protocol import Posterior
 from pinquad.core.execution import Backend, open_executor
 from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.discover import Selection, refit_selection, select_effects
-from pinquad.discovery.domain import outside_domain, unexplained_residual
+from pinquad.discovery.domain import FORCE_EFFECTS, outside_domain, unexplained_residual
 from pinquad.discovery.null import (
     NullCalibration,
     NullSettings,
@@ -47,8 +47,8 @@ from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
-from pinquad.identification.identify import Identification, identify
-from pinquad.identification.search_range import outside_range, search_range, unconverged
+from pinquad.identification.identify import Identification, identify, unconverged
+from pinquad.identification.search_range import outside_range, search_range
 from pinquad.identification.verdict import VehicleRange, vehicle_range
 from pinquad.io.logs import FlightLog, log_contents
 from pinquad.io.sanity import check_log
@@ -483,9 +483,6 @@ def run_discovery(result: LogResult, null: NullSettings | None = None,
         + ": the log does not determine the fit, and effects read from its residual "
         "would not be there"))
 
-
-FORCE_EFFECTS = ("drag", "ground_effect", "wind")
-"""Effects on the force rows only: they rest on the mass, not on the inertia."""
 
 
 def input_reading(kind: str, log: FlightLog) -> str:

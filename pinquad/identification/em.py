@@ -79,6 +79,13 @@ def initial_theta(obs: Observations, mass: float, inertia: Array, gravity: float
                  noise=paper_noise(3 * len(obs.channels)), gravity=gravity)
 
 
+def project(theta: Theta, bounds: VehicleRange) -> Theta:
+    """theta with its mass and inertia diagonal projected onto ``bounds`` (the rest,
+    noise included, as it is)."""
+    return replace(theta, mass=bounds.clip_mass(theta.mass),
+                   inertia=np.diag(bounds.clip_inertia(np.diag(theta.inertia))))
+
+
 def _pack(theta: Theta) -> Array:
     """log-parameter vector [m, I diag (3), S (6), r (m)] for extrapolation."""
     nz = theta.noise
@@ -169,10 +176,7 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
         inertias.append(inertia_of(theta))
 
     def inside(candidate: Theta) -> Theta:
-        if bounds is None or not is_quad:
-            return candidate
-        return replace(candidate, mass=bounds.clip_mass(candidate.mass),
-                       inertia=np.diag(bounds.clip_inertia(np.diag(candidate.inertia))))
+        return candidate if bounds is None or not is_quad else project(candidate, bounds)
 
     theta = inside(theta0)
     post = e_step(theta)

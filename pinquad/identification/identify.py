@@ -14,7 +14,16 @@ from estimators.iterated import smooth as iterated_smooth
 from estimators.protocol import Posterior
 from pinquad.core.params import VehicleRange
 from pinquad.estep.fast_smoother import loglik_quad, smooth_quad
-from pinquad.identification.em import EMResult, MStep, Smoother, initial_theta, run_em
+from pinquad.identification.em import (
+    SETTLED_SHARE,
+    EMResult,
+    MStep,
+    Smoother,
+    initial_theta,
+    project,
+    remaining_move,
+    run_em,
+)
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
     observed_information,
@@ -154,9 +163,7 @@ def bounded_mstep(mstep: str, bounds: VehicleRange | None) -> MStep:
 
     def projected(post: Posterior, obs: Observations, theta: Theta) -> MStepResult:
         out = base(post, obs, theta)
-        new = replace(out.theta, mass=bounds.clip_mass(out.theta.mass),
-                      inertia=np.diag(bounds.clip_inertia(np.diag(out.theta.inertia))))
-        return replace(out, theta=new)
+        return replace(out, theta=project(out.theta, bounds))
 
     return projected
 
@@ -200,3 +207,20 @@ def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, e
     return out, res.posterior
 
 
+def unconverged(run: Identification) -> str | None:
+    """Why a fit is not the likelihood's maximum (and no ground for effect discovery: its
+    residual is that of an arbitrary point): EM did not converge and its iterates have not
+    settled; None when it converged, or when the rest of the way (``em.remaining_move``)
+    is under ``SETTLED_SHARE`` of every statistical standard error (only a noise variance
+    still creeps)."""
+    if run.converged:
+        return None
+    history = np.column_stack([run.history_mass, run.history_inertia])
+    stat = (getattr(run.measured, "se_stat", None) if run.measured is not None
+            else np.asarray(run.stderr, dtype=float))
+    if (run.failure is None and stat is not None and np.all(np.isfinite(stat))
+            and np.all(remaining_move(history) < SETTLED_SHARE * np.asarray(stat))):
+        return None
+    why = run.failure or "EM stopped at its E-step limit"
+    return (f"the base fit did not converge ({why}): discovery needs a base fit at the "
+            "likelihood's maximum")

@@ -24,8 +24,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.params import VehicleRange
-from pinquad.identification.em import SETTLED_SHARE, remaining_move
-from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import FlightLog
 
@@ -82,25 +80,6 @@ def at_bound(values: Array, bounds: VehicleRange) -> list[str]:
     v = np.asarray(values, dtype=float)
     edge = (np.abs(v - lo) <= EDGE_RTOL * lo) | (np.abs(v - hi) <= EDGE_RTOL * hi)
     return [n for n, e in zip(("mass", "I_xx", "I_yy", "I_zz"), edge, strict=True) if e]
-
-
-def unconverged(run: Identification) -> str | None:
-    """Why a fit is not the likelihood's maximum (and no ground for effect discovery: its
-    residual is that of an arbitrary point): EM did not converge and its iterates have not
-    settled; None when it converged, or when the rest of the way (``em.remaining_move``)
-    is under ``SETTLED_SHARE`` of every statistical standard error (only a noise variance
-    still creeps)."""
-    if run.converged:
-        return None
-    history = np.column_stack([run.history_mass, run.history_inertia])
-    stat = (getattr(run.measured, "se_stat", None) if run.measured is not None
-            else np.asarray(run.stderr, dtype=float))
-    if (run.failure is None and stat is not None and np.all(np.isfinite(stat))
-            and np.all(remaining_move(history) < SETTLED_SHARE * np.asarray(stat))):
-        return None
-    why = run.failure or "EM stopped at its E-step limit"
-    return (f"the base fit did not converge ({why}): discovery needs a base fit at the "
-            "likelihood's maximum")
 
 
 def outside_range(values: Array, search: VehicleRange | None,
