@@ -223,3 +223,25 @@ STATE_NAMES = (
     "pos_x", "pos_y", "pos_z", "vel_x", "vel_y", "vel_z",
     "roll", "pitch", "yaw", "gyro_x", "gyro_y", "gyro_z",
 )
+
+
+# PX4 logs: NED world (x north, y east, z down) and FRD body (x forward, y right, z down).
+# Both differ from pinquad's frames by the half turn about x, D = diag(1, -1, -1), so
+# a vector maps as v = D v_ned (v_b = D v_frd) and the body-to-world rotation as
+# R = D R_ned_frd D. Conjugating by a half turn about x keeps the rotation angle and maps
+# its axis through D, hence the quaternion rule below.
+NED_FRD_FLIP = np.array([1.0, -1.0, -1.0])
+"""The diagonal of D = diag(1, -1, -1) [1]: NED -> world, FRD -> body, and back."""
+
+
+def vector_from_ned_frd(vec: Array) -> Array:
+    """A world vector from NED components, or a body vector from FRD components:
+    ``D v`` (D = diag(1, -1, -1)). (..., 3) -> (..., 3), units unchanged."""
+    return np.asarray(vec, dtype=float) * NED_FRD_FLIP
+
+
+def quat_wxyz_from_ned_frd(quat: Array) -> Array:
+    """pinquad's body-to-world quaternion (w, x, y, z) of a PX4 FRD-body-to-NED-world
+    quaternion (w, x, y, z): R = D R_ned_frd D, i.e. (w, x, -y, -z). (..., 4) -> (..., 4)."""
+    q = np.asarray(quat, dtype=float)
+    return q * np.array([1.0, 1.0, -1.0, -1.0])

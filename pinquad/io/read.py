@@ -8,7 +8,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from pinquad.core.vehicle_file import SHIPPED, is_vehicle_file
-from pinquad.io import fixed_frequency, logs, sdlog
+from pinquad.io import ddd_csv, fixed_frequency, logs, sdlog, ulog
+from pinquad.io.command_log import CommandLog
 from pinquad.io.logs import FlightLog, LogFormatError, vehicle_file_named
 
 
@@ -25,9 +26,35 @@ def read_log(path: str | Path) -> FlightLog:
         raise LogFormatError(f"{path}: is a directory; expected a log file")
     if sdlog.is_sdlog(path):
         return with_sidecar_vehicle(sdlog.read_sdlog(path))
+    if is_command_log(path):
+        read_command_log(path)  # its own errors first (e.g. no armed flight segment)
+        raise LogFormatError(f"{path}: a PX4 log: its actuation is motor commands, not thrust "
+                             "or rotor speeds; identify it with --mass KG (known-mass mode, "
+                             "docs/px4.md)")
     if _is_fixed_frequency(path):
         return with_sidecar_vehicle(fixed_frequency.read_fixed_frequency(path))
     return logs.read_log(path)
+
+
+def is_command_log(path: Path) -> bool:
+    """Whether a file is a PX4 log: a ULog by its magic bytes, or a CSV with the
+    data-driven-dynamics columns (``pinquad.io.ddd_csv``)."""
+    return ulog.is_ulog(path) or ddd_csv.is_ddd_csv(path)
+
+
+def read_command_log(path: str | Path) -> CommandLog:
+    """The flight in a PX4 log (ULog or data-driven-dynamics CSV), motor commands as its
+    actuation. Raises LogFormatError naming the file and what was expected."""
+    path = Path(path)
+    if not path.is_file():
+        raise LogFormatError(f"{path}: no such file; expected a PX4 ULog (.ulg) or a "
+                             "data-driven-dynamics CSV")
+    if ulog.is_ulog(path):
+        return ulog.read_ulog(path)
+    if ddd_csv.is_ddd_csv(path):
+        return ddd_csv.read_ddd_csv(path)
+    raise LogFormatError(f"{path}: neither a ULog (magic bytes 'ULog') nor a CSV with the "
+                         f"data-driven-dynamics columns ({', '.join(ddd_csv.REQUIRED)})")
 
 
 def _is_fixed_frequency(path: Path) -> bool:
