@@ -39,6 +39,7 @@ from pinquad.cli.common import (
 )
 from pinquad.cli.file_vehicle import run_file_vehicle
 from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
+from pinquad.cli.known_mass import run_known_mass
 from pinquad.core.execution import open_executor
 from pinquad.core.params import PAPER_SCENARIO
 from pinquad.core.vehicle_file import is_vehicle_file
@@ -136,6 +137,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-discover", action="store_true",
                    help="with --log: skip the search for unmodelled effects")
     p.add_argument("--view", action="store_true", help="open the browser view of the run")
+    p.add_argument("--mass", metavar="KG|file", default=None,
+                   help="with --log: known-mass mode for a PX4 log (ULog or data-driven-"
+                        "dynamics CSV, docs/px4.md): the mass in kg (or 'file': the "
+                        "--vehicle file's [reference] mass) fixes the scale; identifies the "
+                        "thrust curve, motor time constant and inertia by regression; "
+                        "--vehicle names the rotor positions (.toml or .yaml)")
     return p
 
 
@@ -270,6 +277,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     check_band(parser, args.band)
     try:
+        if args.mass is not None:
+            if args.log is None or len(args.log) != 1:
+                return _fail("--mass identifies one PX4 log: --log FILE --mass KG")
+            args.log = args.log[0]
+            return run_known_mass(args)
         if args.log is not None and is_batch(args.log):
             return run_batch(args, run_log, backend_from_args(args),
                              argv=sys.argv[1:] if argv is None else argv)

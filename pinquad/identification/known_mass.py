@@ -1,0 +1,370 @@
+"""Known-mass identification of a flight logged with motor commands (a PX4 log): the
+thrust curve, the motor time constant and the inertia, by regression (not EM).
+
+With the mass m [kg] known (a scale), the body z specific force a_z [m/s^2] fixes the
+scale of the actuator curve (``pinquad.core.actuator_curve``):
+
+    m a_z = sum_i (c_1 u'_i + c_2 u'_i^2) - d_z v_bz              [N]
+
+u'_i: command u_i through the first-order motor lag of time constant tau (exact
+zero-order-hold discretisation, a = exp(-dt / tau)); v_bz [m/s]: body-z velocity (a
+linear drag d_z [N s/m] that would otherwise be read as thrust). c_1 is kept only when
+the data carry it (|c_1| > 2 standard errors). tau is chosen by the profile likelihood of
+this regression over a grid (Gaussian residuals: -N_eff/2 log RSS(tau); its standard
+error from where the profile falls by 1/2).
+
+The inertia: with T_i from the curve, the roll and pitch torques tau_x = sum_i y_i T_i,
+tau_y = -sum_i x_i T_i [N m] and, when the yaw ratio k is given, tau_z = k sum_i spin_i T_i.
+Both sides band-passed by the same zero-phase Butterworth filter (``band`` [Hz]: below it
+slow torque offsets such as a centre-of-mass offset, above it noise), per axis
+
+    tau_a = I_aa domega_a/dt + b_a omega_a                        [N m]
+
+(b_a [N m s]: rotational damping), least squares. Without the yaw ratio I_zz is not
+identified (only I_zz / k is) and says so.
+
+Standard errors: the statistical part from a heteroscedasticity-and-autocorrelation
+consistent (Newey-West) covariance, since the residuals of a flight are not white; and
+the parts of what was assumed: the mass (``mass_rel_se``), the rotor positions
+(``arm_rel_se``), the time constant (refit at tau +- its se) and, for the inertia, the
+curve's coefficients (their covariance carried through). The naive regression beside it
+(no lag, no drag, no filter, raw finite-difference domega/dt) shows what these change.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import butter, lfilter, sosfiltfilt
+
+from pinquad.core.actuator_curve import ActuatorCurve
+from pinquad.core.conventions import rotation_from_euler
+from pinquad.identification.budget import DEFAULT_ARM
+from pinquad.identification.verdict import NOT_ADEQUATE, NOT_IDENTIFIABLE, TRUSTED
+from pinquad.io.command_log import CommandLog
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class KnownMassSettings:
+    """What the estimator assumes and demands.
+
+    mass_rel_se [-]: relative standard uncertainty of the given mass; arm_rel_se [-]: of
+    the rotor positions; band (lo, hi) [Hz]: the torque regression's band; lags (L,) [s]:
+    the time constants profiled; max_rel_se [-]: largest relative total standard error of
+    a trusted estimate; min_fit_share [-]: smallest share of the (band-passed) torque or
+    vertical-force variance the model must explain; max_band_shift [-]: largest shift,
+    in combined statistical standard errors, between the inertia on the band's lower and
+    upper halves (larger: the model's torque is wrong in a frequency-dependent way).
+    """
+
+    mass_rel_se: float = 0.01
+    arm_rel_se: float = DEFAULT_ARM
+    band: tuple[float, float] = (0.3, 2.0)
+    lags: Array = field(default_factory=lambda: np.arange(0.0, 0.2001, 0.0025))
+    max_rel_se: float = 0.10
+    min_fit_share: float = 0.5
+    max_band_shift: float = 2.0
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One identified number: value, unit, total standard error (every part combined in
+    quadrature), its parts by source (name, se), verdict and the reasons behind it."""
+
+    name: str
+    value: float
+    unit: str
+    stderr: float
+    parts: tuple[tuple[str, float], ...]
+    verdict: str
+    reasons: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class KnownMassResult:
+    """Known-mass identification of one log: estimates (thrust curve c_1, c_2, drag d_z,
+    time constant, I_xx, I_yy, I_zz), the vertical fit's explained share and the
+    torque fits' per axis, the naive regression's inertia (3,) [kg m^2, NaN: not
+    estimated] and shares, and notes."""
+
+    estimates: tuple[Estimate, ...]
+    force_share: float
+    torque_share: tuple[float, ...]
+    naive_inertia: Array
+    naive_share: tuple[float, ...]
+    mass: float
+    band: tuple[float, float]
+    notes: tuple[str, ...] = ()
+
+    def get(self, name: str) -> Estimate:
+        """The estimate called ``name``."""
+        return next(e for e in self.estimates if e.name == name)
+
+
+def motor_lag(command: Array, tau: float, dt: float) -> Array:
+    """u' of tau du'/dt = u - u' under a zero-order hold, from u'(0) = u(0):
+    u'_{k+1} = a u'_k + (1 - a) u_k, a = exp(-dt / tau). (N, k) -> (N, k)."""
+    if tau <= 0.0:
+        return command
+    a = math.exp(-dt / tau)
+    # v_k = a v_{k-1} + (1 - a) u_k from v_0 = u_0; then u'_k = v_{k-1} (the hold's step)
+    held, _ = lfilter([1.0 - a], [1.0, -a], command, axis=0, zi=a * command[:1])
+    out = np.empty_like(held)
+    out[0], out[1:] = command[0], held[:-1]
+    return out
+
+
+def newey_west(x: Array, resid: Array) -> tuple[Array, int]:
+    """Coefficient covariance (p, p) of least squares x (N, p) with residuals (N,), HAC
+    with Bartlett weights up to the lag L where the residuals' autocorrelation first falls
+    below 0.05 (at most N / 10); returns (cov, L)."""
+    n = resid.shape[0]
+    r = resid - resid.mean()
+    acf = np.correlate(r, r, "full")[n - 1:] / (r @ r)
+    small = np.flatnonzero(acf < 0.05)
+    lag = int(min(small[0] if small.size else n // 10, n // 10))
+    xe = x * resid[:, None]
+    s = xe.T @ xe
+    for k in range(1, lag + 1):
+        g = xe[k:].T @ xe[:-k]
+        s += (1.0 - k / (lag + 1.0)) * (g + g.T)
+    bread = np.linalg.inv(x.T @ x)
+    return bread @ s @ bread, lag
+
+
+def effective_rows(resid: Array, lag: int) -> float:
+    """N / (1 + 2 sum_{l=1..L} rho_l): rows of independent information in residuals."""
+    n = resid.shape[0]
+    r = resid - resid.mean()
+    rho = [(r[k:] @ r[:-k]) / (r @ r) for k in range(1, lag + 1)]
+    return n / max(1.0 + 2.0 * float(np.sum(rho)), 1.0)
+
+
+@dataclass(frozen=True)
+class _Curve:
+    coef: Array          # (c_1, c_2, d_z) with c_1 = 0 when not carried
+    cov: Array           # (3, 3) statistical
+    linear: bool
+    rss: float
+    share: float
+    resid: Array
+
+
+def _curve_fit(m: float, a_z: Array, v_bz: Array, u: Array, linear: bool | None) -> _Curve:
+    y = m * a_z
+    cols = [u.sum(axis=1), (u * u).sum(axis=1), -v_bz]
+    x = np.column_stack(cols if linear is not False else cols[1:])
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    resid = y - x @ coef
+    cov, _ = newey_west(x, resid)
+    if linear is None and abs(coef[0]) < 2.0 * math.sqrt(cov[0, 0]):
+        return _curve_fit(m, a_z, v_bz, u, False)
+    if x.shape[1] == 2:
+        coef, cov = np.r_[0.0, coef], np.pad(cov, ((1, 0), (1, 0)))
+    return _Curve(coef, cov, x.shape[1] == 3, float(resid @ resid),
+                  1.0 - float(resid.var() / y.var()), resid)
+
+
+def _thrust(curve: Array, u: Array) -> Array:
+    return curve[0] * u + curve[1] * u * u
+
+
+def _torques(thrust: Array, positions: Array, spin: Array, yaw_ratio: float | None) -> Array:
+    tz = thrust @ spin * (yaw_ratio if yaw_ratio is not None else np.nan)
+    return np.column_stack([thrust @ positions[:, 1], -(thrust @ positions[:, 0]), tz])
+
+
+def _inertia_fit(torque: Array, gyro: Array, dt: float, band: tuple[float, float]
+                 ) -> tuple[Array, Array, Array]:
+    """Per axis (I, statistical se, explained share) of the band-passed torque against
+    domega/dt and omega (module docstring); NaN for an axis without torque."""
+    sos = butter(4, band, btype="band", fs=1.0 / dt, output="sos")
+    w = sosfiltfilt(sos, gyro, axis=0)
+    wd = np.gradient(w, dt, axis=0)
+    value, se, share = np.full(3, np.nan), np.full(3, np.nan), np.full(3, np.nan)
+    for a in range(3):
+        if not np.isfinite(torque[:, a]).all():
+            continue
+        y = sosfiltfilt(sos, torque[:, a])
+        x = np.column_stack([wd[:, a], w[:, a]])
+        coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+        resid = y - x @ coef
+        cov, _ = newey_west(x, resid)
+        value[a], se[a] = coef[0], math.sqrt(cov[0, 0])
+        share[a] = 1.0 - float(resid.var() / y.var())
+    return value, se, share
+
+
+def _naive(m: float, a_z: Array, u: Array, gyro: Array, dt: float, positions: Array,
+           spin: Array) -> tuple[Array, tuple[float, ...]]:
+    """No lag, no drag, no filter: c from m a_z = sum(c_1 u + c_2 u^2), torque against
+    the finite-difference domega/dt with an offset."""
+    x = np.column_stack([u.sum(axis=1), (u * u).sum(axis=1)])
+    c, *_ = np.linalg.lstsq(x, m * a_z, rcond=None)
+    torque = _torques(_thrust(c, u), positions, spin, None)
+    wd = np.gradient(gyro, dt, axis=0)
+    out, share = np.full(3, np.nan), []
+    for a in range(2):
+        xa = np.column_stack([wd[:, a], np.ones_like(wd[:, a])])
+        coef, *_ = np.linalg.lstsq(xa, torque[:, a], rcond=None)
+        resid = torque[:, a] - xa @ coef
+        out[a] = coef[0]
+        share.append(1.0 - float(resid.var() / torque[:, a].var()))
+    return out, tuple(share)
+
+
+def _judge(name: str, value: float, total: float, settings: KnownMassSettings,
+           extra: list[tuple[str, str]]) -> tuple[str, tuple[str, ...]]:
+    """The verdict: ``extra`` holds (verdict, reason) of the estimate's own checks; a
+    relative total standard error over ``max_rel_se`` is not identifiable."""
+    reasons = list(extra)
+    if not (math.isfinite(total) and abs(total) <= settings.max_rel_se * abs(value)):
+        reasons.append((NOT_IDENTIFIABLE, f"{name}: total standard error {total:.3g} is "
+                        f"{abs(total / value) * 100:.0f} % of the value (trusted at most "
+                        f"{settings.max_rel_se * 100:.0f} %)"))
+    if not reasons:
+        return TRUSTED, ()
+    order = (NOT_ADEQUATE, NOT_IDENTIFIABLE)
+    worst = max((v for v, _ in reasons), key=order.index)
+    return worst, tuple(r for _, r in reasons)
+
+
+def _estimate(name: str, value: float, unit: str, parts: dict[str, float],
+              settings: KnownMassSettings, extra: list[tuple[str, str]]) -> Estimate:
+    total = math.sqrt(sum(v * v for v in parts.values()))
+    verdict, reasons = _judge(name, value, total, settings, extra)
+    return Estimate(name, value, unit, total, tuple(parts.items()), verdict, reasons)
+
+
+def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin: Array,
+                        curve: ActuatorCurve | None = None,
+                        settings: KnownMassSettings | None = None) -> KnownMassResult:
+    """Known-mass identification of ``flight`` (module docstring): mass [kg], rotor
+    positions (k, 2) [m, body] and spin (k,) in the log's motor order, the vehicle's
+    actuator curve (its yaw_ratio used when given). Raises ValueError naming the log when
+    its rows are not evenly spaced or its motors and rotors disagree."""
+    curve = curve or ActuatorCurve()
+    settings = settings or KnownMassSettings()
+    log = flight.log
+    src = log.meta.source
+    if flight.n_motors != positions.shape[0]:
+        raise ValueError(f"{src}: {flight.n_motors} motor command columns but the vehicle "
+                         f"has {positions.shape[0]} rotors")
+    steps = np.diff(log.t)
+    dt = float(np.median(steps))
+    if np.abs(steps - dt).max() > 0.01 * dt:
+        raise ValueError(f"{src}: rows are not evenly spaced (steps {steps.min():.4g} to "
+                         f"{steps.max():.4g} s); expected one row per {dt:.4g} s")
+    for name, arr in (("velocity", log.velocity), ("attitude", log.euler),
+                      ("gyro", log.gyro), ("acceleration", log.accel)):
+        if not np.isfinite(arr).all():
+            raise ValueError(f"{src}: {name} is missing in some rows; expected every row")
+    rot = rotation_from_euler(log.euler)
+    v_bz = np.einsum("nij,ni->nj", rot, log.velocity)[:, 2]
+    a_z, u = log.accel[:, 2], flight.command
+
+    # the time constant: profile of the vertical-force regression
+    fits = [_curve_fit(mass, a_z, v_bz, motor_lag(u, tau, dt), True) for tau in settings.lags]
+    rss = np.array([f.rss for f in fits])
+    best = int(np.argmin(rss))
+    tau = float(settings.lags[best])
+    top = _curve_fit(mass, a_z, v_bz, motor_lag(u, tau, dt), None)
+    _, lag_rows = newey_west(np.ones((a_z.shape[0], 1)), top.resid)
+    n_eff = effective_rows(top.resid, lag_rows)
+    drop = 0.5 * n_eff * np.log(rss / rss[best])
+    inside = np.flatnonzero(drop <= 0.5)
+    tau_lo, tau_hi = float(settings.lags[inside[0]]), float(settings.lags[inside[-1]])
+    tau_se = max(tau_hi - tau_lo, float(np.diff(settings.lags[:2])[0])) / 2.0
+    tau_edge = inside[0] == 0 or inside[-1] == len(settings.lags) - 1
+    if curve.time_constant is not None:
+        tau, tau_se, tau_edge = curve.time_constant, 0.0, False
+    alt = [_curve_fit(mass, a_z, v_bz, motor_lag(u, max(tau + s * tau_se, 0.0), dt),
+                      top.linear) for s in (-1.0, 1.0)]
+    tau_part = np.abs(alt[1].coef - alt[0].coef) / 2.0
+
+    notes = list(flight.notes)
+    force_adequate = top.share >= settings.min_fit_share
+    curve_checks = [] if force_adequate else [(NOT_ADEQUATE, (
+        f"the curve explains {top.share * 100:.0f} % of the vertical force (at least "
+        f"{settings.min_fit_share * 100:.0f} % demanded)"))]
+    estimates = []
+    for i, (name, unit) in enumerate((("thrust c_1", "N"), ("thrust c_2", "N"),
+                                      ("drag d_z", "N s/m"))):
+        if i == 0 and not top.linear:
+            notes.append("thrust c_1 (linear term): not carried by this log (|c_1| < 2 se): "
+                         "the curve is T = c_2 u^2")
+            continue
+        parts = {"statistical": math.sqrt(top.cov[i, i]),
+                 "mass": abs(top.coef[i]) * settings.mass_rel_se,
+                 "time_constant": float(tau_part[i])}
+        estimates.append(_estimate(name, float(top.coef[i]), unit, parts, settings,
+                                   curve_checks if i < 2 else []))
+    tau_checks = curve_checks + ([(NOT_IDENTIFIABLE, (
+        f"the profile likelihood's interval reaches the end of the searched "
+        f"{settings.lags[0]:.3f}-{settings.lags[-1]:.3f} s"))] if tau_edge else [])
+    if curve.time_constant is None:
+        estimates.append(_estimate("time constant", tau, "s", {"statistical": tau_se},
+                                   settings, tau_checks))
+    else:
+        notes.append(f"time constant {tau:.4g} s: given by the vehicle file")
+
+    # the inertia from the curve's torques
+    lagged = motor_lag(u, tau, dt)
+
+    def inertia_at(coef: Array, lag_u: Array, band: tuple[float, float]):
+        torque = _torques(_thrust(coef, lag_u), positions, spin, curve.yaw_ratio)
+        return _inertia_fit(torque, log.gyro, dt, band)
+
+    inertia, inertia_se, share = inertia_at(top.coef, lagged, settings.band)
+    jac = np.zeros((3, 2))
+    for j in range(2):
+        step = np.zeros(3)
+        step[j] = math.sqrt(max(top.cov[j, j], 1e-24))
+        jac[:, j] = (inertia_at(top.coef + step, lagged, settings.band)[0] - inertia) / step[j]
+    curve_part = np.sqrt(np.einsum("aj,jk,ak->a", jac, top.cov[:2, :2], jac))
+    tau_inertia = [inertia_at(f.coef, motor_lag(u, max(tau + s * tau_se, 0.0), dt),
+                              settings.band)[0] for s, f in zip((-1.0, 1.0), alt, strict=True)]
+    tau_inertia_part = np.abs(tau_inertia[1] - tau_inertia[0]) / 2.0
+    lo, hi = settings.band
+    mid = math.sqrt(lo * hi)
+    low_half = inertia_at(top.coef, lagged, (lo, mid))
+    high_half = inertia_at(top.coef, lagged, (mid, hi))
+    for a, name in enumerate(("I_xx", "I_yy", "I_zz")):
+        if a == 2 and curve.yaw_ratio is None:
+            estimates.append(Estimate(name, float("nan"), "kg m^2", float("nan"), (),
+                                      NOT_IDENTIFIABLE, (
+                "I_zz needs the yaw torque coefficient (actuator_curve.yaw_ratio [m] in "
+                "the vehicle file): motor commands give yaw torque only up to that "
+                "factor",)))
+            continue
+        checks: list[tuple[str, str]] = []
+        if share[a] < settings.min_fit_share:
+            checks.append((NOT_ADEQUATE, f"{name}: the torques explain {share[a] * 100:.0f} % "
+                           f"of the band-passed torque variance (at least "
+                           f"{settings.min_fit_share * 100:.0f} % demanded)"))
+        shift = abs(low_half[0][a] - high_half[0][a])
+        combined = math.hypot(low_half[1][a], high_half[1][a])
+        if shift > settings.max_band_shift * combined:
+            checks.append((NOT_ADEQUATE, (
+                f"{name}: {low_half[0][a]:.4g} on {lo:g}-{mid:.2g} Hz but "
+                f"{high_half[0][a]:.4g} on {mid:.2g}-{hi:g} Hz, {shift / combined:.1f} "
+                "statistical errors apart: the torque model is wrong in a frequency-"
+                "dependent way (motor dynamics, drag moments)")))
+        if not inertia[a] > 0:
+            checks.append((NOT_ADEQUATE, f"{name}: {inertia[a]:.3g} is not positive"))
+        parts = {"statistical": float(inertia_se[a]),
+                 "mass": abs(inertia[a]) * settings.mass_rel_se,
+                 "arm_length": abs(inertia[a]) * settings.arm_rel_se,
+                 "thrust_curve": float(curve_part[a]),
+                 "time_constant": float(tau_inertia_part[a])}
+        estimates.append(_estimate(name, float(inertia[a]), "kg m^2", parts, settings,
+                                   checks))
+    naive, naive_share = _naive(mass, a_z, u, log.gyro, dt, positions, spin)
+    return KnownMassResult(tuple(estimates), top.share,
+                           tuple(float(s) for s in share[:2 if curve.yaw_ratio is None else 3]),
+                           naive, naive_share, mass, settings.band, tuple(notes))
