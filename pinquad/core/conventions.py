@@ -120,6 +120,37 @@ def euler_rate_matrix_inv(euler: Array) -> Array:
     return out
 
 
+def euler_rate_kinematics(sf: float, cf: float, st: float, ct: float, wx: float, wy: float,
+                          wz: float, scale: float = 1.0) -> tuple[Array, Array, Array]:
+    """Euler-angle kinematics Theta' = E^{-1}(Theta) omega and its two Jacobians, each
+    times ``scale``, from the sines and cosines of roll and pitch (sf, cf, st, ct) and the
+    body rates omega = (wx, wy, wz) [rad/s]. With t = tan(theta), a = sf wy + cf wz,
+    b = cf wy - sf wz:
+
+        Theta'         = [wx + t a,  b,  a / ct]                          [rad/s]
+        dTheta'/dTheta = [[t b, a / ct^2, 0], [-a, 0, 0], [b / ct, a st / ct^2, 0]]
+        dTheta'/domega = E^{-1} = [[1, sf t, cf t], [0, cf, -sf], [0, sf / ct, cf / ct]]
+
+    Returns (scale Theta' (3,), scale dTheta'/dTheta (3, 3), scale E^{-1} (3, 3)).
+    scale = 1 gives the rates [rad/s]; scale = dt [s] one explicit-Euler step's increment
+    [rad] (the scale multiplies first, so both uses keep the same rounding as the models
+    that wrote them out). ``pinquad.core.kernels.euler_rate_kinematics`` is its compiled
+    twin, the same arithmetic in the same order (equal to the last bit);
+    :func:`euler_rate_matrix_inv` is E^{-1} for arrays of angles (t from tan).
+    """
+    tt = st / ct
+    a = sf * wy + cf * wz
+    b = cf * wy - sf * wz
+    rates = np.array([scale * (wx + tt * a), scale * b, scale * a / ct])
+    d_euler = np.array([[scale * tt * b, scale * a / (ct * ct), 0.0],
+                        [scale * (-sf * wy - cf * wz), 0.0, 0.0],
+                        [scale * b / ct, scale * a * st / (ct * ct), 0.0]])
+    e_inv = np.array([[scale, scale * sf * tt, scale * cf * tt],
+                      [0.0, scale * cf, -scale * sf],
+                      [0.0, scale * sf / ct, scale * cf / ct]])
+    return rates, d_euler, e_inv
+
+
 def euler_rate_matrix(euler: Array) -> Array:
     """The paper's ``E(Theta)``: body rates = E @ Euler rates. (..., 3) -> (..., 3, 3)."""
     euler = np.asarray(euler, dtype=float)

@@ -1,7 +1,8 @@
 """Numba kernels shared by the compiled E-step (``pinquad.estep``) and M-step
 (``pinquad.mstep.compiled``): angle wrap, R = Rz(psi) Ry(theta) Rx(phi) and its Euler
-derivatives, element for element the same arithmetic as ``pinquad.core.conventions``
-(which owns the convention; these are its compiled twins)."""
+derivatives, the Euler-rate kinematics Theta' = E^{-1}(Theta) omega, element for element
+the same arithmetic as ``pinquad.core.conventions`` (which owns the convention; these are
+its compiled twins)."""
 
 from __future__ import annotations
 
@@ -86,3 +87,37 @@ def rotation_derivatives(phi, theta, psi, rot, d_rot):
     d_rot[2, 0, 2] = 0.0
     d_rot[2, 1, 2] = 0.0
     d_rot[2, 2, 2] = 0.0
+
+
+@njit(cache=True)
+def euler_rate_kinematics(sf, cf, st, ct, wx, wy, wz, scale, rates, d_euler, e_inv):
+    """scale Theta' (3,) into rates, scale dTheta'/dTheta (3, 3) into d_euler and
+    scale E^{-1}(Theta) (3, 3) into e_inv (every entry written), from the sines and cosines
+    of roll and pitch and the body rates (wx, wy, wz) [rad/s]; Theta' = E^{-1} omega.
+    The compiled twin of ``conventions.euler_rate_kinematics`` (equations there), the
+    same arithmetic in the same order. The outputs may be views into a caller's state and
+    Jacobian (rows 6-8), so that a step allocates nothing."""
+    tt = st / ct
+    a = sf * wy + cf * wz
+    b = cf * wy - sf * wz
+    rates[0] = scale * (wx + tt * a)
+    rates[1] = scale * b
+    rates[2] = scale * a / ct
+    d_euler[0, 0] = scale * tt * b
+    d_euler[0, 1] = scale * a / (ct * ct)
+    d_euler[0, 2] = 0.0
+    d_euler[1, 0] = scale * (-sf * wy - cf * wz)
+    d_euler[1, 1] = 0.0
+    d_euler[1, 2] = 0.0
+    d_euler[2, 0] = scale * b / ct
+    d_euler[2, 1] = scale * a * st / (ct * ct)
+    d_euler[2, 2] = 0.0
+    e_inv[0, 0] = scale
+    e_inv[0, 1] = scale * sf * tt
+    e_inv[0, 2] = scale * cf * tt
+    e_inv[1, 0] = 0.0
+    e_inv[1, 1] = scale * cf
+    e_inv[1, 2] = -scale * sf
+    e_inv[2, 0] = 0.0
+    e_inv[2, 1] = scale * sf / ct
+    e_inv[2, 2] = scale * cf / ct

@@ -28,7 +28,7 @@ import math
 
 from numba import njit
 
-from pinquad.core.kernels import rotation, rotation_derivatives
+from pinquad.core.kernels import euler_rate_kinematics, rotation, rotation_derivatives
 from pinquad.estep.linalg import fill
 from pinquad.models.kernel import STATE_DIM as _N
 
@@ -43,7 +43,6 @@ def transition_quad(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac):
     sf, cf = math.sin(phi), math.cos(phi)
     st, ct = math.sin(theta), math.cos(theta)
     sp, cp = math.sin(psi), math.cos(psi)
-    tt = st / ct
     f_over_m = u[0] / mass
     fill(jac, 0.0)
     f = x_next  # holds f until the last loop turns it into x + dt f
@@ -66,22 +65,7 @@ def transition_quad(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac):
     jac[5, 6] = f_over_m * (-sf * ct)
     jac[5, 7] = f_over_m * (-cf * st)
 
-    a = sf * wy + cf * wz
-    f[6] = wx + tt * a
-    f[7] = cf * wy - sf * wz
-    f[8] = a / ct
-    jac[6, 6] = tt * (cf * wy - sf * wz)
-    jac[6, 7] = a / (ct * ct)
-    jac[6, 9] = 1.0
-    jac[6, 10] = sf * tt
-    jac[6, 11] = cf * tt
-    jac[7, 6] = -sf * wy - cf * wz
-    jac[7, 10] = cf
-    jac[7, 11] = -sf
-    jac[8, 6] = (cf * wy - sf * wz) / ct
-    jac[8, 7] = a * st / (ct * ct)
-    jac[8, 10] = sf / ct
-    jac[8, 11] = cf / ct
+    euler_rate_kinematics(sf, cf, st, ct, wx, wy, wz, 1.0, f[6:9], jac[6:9, 6:9], jac[6:9, 9:12])
 
     iw0 = inertia[0, 0] * wx + inertia[0, 1] * wy + inertia[0, 2] * wz
     iw1 = inertia[1, 0] * wx + inertia[1, 1] * wy + inertia[1, 2] * wz
@@ -118,39 +102,24 @@ def transition_quad(x, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac):
 @njit(cache=True)
 def transition_kinematic(x, dt, x_next, jac):
     """KinematicSSM.transition (the force-free warm-up model: p' = v, v' = 0,
-    Theta' = E^{-1} omega, omega' = 0), written with the same expressions in the same
-    order as pinquad.models.ssm so the two agree to the last bit (dt [s])."""
+    Theta' = E^{-1} omega, omega' = 0), the Euler rows from the compiled twin of the
+    ``conventions.euler_rate_kinematics`` that pinquad.models.ssm calls, so the two agree
+    to the last bit (dt [s])."""
     phi, theta = x[6], x[7]
-    wx, wy, wz = x[9], x[10], x[11]
-    sf, cf = math.sin(phi), math.cos(phi)
-    st, ct = math.sin(theta), math.cos(theta)
-    tt = st / ct
-    a = sf * wy + cf * wz
-    for r in range(_N):
-        x_next[r] = x[r]
-    for r in range(3):
-        x_next[r] += dt * x[3 + r]
-    x_next[6] += dt * (wx + tt * a)
-    x_next[7] += dt * (cf * wy - sf * wz)
-    x_next[8] += dt * a / ct
     fill(jac, 0.0)
+    # the Euler rows' increments straight into place, then the state and identity added
+    euler_rate_kinematics(math.sin(phi), math.cos(phi), math.sin(theta), math.cos(theta),
+                          x[9], x[10], x[11], dt, x_next[6:9], jac[6:9, 6:9], jac[6:9, 9:12])
+    for r in range(3):
+        x_next[r] = x[r] + dt * x[3 + r]
+        x_next[3 + r] = x[3 + r]
+        x_next[6 + r] = x[6 + r] + x_next[6 + r]
+        x_next[9 + r] = x[9 + r]
     for r in range(_N):
-        jac[r, r] = 1.0
+        jac[r, r] += 1.0
     jac[0, 3] = dt
     jac[1, 4] = dt
     jac[2, 5] = dt
-    jac[6, 6] += dt * tt * (cf * wy - sf * wz)
-    jac[6, 7] = dt * a / (ct * ct)
-    jac[6, 9] = dt
-    jac[6, 10] = dt * sf * tt
-    jac[6, 11] = dt * cf * tt
-    jac[7, 6] = dt * (-sf * wy - cf * wz)
-    jac[7, 10] = dt * cf
-    jac[7, 11] = -dt * sf
-    jac[8, 6] = dt * (cf * wy - sf * wz) / ct
-    jac[8, 7] = dt * a * st / (ct * ct)
-    jac[8, 10] = dt * sf / ct
-    jac[8, 11] = dt * cf / ct
 
 
 @njit(cache=True)
@@ -236,19 +205,10 @@ def continuous_rows(x, dt, accel, d_accel, x_next, jac, s33, d_rot, d_rates):
     wz = 0.5 * (x[11] + x_next[11])
     sf, cf = math.sin(x[6]), math.cos(x[6])
     st, ct = math.sin(x[7]), math.cos(x[7])
-    tt = st / ct
-    a = sf * wy + cf * wz
-    b = cf * wy - sf * wz
-    fill(d_theta, 0.0)
-    d_theta[0, 0] = tt * b
-    d_theta[0, 1] = a / (ct * ct)
-    d_theta[1, 0] = -sf * wy - cf * wz
-    d_theta[2, 0] = b / ct
-    d_theta[2, 1] = a * st / (ct * ct)
-    euler_rate_inverse(sf, cf, st, ct, e_inv)
-    x_next[6] = x[6] + dt * (wx + tt * a)
-    x_next[7] = x[7] + dt * b
-    x_next[8] = x[8] + dt * (a / ct)
+    # x_next[6:9] first holds the mean-rate Euler rates, then the step they make
+    euler_rate_kinematics(sf, cf, st, ct, wx, wy, wz, 1.0, x_next[6:9], d_theta, e_inv)
+    for r in range(3):
+        x_next[6 + r] = x[6 + r] + dt * x_next[6 + r]
     for r in range(3):
         for c in range(_N):
             acc = 0.0
@@ -294,21 +254,6 @@ def continuous_rows(x, dt, accel, d_accel, x_next, jac, s33, d_rot, d_rates):
 
 
 @njit(cache=True)
-def euler_rate_inverse(sf, cf, st, ct, e_inv):
-    """E^{-1}(Theta) (3, 3) into e_inv from the sines and cosines of roll and pitch
-    (Euler rates = E^{-1} body rates; ``conventions.euler_rate_matrix_inv``)."""
-    tt = st / ct
-    fill(e_inv, 0.0)
-    e_inv[0, 0] = 1.0
-    e_inv[0, 1] = sf * tt
-    e_inv[0, 2] = cf * tt
-    e_inv[1, 1] = cf
-    e_inv[1, 2] = -sf
-    e_inv[2, 1] = sf / ct
-    e_inv[2, 2] = cf / ct
-
-
-@njit(cache=True)
 def kinematic_noise(x, dt, q, gain, share, own):
     """continuous.kinematic_noise in place on q (12, 12) at x (12,): the position rows'
     share of the velocity noise, then the Euler rows' share of the rate noise through
@@ -317,7 +262,10 @@ def kinematic_noise(x, dt, q, gain, share, own):
     for i in range(3):
         gain[i, i] = 1.0
     _integrated_share(q, 0, 3, gain, dt, share, own)
-    euler_rate_inverse(math.sin(x[6]), math.cos(x[6]), math.sin(x[7]), math.cos(x[7]), gain)
+    # E^{-1} into gain; share's first row and own take the unused rates and their
+    # derivative (both are overwritten by _integrated_share before they are read)
+    euler_rate_kinematics(math.sin(x[6]), math.cos(x[6]), math.sin(x[7]), math.cos(x[7]),
+                          0.0, 0.0, 0.0, 1.0, share[0, 0:3], own, gain)
     _integrated_share(q, 6, 9, gain, dt, share, own)
 
 

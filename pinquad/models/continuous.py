@@ -27,28 +27,14 @@ kernels compute the same (``quad_kernels.continuous_rows``).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.conventions import euler_rate_matrix_inv, rotation_and_derivatives
+from pinquad.core.conventions import euler_rate_kinematics, rotation_and_derivatives
 
 Array = NDArray[np.float64]
-
-
-def euler_rates(euler: Array, rates: Array) -> tuple[Array, Array, Array]:
-    """Theta' = E^{-1}(Theta) omega (3,) [rad/s], its derivative by Theta (3, 3) at fixed
-    omega, and E^{-1}(Theta) (3, 3) (``conventions.euler_rate_matrix_inv``), for Euler
-    angles euler (3,) [rad] and body rates rates (3,) [rad/s]."""
-    e_inv = euler_rate_matrix_inv(euler)
-    sf, cf = np.sin(euler[0]), np.cos(euler[0])
-    st, ct = np.sin(euler[1]), np.cos(euler[1])
-    _, wy, wz = rates
-    a = sf * wy + cf * wz
-    b = cf * wy - sf * wz
-    d_theta = np.array([[st / ct * b, a / (ct * ct), 0.0],
-                        [-sf * wy - cf * wz, 0.0, 0.0],
-                        [b / ct, a * st / (ct * ct), 0.0]])
-    return e_inv @ rates, d_theta, e_inv
 
 
 def continuous_step(x: Array, dt: float, x_next: Array, jac: Array, accel: Array,
@@ -63,7 +49,9 @@ def continuous_step(x: Array, dt: float, x_next: Array, jac: Array, accel: Array
     rates = 0.5 * (x[9:12] + x_next[9:12])
     d_rates = 0.5 * jac[9:12]
     d_rates[:, 9:12] += 0.5 * np.eye(3)
-    theta_dot, d_theta, e_inv = euler_rates(x[6:9], rates)
+    sf, cf = math.sin(float(x[6])), math.cos(float(x[6]))
+    st, ct = math.sin(float(x[7])), math.cos(float(x[7]))
+    theta_dot, d_theta, e_inv = euler_rate_kinematics(sf, cf, st, ct, *(float(w) for w in rates))
     nxt[6:9] = x[6:9] + dt * theta_dot
     out[6:9] = dt * (e_inv @ d_rates)
     out[6:9, 6:9] += np.eye(3) + dt * d_theta

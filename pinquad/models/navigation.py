@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.ekf import predict, update
-from pinquad.core.conventions import GRAVITY, rotation_and_derivatives
+from pinquad.core.conventions import GRAVITY, euler_rate_kinematics, rotation_and_derivatives
 from pinquad.core.params import FROZEN_SENSOR_NOISE, SensorNoise
 from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta, kinematic_floor
 
@@ -89,34 +89,20 @@ class SensorANavModel:
     def transition(self, x: Array, k: int) -> tuple[Array, Array]:
         dt = self.dt
         phi, theta = float(x[6]), float(x[7])
-        wx, wy, wz = float(x[9]), float(x[10]), float(x[11])
-        sf, cf = math.sin(phi), math.cos(phi)
-        st, ct = math.sin(theta), math.cos(theta)
-        tt = st / ct
         fb = self._accel(k)
         rot, d_rot = rotation_and_derivatives(x[6:9])
-        a = sf * wy + cf * wz
+        step, d_euler, e_inv = euler_rate_kinematics(
+            math.sin(phi), math.cos(phi), math.sin(theta), math.cos(theta),
+            float(x[9]), float(x[10]), float(x[11]), dt)
         nxt = x.copy()
         nxt[0:3] += dt * x[3:6]
         nxt[3:6] += dt * (rot @ fb - np.array([0.0, 0.0, self.gravity]))
-        nxt[6] += dt * (wx + tt * a)
-        nxt[7] += dt * (cf * wy - sf * wz)
-        nxt[8] += dt * a / ct
+        nxt[6:9] += step
         jac = np.eye(12)
         jac[0, 3] = jac[1, 4] = jac[2, 5] = dt
         jac[3:6, 6:9] = dt * np.einsum("ijk,j->ik", d_rot, fb)
-        jac[6, 6] += dt * tt * (cf * wy - sf * wz)
-        jac[6, 7] = dt * a / (ct * ct)
-        jac[6, 9] = dt
-        jac[6, 10] = dt * sf * tt
-        jac[6, 11] = dt * cf * tt
-        jac[7, 6] = dt * (-sf * wy - cf * wz)
-        jac[7, 10] = dt * cf
-        jac[7, 11] = -dt * sf
-        jac[8, 6] = dt * (cf * wy - sf * wz) / ct
-        jac[8, 7] = dt * a * st / (ct * ct)
-        jac[8, 10] = dt * sf / ct
-        jac[8, 11] = dt * cf / ct
+        jac[6:9, 6:9] += d_euler
+        jac[6:9, 9:12] = e_inv
         return nxt, jac
 
     def process_cov(self, x: Array, k: int) -> Array:

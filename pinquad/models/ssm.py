@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.conventions import euler_rate_matrix_inv, wrap_angle
+from pinquad.core.conventions import euler_rate_kinematics, euler_rate_matrix_inv, wrap_angle
 from pinquad.core.effect_vocabulary import DEFAULT_GROUND_RADIUS
 from pinquad.models.continuous import continuous_step, kinematic_noise
 from pinquad.vehicle.model import RigidBodyParams, state_derivative_and_jacobian
@@ -249,30 +249,16 @@ class KinematicSSM(QuadSSM):
     def euler_step(self, x: Array, k: int) -> tuple[Array, Array]:
         dt = self.obs.dt
         phi, theta = float(x[6]), float(x[7])
-        wx, wy, wz = float(x[9]), float(x[10]), float(x[11])
-        sf, cf = math.sin(phi), math.cos(phi)
-        st, ct = math.sin(theta), math.cos(theta)
-        tt = st / ct
-        a = sf * wy + cf * wz
+        step, d_euler, e_inv = euler_rate_kinematics(
+            math.sin(phi), math.cos(phi), math.sin(theta), math.cos(theta),
+            float(x[9]), float(x[10]), float(x[11]), dt)
         nxt = x.copy()
         nxt[0:3] += dt * x[3:6]
-        nxt[6] += dt * (wx + tt * a)
-        nxt[7] += dt * (cf * wy - sf * wz)
-        nxt[8] += dt * a / ct
+        nxt[6:9] += step
         jac = np.eye(12)
         jac[0, 3] = jac[1, 4] = jac[2, 5] = dt
-        jac[6, 6] += dt * tt * (cf * wy - sf * wz)
-        jac[6, 7] = dt * a / (ct * ct)
-        jac[6, 9] = dt
-        jac[6, 10] = dt * sf * tt
-        jac[6, 11] = dt * cf * tt
-        jac[7, 6] = dt * (-sf * wy - cf * wz)
-        jac[7, 10] = dt * cf
-        jac[7, 11] = -dt * sf
-        jac[8, 6] = dt * (cf * wy - sf * wz) / ct
-        jac[8, 7] = dt * a * st / (ct * ct)
-        jac[8, 10] = dt * sf / ct
-        jac[8, 11] = dt * cf / ct
+        jac[6:9, 6:9] += d_euler
+        jac[6:9, 9:12] = e_inv
         return nxt, jac
 
     def _flight_process_cov(self, x: Array) -> Array:

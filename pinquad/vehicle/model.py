@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from pinquad.core.conventions import (
     STATE_DIM,
     euler_from_rotation,
+    euler_rate_kinematics,
     euler_rate_matrix_inv,
     quat_wxyz_from_rotation,
     rotation_from_euler,
@@ -196,7 +197,6 @@ def state_derivative_and_jacobian(x: Array, u: Array, body: RigidBodyParams
     sf, cf = math.sin(phi), math.cos(phi)
     st, ct = math.sin(theta), math.cos(theta)
     sp, cp = math.sin(psi), math.cos(psi)
-    tt = st / ct
     f_over_m = float(u[0]) / body.mass
 
     out = np.empty(12)
@@ -216,22 +216,7 @@ def state_derivative_and_jacobian(x: Array, u: Array, body: RigidBodyParams
     jac[5, 6] = f_over_m * (-sf * ct)
     jac[5, 7] = f_over_m * (-cf * st)
 
-    a = sf * wy + cf * wz
-    out[6] = wx + tt * a
-    out[7] = cf * wy - sf * wz
-    out[8] = a / ct
-    jac[6, 6] = tt * (cf * wy - sf * wz)
-    jac[6, 7] = a / (ct * ct)
-    jac[6, 9] = 1.0
-    jac[6, 10] = sf * tt
-    jac[6, 11] = cf * tt
-    jac[7, 6] = -sf * wy - cf * wz
-    jac[7, 10] = cf
-    jac[7, 11] = -sf
-    jac[8, 6] = (cf * wy - sf * wz) / ct
-    jac[8, 7] = a * st / (ct * ct)
-    jac[8, 10] = sf / ct
-    jac[8, 11] = cf / ct
+    out[6:9], jac[6:9, 6:9], jac[6:9, 9:12] = euler_rate_kinematics(sf, cf, st, ct, wx, wy, wz)
 
     omega = x[9:12]
     i_omega = body.inertia @ omega
