@@ -11,7 +11,8 @@ thrust), and the yaw reaction torque tau_z = sum_i spin_i k_yaw T_i [N m] with
 u = (r - lo) / (hi - lo) with ``command_range`` = (lo, hi).
 
 In a vehicle file (TOML, docs/vehicles.md) these are the optional ``[actuator_curve]``
-table's keys ``command_range``, ``thrust``, ``time_constant`` and ``yaw_ratio``; the
+table's keys ``command_range``, ``thrust``, ``time_constant``, ``yaw_ratio`` and
+``yaw_ratio_se``; the
 rotors are the file's ``[[rotor]]`` tables (x, y [m, body], spin). Any of the curve's
 numbers may be left out: known-mass identification estimates them.
 :func:`toml_from_ddd_yaml` writes such a file from a PX4 data-driven-dynamics model
@@ -43,13 +44,16 @@ class ActuatorCurve:
 
     command_range (lo, hi): raw command of u = 0 and u = 1; thrust (P,) [N] or None: the
     polynomial's coefficients c_1..c_P (None: to be identified); time_constant [s] or
-    None; yaw_ratio [m] or None (I_zz cannot be identified without it).
+    None; yaw_ratio [m] or None (I_zz cannot be identified without it); yaw_ratio_se [m]
+    or None: its standard uncertainty (None: pinquad's default share,
+    ``identification.budget``).
     """
 
     command_range: tuple[float, float] = PWM_RANGE
     thrust: Array | None = None
     time_constant: float | None = None
     yaw_ratio: float | None = None
+    yaw_ratio_se: float | None = None
 
 
 @dataclass(frozen=True)
@@ -94,7 +98,8 @@ def parse_curve(text: str, path: Path) -> CurveVehicle:
         command_range=(float(rng[0]), float(rng[1])),
         thrust=None if thrust is None else np.asarray(thrust, dtype=float),
         time_constant=_number(path, table, "time_constant"),
-        yaw_ratio=_number(path, table, "yaw_ratio")))
+        yaw_ratio=_number(path, table, "yaw_ratio"),
+        yaw_ratio_se=_number(path, table, "yaw_ratio_se")))
 
 
 class _DddLoader(yaml.SafeLoader):

@@ -26,7 +26,8 @@ identified (only I_zz / k is) and says so.
 Standard errors: the statistical part from a heteroscedasticity-and-autocorrelation
 consistent (Newey-West) covariance, since the residuals of a flight are not white; and
 the parts of what was assumed: the mass (``mass_rel_se``), the rotor positions
-(``arm_rel_se``), the time constant (refit at tau +- its se) and, for the inertia, the
+(``arm_rel_se``; I_zz: the yaw ratio's ``yaw_ratio_se``, else the house default), the
+time constant (refit at tau +- its se) and, for the inertia, the
 curve's coefficients (their covariance carried through). The naive regression beside it
 (no lag, no drag, no filter, raw finite-difference domega/dt) shows what these change.
 """
@@ -42,7 +43,7 @@ from scipy.signal import butter, lfilter, sosfiltfilt
 
 from pinquad.core.actuator_curve import ActuatorCurve
 from pinquad.core.conventions import rotation_from_euler
-from pinquad.identification.budget import DEFAULT_ARM
+from pinquad.identification.budget import DEFAULT_ARM, DEFAULT_YAW_TORQUE
 from pinquad.identification.verdict import NOT_ADEQUATE, NOT_IDENTIFIABLE, TRUSTED
 from pinquad.io.command_log import CommandLog
 
@@ -119,15 +120,17 @@ def motor_lag(command: Array, tau: float, dt: float) -> Array:
     return out
 
 
-def newey_west(x: Array, resid: Array) -> tuple[Array, int]:
+def newey_west(x: Array, resid: Array, min_lag: int = 0) -> tuple[Array, int]:
     """Coefficient covariance (p, p) of least squares x (N, p) with residuals (N,), HAC
-    with Bartlett weights up to the lag L where the residuals' autocorrelation first falls
-    below 0.05 (at most N / 10); returns (cov, L)."""
+    with Bartlett weights up to lag L: past the last lag (below N / 4) where the
+    residuals' autocorrelation is still 0.05 or more in size, and at least ``min_lag``
+    (a band-passed residual oscillates: its autocorrelation crosses zero long before it
+    dies out). Returns (cov, L)."""
     n = resid.shape[0]
     r = resid - resid.mean()
     acf = np.correlate(r, r, "full")[n - 1:] / (r @ r)
-    small = np.flatnonzero(acf < 0.05)
-    lag = int(min(small[0] if small.size else n // 10, n // 10))
+    big = np.flatnonzero(np.abs(acf[: n // 4]) >= 0.05)
+    lag = int(min(max(big[-1] + 1 if big.size else 0, min_lag), n // 4))
     xe = x * resid[:, None]
     s = xe.T @ xe
     for k in range(1, lag + 1):
@@ -194,7 +197,8 @@ def _inertia_fit(torque: Array, gyro: Array, dt: float, band: tuple[float, float
         x = np.column_stack([wd[:, a], w[:, a]])
         coef, *_ = np.linalg.lstsq(x, y, rcond=None)
         resid = y - x @ coef
-        cov, _ = newey_west(x, resid)
+        # at least two periods of the band's lowest frequency
+        cov, _ = newey_west(x, resid, min_lag=math.ceil(2.0 / (band[0] * dt)))
         value[a], se[a] = coef[0], math.sqrt(cov[0, 0])
         share[a] = 1.0 - float(resid.var() / y.var())
     return value, se, share
@@ -224,8 +228,9 @@ def _judge(name: str, value: float, total: float, settings: KnownMassSettings,
     relative total standard error over ``max_rel_se`` is not identifiable."""
     reasons = list(extra)
     if not (math.isfinite(total) and abs(total) <= settings.max_rel_se * abs(value)):
+        share = f"{abs(total / value) * 100:.0f} %" if value != 0 else "unbounded share"
         reasons.append((NOT_IDENTIFIABLE, f"{name}: total standard error {total:.3g} is "
-                        f"{abs(total / value) * 100:.0f} % of the value (trusted at most "
+                        f"{share} of the value {value:.3g} (trusted at most "
                         f"{settings.max_rel_se * 100:.0f} %)"))
     if not reasons:
         return TRUSTED, ()
@@ -280,7 +285,7 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     inside = np.flatnonzero(drop <= 0.5)
     tau_lo, tau_hi = float(settings.lags[inside[0]]), float(settings.lags[inside[-1]])
     tau_se = max(tau_hi - tau_lo, float(np.diff(settings.lags[:2])[0])) / 2.0
-    tau_edge = inside[0] == 0 or inside[-1] == len(settings.lags) - 1
+    tau_edge = inside[-1] == len(settings.lags) - 1  # 0 is physics' end, not the grid's
     if curve.time_constant is not None:
         tau, tau_se, tau_edge = curve.time_constant, 0.0, False
     alt = [_curve_fit(mass, a_z, v_bz, motor_lag(u, max(tau + s * tau_se, 0.0), dt),
@@ -307,6 +312,11 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     tau_checks = curve_checks + ([(NOT_IDENTIFIABLE, (
         f"the profile likelihood's interval reaches the end of the searched "
         f"{settings.lags[0]:.3f}-{settings.lags[-1]:.3f} s"))] if tau_edge else [])
+    if tau == 0.0 and not tau_edge:
+        tau_checks.append((NOT_IDENTIFIABLE, (
+            f"the profile likelihood puts the time constant at 0, below "
+            f"{settings.lags[inside[-1] + 1]:.3g} s: no motor lag resolvable at "
+            f"{dt * 1e3:.0f} ms rows")))
     if curve.time_constant is None:
         estimates.append(_estimate("time constant", tau, "s", {"statistical": tau_se},
                                    settings, tau_checks))
@@ -334,6 +344,8 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     mid = math.sqrt(lo * hi)
     low_half = inertia_at(top.coef, lagged, (lo, mid))
     high_half = inertia_at(top.coef, lagged, (mid, hi))
+    yaw_rel = DEFAULT_YAW_TORQUE if curve.yaw_ratio is None or curve.yaw_ratio_se is None \
+        else curve.yaw_ratio_se / curve.yaw_ratio
     for a, name in enumerate(("I_xx", "I_yy", "I_zz")):
         if a == 2 and curve.yaw_ratio is None:
             estimates.append(Estimate(name, float("nan"), "kg m^2", float("nan"), (),
@@ -357,9 +369,11 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
                 "dependent way (motor dynamics, drag moments)")))
         if not inertia[a] > 0:
             checks.append((NOT_ADEQUATE, f"{name}: {inertia[a]:.3g} is not positive"))
+        # roll and pitch torques rest on the rotor positions, yaw torque on the yaw ratio
+        lever = ({"arm_length": abs(inertia[a]) * settings.arm_rel_se} if a < 2 else
+                 {"yaw_torque_coefficient": abs(inertia[a]) * yaw_rel})
         parts = {"statistical": float(inertia_se[a]),
-                 "mass": abs(inertia[a]) * settings.mass_rel_se,
-                 "arm_length": abs(inertia[a]) * settings.arm_rel_se,
+                 "mass": abs(inertia[a]) * settings.mass_rel_se, **lever,
                  "thrust_curve": float(curve_part[a]),
                  "time_constant": float(tau_inertia_part[a])}
         estimates.append(_estimate(name, float(inertia[a]), "kg m^2", parts, settings,
