@@ -213,6 +213,37 @@ BREAKS: tuple[Break, ...] = (
           "pinquad/report/realdata.py", "({_short_reasons(r)}) | {_judged(r, 0, 1e3)} | ",
           "({_short_reasons(r)}) | {_judged(r, 0, 1.02e3)} | ",
           "the realdata table prints the mass 2 % high"),
+    # -- the plausible range's lower bound and the gyro's sign
+    Break("range-lower", "range lower bound (verdict)",
+          "tests/test_range_and_gyro_sign.py::test_an_estimate_below_the_range_is_implausible",
+          "pinquad/identification/verdict.py",
+          "    return VehicleRange((mass / fm, mass * fm), inertia / fi, inertia * fi,",
+          "    return VehicleRange((0.0, mass * fm), 0.0 * inertia, inertia * fi,",
+          "a vehicle's plausible range starts at zero (no lower bound)"),
+    Break("generic-range-lower", "range lower bound (generic search range)",
+          "tests/test_range_and_gyro_sign.py::test_em_projection_stops_at_the_lower_edge",
+          "pinquad/identification/search_range.py",
+          "    lo, hi = mass / MASS_SPAN, mass * MASS_SPAN", "    lo, hi = 0.0, mass * MASS_SPAN",
+          "the generic search range of a hover mass starts at zero"),
+    Break("clip-lower", "range lower bound (EM's projection)",
+          "tests/test_range_and_gyro_sign.py::test_em_projection_stops_at_the_lower_edge",
+          "pinquad/core/params.py",
+          "        return float(min(max(mass, self.mass[0]), self.mass[1]))",
+          "        return float(min(mass, self.mass[1]))",
+          "EM's projection lets the mass fall below the range"),
+    Break("gyro-sign-ratio", "gyro sign check (ratio)",
+          "tests/test_range_and_gyro_sign.py::test_a_gyro_of_the_wrong_sign_is_rejected",
+          "pinquad/io/sanity.py", "    return None if beta is None else 1.0 / beta",
+          "    return None if beta is None else abs(1.0 / beta)",
+          "the gyro-vs-attitude ratio loses its sign"),
+    Break("gyro-sign-check", "gyro sign check (verdict on the ratio)",
+          "tests/test_range_and_gyro_sign.py::test_a_gyro_of_the_wrong_sign_is_rejected",
+          "pinquad/io/sanity.py",
+          "    ratio = gyro_ratio(log)\n"
+          "    if ratio is None or 1 / RATIO_TOLERANCE <= ratio <= RATIO_TOLERANCE:",
+          "    ratio = gyro_ratio(log)\n"
+          "    if ratio is None or 1 / RATIO_TOLERANCE <= abs(ratio) <= RATIO_TOLERANCE:",
+          "the log check accepts a gyro turning as far as the attitude either way"),
 )
 
 

@@ -130,13 +130,44 @@ def test_steady_thrust_fit_recovers_known_kf(tmp_path):
     assert fit.kf == pytest.approx(3.0e-8, rel=1e-9) and fit.kf_se < 1e-15
 
 
+def _calibration_kf_by_lstsq() -> tuple[float, float, int]:
+    """kf [N/(rad/s)^2], its standard error and the number of steps, fitted here from
+    the raw brushless calibration: each step of the manual file (its "rpm" column holds
+    the PWM command, "weight[g]" the four rotors' thrust in grams-force) takes the
+    median rpm4 over the second half of the logged rows at that PWM (the first half
+    spins up); the steps at 10000-20000 rev/min (around the flights' speeds) give
+    T = kf 4 omega^2 by least squares through the origin."""
+    manual = np.genfromtxt(CALIB / "manual_data_calib_brushless.csv", delimiter=",",
+                           skip_header=1)
+    logged = np.genfromtxt(CALIB / "data_calib_brushless.csv", delimiter=",", names=True)
+    speed = []
+    for pwm in manual[:, 0]:
+        rows = logged["rpm4"][logged["pwm"] == pwm]
+        assert rows.size > 1, f"no logged rows at PWM {pwm}"
+        speed.append(np.median(rows[rows.size // 2:]))
+    speed = np.array(speed)
+    steps = (speed >= 10000) & (speed <= 20000)
+    x = 4 * (speed[steps] * 2 * np.pi / 60) ** 2
+    y = manual[steps, 1] * 9.81e-3
+    (kf,), rss, _, _ = np.linalg.lstsq(x[:, None], y, rcond=None)
+    return float(kf), float(np.sqrt(rss[0] / (x.size - 1) / (x @ x))), int(steps.sum())
+
+
 def test_brushless_calibration_through_the_fit():
+    """The product's steady-thrust fit and the vehicle file's kf agree with the fit
+    written above to within its standard error (both fit the same five steps, so any
+    real disagreement is a mistake of units, columns or step matching, not noise)."""
+    assert CALIB.is_dir(), f"the brushless calibration is missing: expected it in {CALIB}"
     fit = fit_steady_thrust(CALIB / "manual_data_calib_brushless.csv",
                             speeds_from=CALIB / "data_calib_brushless.csv", join=("rpm", "pwm"),
                             speed_columns=("rpm4",), speed_range=(10000, 20000))
-    assert fit.n_points == 5
-    # the vehicle file carries this fit
-    assert fit.kf == pytest.approx(load_vehicle(str(BRUSHLESS_FILE)).actuators.kf, rel=1e-4)
+    want, se, steps = _calibration_kf_by_lstsq()
+    assert fit.n_points == steps == 5
+    assert 0.0 < se < 0.02 * want
+    assert abs(fit.kf - want) < se, (fit.kf, want, se)
+    assert fit.kf_se == pytest.approx(se, rel=0.05)
+    act = load_vehicle(str(BRUSHLESS_FILE)).actuators
+    assert abs(act.kf - want) < se, (act.kf, want, se)
     assert fit.residual_rms / 9.81e-3 < 1.0  # gf
 
 
