@@ -24,6 +24,7 @@ from pinquad.core.conventions import (
 )
 from pinquad.identification.known_mass import identify_known_mass
 from pinquad.io.datadir import checkout_data_dir
+from pinquad.io.logs import LogFormatError
 from pinquad.io.read import read_command_log
 
 REPO = Path(__file__).resolve().parents[1]
@@ -260,3 +261,32 @@ def test_ddd_sample_inertia_against_truth():
         assert result.naive_inertia[a] < 0.8 * DDD_TRUTH[a]
     zz = result.get("I_zz")
     assert not math.isfinite(zz.value) and "yaw torque coefficient" in zz.reasons[0]
+
+
+def test_bad_px4_input_named(tmp_path):
+    """A damaged cell, missing columns and a flight too short for the torque band: exit
+    2 (or LogFormatError) with the file, the place and what was expected."""
+    lines = DDD_CSV.read_text().splitlines()
+    cells = lines[30].split(",")
+    cells[3] = "abc"
+    lines[30] = ",".join(cells)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines) + "\n")
+    proc = subprocess.run(
+        [sys.executable, "-m", "pinquad.offline", "--log", str(bad), "--mass", "1.5",
+         "--vehicle", str(DDD_YAML), "--out", str(tmp_path / "run")],
+        capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert f"{bad}: data row 30, column 'u1': 'abc' is not a number" in proc.stderr
+    assert not (tmp_path / "run").exists()
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join(DDD_CSV.read_text().splitlines()[:501]) + "\n")
+    vehicle = read_curve_vehicle(DDD_YAML)
+    with pytest.raises(ValueError, match=r"short.csv: 5.0 s of flight; the torque band"):
+        identify_known_mass(read_command_log(short), 1.5, vehicle.spec.positions,
+                            vehicle.spec.spin)
+    cut = tmp_path / "cut.csv"
+    cut.write_text("\n".join(",".join(line.split(",")[:10])
+                             for line in DDD_CSV.read_text().splitlines()[:50]) + "\n")
+    with pytest.raises(LogFormatError, match=r"cut.csv: lacks column\(s\) q1, q2, q3"):
+        read_command_log(cut)

@@ -265,6 +265,10 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     if np.abs(steps - dt).max() > 0.01 * dt:
         raise ValueError(f"{src}: rows are not evenly spaced (steps {steps.min():.4g} to "
                          f"{steps.max():.4g} s); expected one row per {dt:.4g} s")
+    shortest = 4.0 / settings.band[0]
+    if log.t[-1] - log.t[0] < shortest:
+        raise ValueError(f"{src}: {log.t[-1] - log.t[0]:.1f} s of flight; the torque band's "
+                         f"low edge {settings.band[0]:g} Hz needs at least {shortest:.0f} s")
     for name, arr in (("velocity", log.velocity), ("attitude", log.euler),
                       ("gyro", log.gyro), ("acceleration", log.accel)):
         if not np.isfinite(arr).all():

@@ -55,13 +55,13 @@ def _columns(path: Path) -> dict[str, np.ndarray]:
     out = {name: np.empty(len(rows) - 1) for name in wanted}
     for r, row in enumerate(rows[1:]):
         if len(row) != len(header):
-            raise LogFormatError(f"{path}: row {r + 1} has {len(row)} fields; expected "
+            raise LogFormatError(f"{path}: data row {r + 1} has {len(row)} fields; expected "
                                  f"{len(header)} (one per header column)")
         for name, c in wanted.items():
             try:
                 out[name][r] = float(row[c])
             except ValueError:
-                raise LogFormatError(f"{path}: row {r + 1}, column {name!r}: {row[c]!r} is "
+                raise LogFormatError(f"{path}: data row {r + 1}, column {name!r}: {row[c]!r} is "
                                      "not a number") from None
     return out
 

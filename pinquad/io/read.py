@@ -51,8 +51,8 @@ def read_command_log(path: str | Path) -> CommandLog:
                              "data-driven-dynamics CSV")
     if ulog.is_ulog(path):
         return ulog.read_ulog(path)
-    if ddd_csv.is_ddd_csv(path):
-        return ddd_csv.read_ddd_csv(path)
+    if path.suffix.lower() == ".csv":
+        return ddd_csv.read_ddd_csv(path)  # names the columns it lacks
     raise LogFormatError(f"{path}: neither a ULog (magic bytes 'ULog') nor a CSV with the "
                          f"data-driven-dynamics columns ({', '.join(ddd_csv.REQUIRED)})")
 
