@@ -1,5 +1,6 @@
-"""``python -m pinquad.offline --log FILE --mass KG``: known-mass identification of a PX4
-log (``pinquad.identification.known_mass``). Exit 0 when every estimate the log can
+"""``python -m pinquad.offline --log FILE --mass KG --vehicle FILE [--band LO HI]``:
+known-mass identification of a PX4 log (``pinquad.identification.known_mass``; --band:
+the torque regression's band, default 0.3-2 Hz). Exit 0 when every estimate the log can
 give is trusted, 3 when one is not (report written), 2 on bad input (nothing written)."""
 
 from __future__ import annotations
@@ -8,7 +9,7 @@ import argparse
 import time
 
 from pinquad.core.actuator_curve import read_curve_vehicle
-from pinquad.identification.known_mass import identify_known_mass
+from pinquad.identification.known_mass import KnownMassSettings, identify_known_mass
 from pinquad.io.read import read_command_log
 from pinquad.io.runs import RunWriter, atomic_write_bytes, atomic_write_json, new_run_dir
 from pinquad.report.known_mass import headline_trusted, known_mass_report, known_mass_table
@@ -44,8 +45,9 @@ def run_known_mass(args: argparse.Namespace) -> int:
     flight = read_command_log(args.log)
     print(f"pinquad offline --log {args.log} --mass {mass:g}: known-mass regression, "
           f"{flight.log.n} rows of {flight.log.dt * 1e3:.0f} ms, {flight.n_motors} motors")
+    settings = KnownMassSettings(**({} if args.band is None else {"band": tuple(args.band)}))
     result = identify_known_mass(flight, mass, vehicle.spec.positions, vehicle.spec.spin,
-                                 vehicle.curve)
+                                 vehicle.curve, settings)
     seconds = time.perf_counter() - t0
     table = known_mass_table(result, vehicle)
     print()

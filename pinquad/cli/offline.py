@@ -142,7 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "dynamics CSV, docs/px4.md): the mass in kg (or 'file': the "
                         "--vehicle file's [reference] mass) fixes the scale; identifies the "
                         "thrust curve, motor time constant and inertia by regression; "
-                        "--vehicle names the rotor positions (.toml or .yaml)")
+                        "--vehicle names the rotor positions (.toml or .yaml), --band the "
+                        "torque regression's band (default 0.3-2 Hz)")
     return p
 
 
