@@ -6,6 +6,7 @@ identified model still gets wrong.
     log = pinquad.read_log("flight.csv")        # CSV, Parquet or Crazyflie micro-SD log
     fit = pinquad.identify(log)                 # fit.mass [kg], fit.inertia (3, 3), fit.stderr
     found = pinquad.discover(log, fit)          # found.selected, found.rms_before / rms_after
+    batch = pinquad.identify_many(paths, executor=pool)  # one row per log, any executor
 
 The names below are loaded on first use (``import pinquad`` stays cheap for the command
 lines, whose entry modules live in this package too).
@@ -24,8 +25,14 @@ _EXPORTS = {
     "FlightLog": "pinquad.io.logs",
     "LogFormatError": "pinquad.io.logs",
     "Identification": "pinquad.identification.identify",
-    "Discovery": "pinquad.discovery.result",
+    "identify_many": "pinquad.pipeline.batch",
+    "Batch": "pinquad.pipeline.batch",
+    "PipelineOptions": "pinquad.pipeline.single",
+    "Result": "pinquad.pipeline.single",
+    "LogOptions": "pinquad.experiments.recorded",
+    "DiscoveryResult": "pinquad.discovery.result",
     "DiscoveryConfig": "pinquad.discovery.result",
+    "NullSettings": "pinquad.discovery.null",
     "SimConfig": "pinquad.sim.simulator",
     "Vehicle": "pinquad.core.params",
     "VEHICLES": "pinquad.core.params",
@@ -33,28 +40,30 @@ _EXPORTS = {
     "CRAZYFLIE21": "pinquad.core.params",
     "PAPER_SCENARIO": "pinquad.core.params",
 }
-_RENAMED = {"Discovery": "DiscoveryResult"}
-
 __all__ = [
-    "CRAZYFLIE21", "PAPER_SCENARIO", "PAPER_VEHICLE", "VEHICLES", "Discovery", "DiscoveryConfig",
-    "FlightLog", "Identification", "LogFormatError", "SimConfig", "Vehicle", "discover",
-    "identify", "read_log", "simulate",
+    "CRAZYFLIE21", "PAPER_SCENARIO", "PAPER_VEHICLE", "VEHICLES", "Batch", "DiscoveryConfig",
+    "DiscoveryResult", "FlightLog", "Identification", "LogFormatError", "LogOptions",
+    "NullSettings", "PipelineOptions", "Result", "SimConfig", "Vehicle", "discover",
+    "identify", "identify_many", "read_log", "simulate",
 ]
 
 if TYPE_CHECKING:
     from pinquad.api import discover, identify, read_log, simulate
     from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO, PAPER_VEHICLE, VEHICLES, Vehicle
-    from pinquad.discovery.result import DiscoveryConfig
-    from pinquad.discovery.result import DiscoveryResult as Discovery
+    from pinquad.discovery.null import NullSettings
+    from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
+    from pinquad.experiments.recorded import LogOptions
     from pinquad.identification.identify import Identification
     from pinquad.io.logs import FlightLog, LogFormatError
+    from pinquad.pipeline.batch import Batch, identify_many
+    from pinquad.pipeline.single import PipelineOptions, Result
     from pinquad.sim.simulator import SimConfig
 
 
 def __getattr__(name: str) -> Any:
     if name not in _EXPORTS:
         raise AttributeError(f"module 'pinquad' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_EXPORTS[name]), _RENAMED.get(name, name))
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
     globals()[name] = value
     return value
 

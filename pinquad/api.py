@@ -1,6 +1,7 @@
 """pinquad's Python API: read a flight, identify its mass and inertia, look for what the
 identified model leaves unexplained, simulate flights. The command lines are built on
-the same functions (``pinquad.cli``); ``pinquad/__init__.py`` re-exports these names.
+the same pipeline (``pinquad.pipeline``); ``pinquad/__init__.py`` re-exports these names,
+and ``pinquad.identify_many`` identifies many logs on any executor or Dask cluster.
 
     import pinquad
 
@@ -12,7 +13,6 @@ the same functions (``pinquad.cli``); ``pinquad/__init__.py`` re-exports these n
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,19 +20,10 @@ import numpy as np
 from pinquad.core.params import VEHICLES, Vehicle
 from pinquad.discovery.null import NullSettings
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
-from pinquad.experiments.headline import run_verdict
-from pinquad.experiments.recorded import (
-    LogOptions,
-    discover_calibrated,
-    discovery_config,
-    discovery_start,
-    identify_log,
-    input_reading,
-    log_kind,
-)
+from pinquad.experiments.recorded import LogOptions
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog
-from pinquad.io.read import read_log as read_any_log
+from pinquad.pipeline.single import discover_from, identify_run, read
 from pinquad.sim.simulator import SimConfig, flight_log
 from pinquad.sim.simulator import simulate as simulate_flight
 
@@ -42,7 +33,7 @@ def read_log(path: str | Path) -> FlightLog:
     Parquet table (the log columns of ``pinquad.io.logs``) with its optional JSON sidecar. Raises
     ``pinquad.io.logs.LogFormatError`` naming the file and the column, row or byte
     offset when the file is not a readable log."""
-    return read_any_log(path)
+    return read(path)
 
 
 def identify(log: FlightLog, *, mstep: str = "regressor", sensor: str | None = None,
@@ -63,9 +54,7 @@ def identify(log: FlightLog, *, mstep: str = "regressor", sensor: str | None = N
     """
     options = LogOptions(sensors=() if sensor is None else (sensor,), msteps=(mstep,),
                          estep=estep, max_iterations=max_iterations, information=information)
-    result = identify_log(log, options)
-    run = result.runs[0]
-    return replace(run, verdict=run_verdict(result, run))
+    return identify_run(log, options)
 
 
 def discover(log: FlightLog, identification: Identification,
@@ -79,14 +68,7 @@ def discover(log: FlightLog, identification: Identification,
     uses for this kind of log); null: the calibration of the selection against shadow
     flights of the base fit (default ``NullSettings()``: 19, seed 0; an effect they
     explain is not selected). Raises ValueError when discovery fails numerically."""
-    if identification.mstep == "full":
-        raise ValueError("effect discovery works on the diagonal model: identify with "
-                         "mstep='regressor' first")
-    start = discovery_start(identification)
-    kind = log_kind(log)
-    reading = input_reading(kind, log)
-    config = discovery_config(kind, reading) if config is None else config
-    outcome = discover_calibrated(start, config, null, reading)
+    outcome = discover_from(log, identification, config, null)
     if outcome.result is None:
         raise ValueError(outcome.error or "effect discovery failed")
     return outcome.result

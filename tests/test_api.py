@@ -63,7 +63,8 @@ def test_public_names_resolve_to_the_implementations():
     assert pinquad.discover is api.discover
     assert pinquad.simulate is api.simulate
     assert pinquad.Identification is Identification
-    assert pinquad.Discovery is DiscoveryResult
+    assert pinquad.DiscoveryResult is DiscoveryResult
+    assert not hasattr(pinquad, "Discovery")  # one name per type
     assert pinquad.FlightLog is FlightLog
     assert set(pinquad.__all__) <= set(dir(pinquad))
     with pytest.raises(AttributeError):
@@ -109,3 +110,29 @@ def test_a_measured_flight_says_where_its_thrust_coefficient_came_from(monkeypat
     assert any("no thrust-stand CSV" in n and "assumed 5 % standard error" in n
                for n in fallback.notes), fallback.notes
     assert fallback.mass != fit.mass
+
+
+def test_every_type_the_api_signatures_take_or_give_is_exported():
+    """A user can name what a public function takes and returns: every pinquad class in
+    the annotations of the exported functions is itself exported (e.g. discover's
+    NullSettings, identify_many's PipelineOptions and Batch)."""
+    import typing
+
+    import pinquad
+
+    def classes(hint: object) -> set[type]:
+        found = {hint} if isinstance(hint, type) else set()
+        for arg in typing.get_args(hint):
+            found |= classes(arg)
+        return found
+
+    functions = [getattr(pinquad, n) for n in pinquad.__all__ if n.islower()]
+    assert pinquad.identify_many in functions
+    taken = set()
+    for fn in functions:
+        for hint in typing.get_type_hints(fn).values():
+            taken |= {c for c in classes(hint) if c.__module__.startswith("pinquad")}
+    assert {c.__name__ for c in taken} >= {"NullSettings", "PipelineOptions", "Batch",
+                                           "DiscoveryConfig", "DiscoveryResult"}
+    for cls in taken:
+        assert getattr(pinquad, cls.__name__, None) is cls, f"{cls.__name__} not exported"

@@ -22,12 +22,9 @@ Exit codes: 0 success; 2 bad input (nothing written); 3 headline not trusted (wr
 from __future__ import annotations
 
 import argparse
-import multiprocessing
 import os
 import sys
 import time
-from concurrent.futures import Executor
-from dataclasses import replace
 from pathlib import Path
 
 from pinquad.cli.batch import BATCH_EXIT_CODES, is_batch, run_batch
@@ -44,28 +41,11 @@ from pinquad.core.execution import open_executor
 from pinquad.core.params import PAPER_SCENARIO
 from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.null import NullSettings
-from pinquad.experiments.discovery_report import discovery_section
-from pinquad.experiments.headline import headline
 from pinquad.experiments.offline_mc import CycleJob, run_cycles
-from pinquad.experiments.recorded import (
-    LogOptions,
-    identify_log,
-    run_discovery,
-    worker_pool,
-)
-from pinquad.io.logs import FlightLog
-from pinquad.io.read import read_log, with_vehicle
+from pinquad.experiments.recorded import LogOptions, worker_pool
 from pinquad.io.runs import RunWriter, new_run_dir
-from pinquad.report.discovery import draw_discovery_figures
+from pinquad.pipeline import PipelineOptions, read, run
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
-from pinquad.report.recorded import (
-    discovery_summary,
-    headline_summary,
-    log_table,
-    report_json,
-    report_markdown,
-    write_log_run,
-)
 
 UNTRUSTED = 3
 """Exit code of a run whose report is written but whose headline estimate is not
@@ -199,76 +179,44 @@ def _view(run_dir: Path) -> int:
     return viz_main([str(run_dir)])
 
 
+def pipeline_options(args: argparse.Namespace) -> PipelineOptions:
+    """The pipeline's options (``pinquad.pipeline``) from the parsed --log options."""
+    identification = LogOptions(
+        sensors=tuple(args.sensor or ()), msteps=_msteps(args.mstep), estep=args.estep,
+        max_iterations=args.max_iterations, information=not args.no_information,
+        **({} if args.band is None else {"band": tuple(args.band)}))
+    return PipelineOptions(identification, NullSettings(args.null_replicates, args.null_seed),
+                           discover=not args.no_discover, vehicle=args.vehicle)
+
+
 def run_log(args: argparse.Namespace) -> int:
-    """Identify the vehicle of ``args.log`` and write a run directory (module docstring).
+    """Identify the vehicle of ``args.log`` through the pipeline (``pinquad.pipeline``)
+    and write a run directory (module docstring).
 
     Raises LogFormatError / ValueError (with the file named) on bad input; returns 0, or
     ``UNTRUSTED`` (3) when the headline estimate's verdict is not ``trusted`` (the run
     directory is written either way).
     """
-    options = LogOptions(sensors=tuple(args.sensor or ()), msteps=_msteps(args.mstep),
-                         estep=args.estep, max_iterations=args.max_iterations,
-                         information=not args.no_information,
-                         **({} if args.band is None else {"band": tuple(args.band)}))
-    null = NullSettings(args.null_replicates, args.null_seed)  # its range checked before work
+    options = pipeline_options(args)  # the null's range checked before work
     t0 = time.perf_counter()
     print(f"pinquad offline --log {args.log}: E-step {args.estep}, "
-          f"M-step(s) {', '.join(options.msteps)}")
+          f"M-step(s) {', '.join(options.identification.msteps)}")
     writer = RunWriter(args.out or new_run_dir("log"))  # --out checked before any work
-    log = read_log(args.log)
+    log = read(args.log, args.vehicle)
     if args.vehicle is not None:
-        log = with_vehicle(log, args.vehicle, Path.cwd(), "--vehicle")
         print(f"vehicle: {log.meta.vehicle}")
-    # a log of a batch runs in a worker process already: no pool inside it
-    jobs = args.jobs if multiprocessing.parent_process() is None else 1
-    with worker_pool(jobs) as pool:
-        return _identify_and_report(args, log, options, null, writer, pool, t0)
-
-
-def _identify_and_report(args: argparse.Namespace, log: FlightLog, options: LogOptions,
-                         null: NullSettings, writer: RunWriter, pool: Executor | None,
-                         t0: float) -> int:
-    """``run_log`` after the log is read: identification, discovery (``pool``: the
-    worker processes of both, or None), the run directory."""
-    result = identify_log(log, options, pool)  # a numerical failure: main's exit-2 message
-    seconds = time.perf_counter() - t0
-    print(f"log: {result.contents}; {result.obs.n} steps of {result.obs.dt * 1e3:.0f} ms")
-    print(f"initial guess: {result.guess}")
-    for line in result.excluded:
-        print(f"excluded: {line}")
-    for note in result.notes:
-        print(f"note: {note}")
-    for run in (r for r in result.runs if r.failure):
-        print(f"note: {run.sensor}, {run.mstep} M-step: {run.failure}")
-    print(f"\nEM: {seconds:.1f} s")
-
+    with worker_pool(args.jobs) as pool:
+        result = run(log, options, pool, str(args.log), t0)
+    print(result.text())
     with writer:
-        discovery, outcome = None, None
-        if result.runs[0].mstep == "full" and not args.no_discover:
-            print("\neffect discovery: not run (it works on the diagonal model: run "
-                  "--mstep regressor for it)")
-        elif not args.no_discover:
-            outcome = run_discovery(result, null, pool)
-            if outcome.result is not None:
-                outcome = replace(outcome, result=draw_discovery_figures(
-                    outcome.result, writer.path("figures")))
-            discovery = discovery_section(outcome)
-            print()
-            print(discovery_summary(discovery))
-        top = headline(result, outcome)
-        print()
-        print(log_table(result, top))
-        print()
-        print(headline_summary(top))
-        report = report_json(result, str(args.log), args.estep, seconds, discovery, top)
-        write_log_run(writer, result, report,
-                      report_markdown(result, str(args.log), discovery, top), outcome)
+        result.write(writer)
         final = writer.publish()
     print(f"run written to {final}")
-    code = 0 if top.final.verdict.trusted else UNTRUSTED
+    code = 0 if result.trusted else UNTRUSTED
     if code:
-        print(f"exit code {UNTRUSTED}: the headline estimate is {top.final.verdict.overall} "
-              "(report written; its verdict says why)", file=sys.stderr)
+        print(f"exit code {UNTRUSTED}: the headline estimate is "
+              f"{result.headline.final.verdict.overall} (report written; its verdict says "
+              "why)", file=sys.stderr)
     viewed = _view(final) if args.view else 0
     return viewed or code
 
@@ -284,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
             args.log = args.log[0]
             return run_known_mass(args)
         if args.log is not None and is_batch(args.log):
-            return run_batch(args, run_log, backend_from_args(args),
+            return run_batch(args, pipeline_options(args), backend_from_args(args),
                              argv=sys.argv[1:] if argv is None else argv)
         if args.log is not None:
             args.log = args.log[0]

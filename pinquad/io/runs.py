@@ -194,13 +194,19 @@ class RunWriter:
     writer:``), an exception leaving the block aborts the run, and SIGTERM (``timeout``,
     a service manager) inside the block is turned into KeyboardInterrupt so it cleans up
     like Ctrl-C. Raises OutputError when the target cannot take the run.
+
+    replace=True makes the writer idempotent, for a task that may be run again (a Dask
+    worker killed mid-task): a non-empty target is this task's own earlier output and is
+    replaced at ``publish()``, and the staging directory has a fixed name
+    ``.NAME.partial`` so a rerun removes what a killed attempt left half written.
     """
 
-    def __init__(self, target: str | Path):
+    def __init__(self, target: str | Path, *, replace: bool = False):
         self.target = Path(target)
+        self.replace = replace
         if self.target.exists() and not self.target.is_dir():
             raise OutputError(f"{self.target}: is a file; expected an output directory")
-        if self.target.exists() and any(self.target.iterdir()):
+        if not replace and self.target.exists() and any(self.target.iterdir()):
             raise OutputError(f"{self.target}: output directory exists and is not empty")
         _writable_dir(self.target.parent, self.target)
         try:
@@ -212,6 +218,7 @@ class RunWriter:
         self._take_lock()
         self._finalizer = weakref.finalize(self, _release, self.lock, self._token)
         self._staging: Path | None = None
+        self._umask_applied = False
         self._previous_sigterm: object = None
 
     def _take_lock(self) -> None:
@@ -240,14 +247,24 @@ class RunWriter:
     @property
     def staging(self) -> Path:
         """The hidden staging directory (created on first use)."""
+        if self._staging is None and self.replace:
+            # the lock is held: a .partial left here is a killed attempt's, not a live one's
+            partial = self.target.parent / f".{self.target.name}.partial"
+            shutil.rmtree(partial, ignore_errors=True)
+            shutil.rmtree(self.target.parent / f".{self.target.name}.replaced",
+                          ignore_errors=True)
+            partial.mkdir(mode=0o700)
+            self._staging = partial
         if self._staging is None:
             self._staging = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.",
                                                   dir=self.target.parent))
+        if not self._umask_applied:
             # mkdtemp's folder is private to its owner; a run directory gets the
             # permissions any new folder of the user gets
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(self._staging, 0o777 & ~umask)
+            self._umask_applied = True
         return self._staging
 
     def path(self, name: str) -> Path:
@@ -262,6 +279,16 @@ class RunWriter:
         a fresh ``NAME-n`` beside it instead of overwriting or losing either."""
         staging = self.staging
         final = self.target
+        if self.replace and final.exists() and any(final.iterdir()):
+            # this task's own earlier output: moved aside, replaced, then removed, so the
+            # target is always either the old run or the new one, whole
+            old = final.parent / f".{final.name}.replaced"
+            shutil.rmtree(old, ignore_errors=True)
+            os.replace(final, old)
+            os.replace(staging, final)
+            shutil.rmtree(old, ignore_errors=True)
+            self._finalizer()
+            return final
         if final.exists():
             try:
                 final.rmdir()

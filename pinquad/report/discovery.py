@@ -41,10 +41,15 @@ def draw_discovery_figures(result: DiscoveryResult, out_dir: str | Path) -> Disc
             ax.legend(markerscale=8, fontsize=7)
         fig.suptitle(f"{ev.effect}: held-out residuals")
         fig.tight_layout()
-        path = out / f"discovery_{ev.effect}.png"
+        path = out / discovery_figure_name(ev.effect)
         fig.savefig(path, dpi=FIGURE_DPI)
         paths.append(str(path))
     return replace(result, figures=tuple(paths))
+
+
+def discovery_figure_name(effect: str) -> str:
+    """The file name of ``effect``'s figure in the run's ``figures/`` (``draw_discovery_figures``)."""
+    return f"discovery_{effect}.png"
 
 
 _AXIS_UNITS = {**{a: "N" for a in AXES[:3]}, **{a: "N m" for a in AXES[3:]},

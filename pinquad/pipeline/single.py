@@ -1,0 +1,249 @@
+"""One recorded log through pinquad: read -> check -> identify -> discover -> judge ->
+``Result``, and ``Result.save(run_dir)``.
+
+Every step is a function of the previous step's output (the data flows one way):
+
+- read: the log file (CSV, Parquet or Crazyflie micro-SD binary, ``pinquad.io.read``),
+  with the vehicle named by the caller, if any, overriding its sidecar's;
+- check: its columns against physics (``pinquad.io.sanity.check_log``: units, impossible
+  values) before any EM;
+- identify: mass [kg] and inertia (3, 3) [kg m^2] by EM, every run asked for
+  (``pinquad.experiments.recorded.identify_log``);
+- discover: the unmodelled effects of the reported run, calibrated against shadow
+  flights of the base fit (``recorded.run_discovery``);
+- judge: the headline estimate under the final model with its error budget and verdict
+  (``pinquad.experiments.headline``);
+- ``Result``: all of it, with the report it makes; ``Result.save(run_dir)`` writes the
+  run directory whole or not at all (a staging directory renamed into place, with the
+  permissions any new folder of the user gets).
+
+The command line (``python -m pinquad.offline --log``), the Python API (``pinquad.api``)
+and the batch (``pinquad.pipeline.batch.identify_many``) all run these functions.
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import Executor
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from pinquad.discovery.null import NullSettings
+from pinquad.discovery.result import DiscoveryConfig
+from pinquad.experiments.discovery_report import discovery_section
+from pinquad.experiments.headline import Headline, headline, run_verdict
+from pinquad.experiments.recorded import (
+    DiscoveryOutcome,
+    LogOptions,
+    LogResult,
+    discover_calibrated,
+    discovery_config,
+    discovery_start,
+    identify_log,
+    input_reading,
+    log_kind,
+    run_discovery,
+)
+from pinquad.identification.identify import Identification
+from pinquad.io.logs import FlightLog
+from pinquad.io.read import read_log, with_vehicle
+from pinquad.io.runs import RunWriter
+from pinquad.report.discovery import discovery_figure_name, draw_discovery_figures
+from pinquad.report.recorded import (
+    discovery_summary,
+    headline_summary,
+    log_table,
+    report_json,
+    report_markdown,
+    write_log_run,
+)
+
+FULL_NOT_DISCOVERED = ("effect discovery: not run (it works on the diagonal model: run "
+                       "--mstep regressor for it)")
+"""Why a ten-parameter fit gets no effect discovery, as printed."""
+
+
+@dataclass(frozen=True)
+class PipelineOptions:
+    """How one log goes through the pipeline.
+
+    identification: the EM runs (``LogOptions``: sensors, M-steps, E-step, iterations,
+    standard errors, torque band); null: the calibration of discovery's selection against
+    shadow flights (``NullSettings``; replicates 0: off); discover: look for unmodelled
+    effects; vehicle: a shipped vehicle name or a ``.toml`` vehicle file (relative paths
+    from the working directory) that overrides the log's sidecar, None: the log's own.
+    """
+
+    identification: LogOptions = field(default_factory=LogOptions)
+    null: NullSettings = field(default_factory=NullSettings)
+    discover: bool = True
+    vehicle: str | None = None
+
+
+def read(path: str | Path, vehicle: str | None = None) -> FlightLog:
+    """The flight recorded in ``path``, its vehicle set to ``vehicle`` when given. Raises
+    ``pinquad.io.logs.LogFormatError`` naming the file and the column, row or byte offset
+    when it is not a readable log, or the vehicle when it is not one."""
+    log = read_log(path)
+    if vehicle is None:
+        return log
+    return with_vehicle(log, vehicle, Path.cwd(), "--vehicle")
+
+
+def identify(log: FlightLog, options: LogOptions | None = None,
+             executor: Executor | None = None) -> LogResult:
+    """Check the log against physics, then identify its vehicle by EM (every run of
+    ``options``; ``executor``: where the runs beyond the reported one go, the same
+    answer). Raises ``ImplausibleLogError`` / ValueError naming the log on bad input,
+    numpy's LinAlgError when EM fails numerically."""
+    return identify_log(log, options, executor)  # check_log runs first inside
+
+
+def identify_run(log: FlightLog, options: LogOptions) -> Identification:
+    """The reported run of ``identify`` with its own verdict (``Identification.verdict``:
+    per parameter, trusted or why not)."""
+    identified = identify(log, options)
+    run = identified.runs[0]
+    return replace(run, verdict=run_verdict(identified, run))
+
+
+def discover(identified: LogResult, null: NullSettings | None = None,
+             executor: Executor | None = None) -> DiscoveryOutcome:
+    """Effect discovery on the reported run with the settings for the log's kind; a
+    numerical failure, an unconverged base fit or one outside the physical set is said in
+    the outcome, not raised (the identification stands without it)."""
+    return run_discovery(identified, null, executor)
+
+
+def discover_from(log: FlightLog, run: Identification, config: DiscoveryConfig | None = None,
+                  null: NullSettings | None = None) -> DiscoveryOutcome:
+    """Effect discovery from any diagonal-model run of ``log`` (the API's ``discover``),
+    with ``config`` (default: the settings for the log's kind). Raises ValueError for a
+    ten-parameter run or one that kept no posterior."""
+    if run.mstep == "full":
+        raise ValueError("effect discovery works on the diagonal model: identify with "
+                         "mstep='regressor' first")
+    start = discovery_start(run)
+    kind = log_kind(log)
+    reading = input_reading(kind, log)
+    config = discovery_config(kind, reading) if config is None else config
+    return discover_calibrated(start, config, null, reading)
+
+
+def judge(identified: LogResult, outcome: DiscoveryOutcome | None) -> Headline:
+    """The headline: the estimate under the final model (discovery's refit when it
+    selected effects, else the base fit), its error budget and verdict."""
+    return headline(identified, outcome)
+
+
+@dataclass(frozen=True)
+class Result:
+    """One log's way through the pipeline.
+
+    source: the log's path as given (report.json's ``source.path``); estep: the E-step
+    smoother; identified: the EM runs (``LogResult``; ``runs[0]`` the reported one);
+    outcome: effect discovery's outcome (None: not run); discovery_skipped: why
+    discovery was asked for and not run (a ten-parameter fit), else None; headline: the
+    judged estimate; seconds: wall time [s] from reading the log to the end of EM.
+    """
+
+    source: str
+    estep: str
+    identified: LogResult
+    outcome: DiscoveryOutcome | None
+    discovery_skipped: str | None
+    headline: Headline
+    seconds: float
+
+    @property
+    def trusted(self) -> bool:
+        """Whether the headline estimate's verdict is ``trusted``."""
+        return self.headline.final.verdict.trusted
+
+    def discovery(self) -> dict | None:
+        """report.json's ``discovery`` section (None: not run), its figures named as
+        ``save`` draws them (``figures/discovery_<effect>.png``)."""
+        if self.outcome is None:
+            return None
+        found = self.outcome.result
+        if found is None:
+            return discovery_section(self.outcome)
+        named = replace(found, figures=tuple(discovery_figure_name(ev.effect)
+                                             for ev in found.evidence))
+        return discovery_section(replace(self.outcome, result=named))
+
+    def text(self) -> str:
+        """What the command line prints about the run: the log, exclusions and notes, the
+        EM time, discovery's summary, the table of runs and the headline with its verdict."""
+        ident = self.identified
+        lines = [f"log: {ident.contents}; {ident.obs.n} steps of {ident.obs.dt * 1e3:.0f} ms",
+                 f"initial guess: {ident.guess}",
+                 *(f"excluded: {line}" for line in ident.excluded),
+                 *(f"note: {note}" for note in ident.notes),
+                 *(f"note: {r.sensor}, {r.mstep} M-step: {r.failure}"
+                   for r in ident.runs if r.failure),
+                 f"\nEM: {self.seconds:.1f} s"]
+        if self.discovery_skipped is not None:
+            lines.append(f"\n{self.discovery_skipped}")
+        section = self.discovery()
+        if section is not None:
+            lines += ["", discovery_summary(section)]
+        lines += ["", log_table(ident, self.headline), "", headline_summary(self.headline)]
+        return "\n".join(lines)
+
+    def write(self, writer: RunWriter) -> None:
+        """The run directory's files into ``writer``'s staging directory (the caller
+        publishes): report.json, report.md, the log as the E-step saw it, the smoothed
+        means, figures and the viewer's tables."""
+        outcome = self.outcome
+        if outcome is not None and outcome.result is not None:
+            outcome = replace(outcome, result=draw_discovery_figures(
+                outcome.result, writer.path("figures")))
+        section = self.discovery()
+        report = report_json(self.identified, self.source, self.estep, self.seconds,
+                             section, self.headline)
+        markdown = report_markdown(self.identified, self.source, section, self.headline)
+        write_log_run(writer, self.identified, report, markdown, outcome)
+
+    def save(self, run_dir: str | Path, *, replace: bool = False) -> Path:
+        """Write the run directory ``run_dir`` whole or not at all and return it.
+
+        replace=False: ``run_dir`` must be absent or empty (``OutputError`` otherwise);
+        True: it is this run's own earlier output (a task run again) and is replaced,
+        whatever an interrupted attempt left half written.
+        """
+        writer = RunWriter(run_dir, replace=replace)
+        with writer:
+            self.write(writer)
+            return writer.publish()
+
+
+def run(log: FlightLog, options: PipelineOptions | None = None,
+        executor: Executor | None = None, source: str | None = None,
+        started: float | None = None) -> Result:
+    """identify -> discover -> judge on a read log (module docstring). executor: worker
+    processes for the log's EM runs beyond the reported one and discovery's shadow
+    flights (None: all here; the same answer); source: the log's path for the report
+    (default: the log's own); started: ``time.perf_counter()`` when reading began (the
+    report's seconds count from it; default: now)."""
+    options = options or PipelineOptions()
+    t0 = time.perf_counter() if started is None else started
+    identified = identify(log, options.identification, executor)
+    seconds = time.perf_counter() - t0
+    outcome, skipped = None, None
+    if options.discover and identified.runs[0].mstep == "full":
+        skipped = FULL_NOT_DISCOVERED
+    elif options.discover:
+        outcome = discover(identified, options.null, executor)
+    return Result(str(log.meta.source) if source is None else source,
+                  options.identification.estep, identified, outcome, skipped,
+                  judge(identified, outcome), seconds)
+
+
+def run_path(path: str | Path, options: PipelineOptions | None = None,
+             executor: Executor | None = None) -> Result:
+    """read -> check -> identify -> discover -> judge for the log at ``path``."""
+    options = options or PipelineOptions()
+    started = time.perf_counter()
+    log = read(path, options.vehicle)
+    return run(log, options, executor, str(Path(path)), started)
