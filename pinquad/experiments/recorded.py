@@ -258,10 +258,18 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
                 first = (real, post_p.mean)
     assert first is not None
     real, smoothed = first
-    exported = replace(real.log, meta=replace(real.log.meta, wrench_from_rpm=True))
+    # the grid's log keeps whether the log named its vehicle: one that names none is
+    # judged on no vehicle's range, never on the default paper vehicle's
+    exported = replace(real.log, meta=replace(real.log.meta, wrench_from_rpm=True,
+                                              vehicle_named=log.meta.vehicle_named))
+    unnamed = () if log.meta.vehicle_named else (
+        "no vehicle named (the log has no sidecar key \"vehicle\"): the verdict judges the "
+        "estimate against no vehicle's range; the rotor speeds are read with "
+        f"{'crazyflie21' if not is_vehicle_file(vehicle) else vehicle}'s rotor model; name "
+        "the vehicle in the sidecar to judge against its range",)
     return LogResult(tuple(runs), exported, real.obs, smoothed, guess, real.excluded,
-                     real.notes, kind, kf=real.kf, faults=tuple(real.faults.notes),
-                     contents=log_contents(log), search=box)
+                     (*real.notes, *unnamed), kind, kf=real.kf,
+                     faults=tuple(real.faults.notes), contents=log_contents(log), search=box)
 
 
 def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity: float,

@@ -6,7 +6,9 @@ yaw``; ``gyro_*`` [rad/s, body]; ``acc_*`` [m/s^2, body specific force]; actuati
 ``thrust`` + ``torque_*`` or ``rpm_1..4``; optional ``vbat``, ``contact``; truth in
 ``true_*`` columns, never read by estimators. A JSON sidecar ``<log>.json`` carries
 ``vehicle``, ``mass_guess``, ``inertia_guess`` (3x3, or its diagonal as three numbers),
-``gravity``.
+``gravity``, and may declare conventions other than pinquad's (``frame``, ``quaternion``,
+``euler``, ``rotor_speed``, ``motor_order``: ``pinquad.io.declared``), converted once on
+reading.
 """
 
 from __future__ import annotations
@@ -31,15 +33,20 @@ from pinquad.core.conventions import (
 )
 from pinquad.core.params import VEHICLES
 from pinquad.core.vehicle_file import VehicleFileError, is_vehicle_file, load_vehicle
+from pinquad.io.declared import (
+    CALIBRATION_KEYS,
+    WRENCH_FROM_RPM,
+    Conventions,
+    calibration,
+    read_conventions,
+    to_pinquad,
+    wrench_from_rpm,
+)
+from pinquad.io.errors import LogFormatError
 from pinquad.io.runs import atomic_write_bytes
 from pinquad.io.timebase import irregular_note, relative_time, stored_resolution_problem
 
 Array = NDArray[np.float64]
-
-
-class LogFormatError(ValueError):
-    """A log file that does not follow the format: the message names the file, the
-    column or byte offset, and what was expected."""
 
 
 @dataclass(frozen=True)
@@ -82,6 +89,7 @@ class LogMeta:
     calibration: tuple[float, float, float] | None = None
     wrench_from_rpm: bool = False
     t_origin: float = 0.0
+    conventions: Conventions = field(default_factory=Conventions)
 
 
 ACTUATION = ("held", "sampled")
@@ -455,44 +463,10 @@ def _read_sidecar(path: Path) -> LogMeta:
         actuation=actuation,
         actuation_declared="actuation" in raw,
         vehicle_named="vehicle" in raw,
-        calibration=_calibration(side, raw.get("calibration")),
-        wrench_from_rpm=_wrench_from_rpm(side, raw.get("wrench")),
+        calibration=calibration(side, raw.get("calibration")),
+        wrench_from_rpm=wrench_from_rpm(side, raw.get("wrench")),
+        conventions=read_conventions(side, raw),
     )
-
-
-WRENCH_FROM_RPM = "from rpm"
-"""The sidecar's ``wrench`` value of a log whose thrust and torques were computed from
-its rotor speeds (``LogMeta.wrench_from_rpm``)."""
-
-
-def _wrench_from_rpm(side: Path, raw: object) -> bool:
-    if raw is None:
-        return False
-    if raw != WRENCH_FROM_RPM:
-        raise LogFormatError(f"{side}: key 'wrench' is {raw!r}; expected {WRENCH_FROM_RPM!r} "
-                             "(the thrust and torque columns were computed from rpm_1..) or "
-                             "no such key (they are the applied or commanded wrench)")
-    return True
-
-
-CALIBRATION_KEYS = ("thrust", "yaw_torque", "arm")
-"""The sidecar's ``calibration`` keys (``LogMeta.calibration``)."""
-
-
-def _calibration(side: Path, raw: object) -> tuple[float, float, float] | None:
-    """The sidecar's ``calibration`` object, {"thrust": r, "yaw_torque": r, "arm": r},
-    relative standard uncertainties in [0, 1) (None when absent)."""
-    if raw is None:
-        return None
-    ok = isinstance(raw, dict) and set(raw) == set(CALIBRATION_KEYS) and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v < 1.0
-        for v in raw.values())
-    if not ok:
-        raise LogFormatError(f"{side}: key 'calibration' is {raw!r}; expected "
-                             '{"thrust": r, "yaw_torque": r, "arm": r}, relative standard '
-                             "uncertainties in [0, 1) of the logged thrust, yaw torque and "
-                             "arm length (0: the applied wrench exactly)")
-    return tuple(float(raw[k]) for k in CALIBRATION_KEYS)  # type: ignore[return-value]
 
 
 def read_log(path: str | Path) -> FlightLog:
@@ -521,13 +495,17 @@ def read_log(path: str | Path) -> FlightLog:
             f"{path}: column 't' is not strictly increasing at row {bad + 1} "
             f"(t = {t[bad - 1]!r} then {t[bad]!r})")
     t, t_origin = relative_time(t)  # float64, before anything differences or bins t
-    if all(f"quat_{a}" in cols for a in "wxyz"):
+    cols = to_pinquad(cols, meta.conventions, path)  # once, here: the rest is pinquad's
+    source = "quat" if all(f"quat_{a}" in cols for a in "wxyz") else (
+        "euler" if all(a in cols for a in ("roll", "pitch", "yaw")) else None)
+    meta = replace(meta, conventions=replace(meta.conventions, attitude_columns=source))
+    if source == "quat":
         quat = np.column_stack([cols[f"quat_{a}"] for a in "wxyz"])
         euler = np.full((n, 3), np.nan)
         ok = np.isfinite(quat).all(axis=1) & (np.linalg.norm(np.nan_to_num(quat), axis=1) > 0)
         if ok.any():
             euler[ok] = euler_from_quat_wxyz(quat[ok])
-    elif all(a in cols for a in ("roll", "pitch", "yaw")):
+    elif source == "euler":
         euler = np.column_stack([cols["roll"], cols["pitch"], cols["yaw"]])
     else:
         euler = _nan3(n)

@@ -20,6 +20,10 @@ Checks, in order (the first failure is reported):
    gravity points along -z by convention);
 4. impossible values: inf in a measurement column, or any value beyond ``IMPOSSIBLE``
    (e.g. gyro beyond 1e4 rad/s): a located error (column, rows, value);
+   then the conventions the sidecar does not declare (``pinquad.io.conventions_check``:
+   attitude vs gyro under each quaternion or Euler reading, gravity along -z, rotor
+   speeds vs a hover's thrust, motor order vs angular acceleration); when one fails,
+   it is reported and the checks below are not run;
 5. gyro vs attitude: over windows of ``ATTITUDE_WINDOW_S`` (or ``ATTITUDE_WINDOW_RAD``),
    the body rotation vector of R_a^T R_b from the pose against the integrated gyro,
    fitted as rotvec = beta * integral(omega dt); 1 / beta within [1 / ``RATIO_TOLERANCE``,
@@ -52,6 +56,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.params import VEHICLES
+from pinquad.io.conventions_check import convention_problems
 from pinquad.io.logs import FlightLog, LogFormatError
 
 Array = NDArray[np.float64]
@@ -437,6 +442,10 @@ def findings(log: FlightLog) -> tuple[Finding, ...]:
     impossible = _check_impossible(log)
     if impossible is not None:
         return (*out, impossible)
+    # an undeclared convention read wrong makes the unit checks below meaningless
+    conventions = convention_problems(log)
+    if conventions:
+        return (*out, *(Finding(*found) for found in conventions))
     for check in (_check_gyro, _check_position_velocity, _check_kinematics,
                   _check_accelerometer, _check_thrust):
         found = check(log)
