@@ -24,7 +24,7 @@ from pinquad.core.conventions import (
 )
 from pinquad.identification.known_mass import identify_known_mass
 from pinquad.io.datadir import checkout_data_dir
-from pinquad.io.logs import LogFormatError
+from pinquad.io.errors import LogFormatError
 from pinquad.io.read import read_command_log
 
 REPO = Path(__file__).resolve().parents[1]

@@ -19,7 +19,7 @@ import numpy as np
 
 from pinquad.core.conventions import quat_wxyz_from_ned_frd, vector_from_ned_frd
 from pinquad.io.command_log import CommandLog, command_log
-from pinquad.io.logs import LogFormatError
+from pinquad.io.errors import LogFormatError
 
 REQUIRED = ("timestamp", "u0", "vx", "vy", "vz", "q0", "q1", "q2", "q3", "ang_vel_x",
             "ang_vel_y", "ang_vel_z", "acc_b_x", "acc_b_y", "acc_b_z")

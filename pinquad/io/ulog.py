@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import quat_wxyz_from_ned_frd, vector_from_ned_frd
 from pinquad.io.command_log import CommandLog, command_log
-from pinquad.io.logs import LogFormatError
+from pinquad.io.errors import LogFormatError
 
 Array = NDArray[np.float64]
 
