@@ -22,7 +22,7 @@ others: the paper's m0 = 0.001 kg, I0 = diag(1e-4, 2e-4, 1e-4) kg m^2).
 
 from __future__ import annotations
 
-from concurrent.futures import Executor, Future
+from concurrent.futures import Executor
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -33,17 +33,10 @@ from numpy.typing import NDArray
 from estimators.protocol import Posterior
 from pinquad.core.execution import Backend, open_executor
 from pinquad.core.vehicle_file import is_vehicle_file
-from pinquad.discovery.discover import Selection, refit_selection, select_effects
-from pinquad.discovery.domain import FORCE_EFFECTS, outside_domain, unexplained_residual
-from pinquad.discovery.null import (
-    NullCalibration,
-    NullSettings,
-    calibrate,
-    combine,
-    first_round_gains,
-    plausible_base_fit,
-)
-from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
+from pinquad.discovery.calibrated import DiscoveryOutcome, DiscoveryStart, discover_calibrated
+from pinquad.discovery.domain import FORCE_EFFECTS
+from pinquad.discovery.null import NullSettings
+from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
@@ -56,7 +49,6 @@ from pinquad.io.timebase import gap_lines
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import floor_contact, interval_inputs, observations
 from pinquad.models.ssm import Observations, Theta
-from pinquad.mstep.stats import transition_mask
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
 from pinquad.realdata.model import RealTheta, corrected, plain_theta
@@ -103,17 +95,6 @@ class LogOptions:
         if not 0.0 <= self.band[0] < self.band[1]:
             raise ValueError(f"torque band must be 0 <= LO < HI [Hz] (LO = 0: low-pass "
                              f"only); got {self.band}")
-
-
-@dataclass(frozen=True)
-class DiscoveryStart:
-    """What effect discovery starts from: the observations the reported run's EM saw
-    (measured flights: with its nuisance moment in the torques), its parameters and its
-    smoothed posterior."""
-
-    obs: Observations
-    theta: Theta
-    posterior: Posterior
 
 
 @dataclass(frozen=True)
@@ -412,21 +393,6 @@ def discovery_config(kind: str, actuation: str = "held") -> DiscoveryConfig:
     return cfg
 
 
-@dataclass(frozen=True)
-class DiscoveryOutcome:
-    """Effect discovery on a log's reported run: its result, or why there is none (a
-    numerical failure of the refit is reported, not raised: the identification stands
-    without it), and the calibration of its selection against the null (None when
-    nothing was selected or the calibration was switched off)."""
-
-    result: DiscoveryResult | None
-    error: str | None = None
-    null: NullCalibration | None = None
-    unphysical: tuple[dict, ...] = ()
-    not_run: str | None = None
-    note: str | None = None
-
-
 def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:
     """``jobs`` worker processes for one log's identification and discovery
     (``identify_log``, ``run_discovery``), as a context manager: the process pool of
@@ -499,80 +465,3 @@ def input_reading(kind: str, log: FlightLog) -> str:
     measured rotor-speed flight's inputs are built on its own grid (``realdata``) and
     taken as held over each step."""
     return log.meta.actuation if kind == "simulated" else "held"
-
-
-def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
-                        null: NullSettings | None = None, actuation: str = "held",
-                        executor: Executor | None = None,
-                        inertia_bounds: tuple[Array, Array] | None = None) -> DiscoveryOutcome:
-    """Effect discovery (``pinquad.discovery.discover``) from ``start`` with its selection
-    calibrated against the null (``pinquad.discovery.null``; default ``NullSettings()``):
-    an effect whose evidence does not beat the shadow flights of the base fit is dropped
-    from the candidates and the selection reruns without it, until every selected effect
-    has beaten the null; only then is the final selection refitted (``refit_selection``).
-    actuation: the log's (``LogMeta.actuation``), how the shadow flights are logged.
-    executor: worker processes that score the shadow flights and, beside them, refit the
-    selection in advance (used when the null keeps it; otherwise the refit is redone on
-    the final selection); None: everything here, in turn. inertia_bounds: the vehicle's
-    physically possible inertia diagonal (lo, hi) [kg m^2], into which the null clips an
-    implausible base fit (``null.plausible_base_fit``), and from which the selection's fits
-    and the refit then start. A numerical failure is reported in the outcome, not raised."""
-    null = NullSettings() if null is None else null
-    calibrations: list[NullCalibration] = []
-    obs, theta, post = start.obs, start.theta, start.posterior
-    plausible = plausible_base_fit(theta, inertia_bounds)
-    start_inertia = None if plausible is theta else np.diag(plausible.inertia)
-
-    def refit_from(sel: Selection) -> Theta:
-        # an implausible base fit is no start for the refit's EM either (flightgen 500 Hz
-        # flight 3007: from 4e77 kg m^2 the refit kept it and fitted a CoM offset of
-        # 1e-106 m); with nothing selected the base fit itself is the answer
-        return plausible if sel.selected else theta
-
-    heights = post.mean[np.flatnonzero(transition_mask(obs)), 2]
-    unphysical: list[dict] = []
-    try:
-        while True:  # until every selected effect's fit is inside its physical domain
-            found = _select_and_refit(obs, theta, post, cfg, null, actuation, executor,
-                                      inertia_bounds, start_inertia, calibrations, refit_from)
-            bad = outside_domain(found, heights, obs.ground_radius)
-            if not bad:
-                break
-            unphysical += [unexplained_residual(found, e, why) for e, why in bad.items()]
-            cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in bad))
-    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
-        return DiscoveryOutcome(None, f"discovery failed numerically: {exc}")
-    return DiscoveryOutcome(found, null=combine(calibrations) if calibrations else None,
-                            unphysical=tuple(unphysical))
-
-
-def _select_and_refit(obs: Observations, theta: Theta, post: Posterior, cfg: DiscoveryConfig,
-                      null: NullSettings, actuation: str, executor: Executor | None,
-                      inertia_bounds: tuple[Array, Array] | None, start_inertia: Array | None,
-                      calibrations: list[NullCalibration], refit_from) -> DiscoveryResult:
-    """``discover_calibrated``'s selection against the null and its refit (calibrations
-    appended to ``calibrations``; effects they rejected stay out)."""
-    rejected = {e for c in calibrations for e in c.rejected}
-    cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in rejected))
-    sel = select_effects(obs, theta, post, cfg, start_inertia)
-    ahead: tuple[Selection, Future] | None = None
-    while sel.selected and null.replicates:
-        done = {e for c in calibrations for e in c.observed}
-        fresh = [e for e in sel.selected if e not in done]
-        if not fresh:
-            break
-        if executor is not None:
-            ahead = (sel, executor.submit(refit_selection, obs, refit_from(sel), post,
-                                          sel, None, cfg))
-        gains = first_round_gains(sel)
-        cal = calibrate(obs, theta, post, {e: gains[e] for e in fresh}, cfg, null,
-                        actuation, executor, inertia_bounds)
-        calibrations.append(cal)
-        if not cal.rejected:
-            break
-        rejected = {e for c in calibrations for e in c.rejected}
-        cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in rejected))
-        sel = select_effects(obs, theta, post, cfg, start_inertia)
-    if ahead is not None and ahead[0] is sel:
-        return ahead[1].result()
-    return refit_selection(obs, refit_from(sel), post, sel, None, cfg)

@@ -28,15 +28,14 @@ from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from pinquad.discovery.calibrated import DiscoveryOutcome, discover_calibrated
 from pinquad.discovery.null import NullSettings
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.experiments.discovery_report import discovery_section
 from pinquad.experiments.headline import Headline, headline, run_verdict
 from pinquad.experiments.recorded import (
-    DiscoveryOutcome,
     LogOptions,
     LogResult,
-    discover_calibrated,
     discovery_config,
     discovery_start,
     identify_log,
@@ -123,11 +122,10 @@ def discover_from(log: FlightLog, run: Identification, config: DiscoveryConfig |
     if run.mstep == "full":
         raise ValueError("effect discovery works on the diagonal model: identify with "
                          "mstep='regressor' first")
-    start = discovery_start(run)
     kind = log_kind(log)
     reading = input_reading(kind, log)
     config = discovery_config(kind, reading) if config is None else config
-    return discover_calibrated(start, config, null, reading)
+    return discover_calibrated(discovery_start(run), config, null, reading)
 
 
 def judge(identified: LogResult, outcome: DiscoveryOutcome | None) -> Headline:
