@@ -18,9 +18,11 @@ tau_y = -sum_i x_i T_i [N m] and, when the yaw ratio k is given, tau_z = k sum_i
 Both sides band-passed by the same zero-phase Butterworth filter (``band`` [Hz]: below it
 slow torque offsets such as a centre-of-mass offset, above it noise), per axis
 
-    tau_a = I_aa domega_a/dt + b_a omega_a                        [N m]
+    tau_a = I_aa domega_a/dt + b_a omega_a + g_a omega_b omega_c   [N m]
 
-(b_a [N m s]: rotational damping), least squares. Without the yaw ratio I_zz is not
+(b_a [N m s]: rotational damping; g_a [kg m^2]: the gyroscopic coefficient, I_bb - I_cc
+for a rigid body, left free since the other moments are what is being estimated), least
+squares. Without the yaw ratio I_zz is not
 identified (only I_zz / k is) and says so.
 
 Standard errors: the statistical part from a heteroscedasticity-and-autocorrelation
@@ -189,12 +191,16 @@ def _inertia_fit(torque: Array, gyro: Array, dt: float, band: tuple[float, float
     sos = butter(4, band, btype="band", fs=1.0 / dt, output="sos")
     w = sosfiltfilt(sos, gyro, axis=0)
     wd = np.gradient(w, dt, axis=0)
+    # the gyroscopic term (I_bb - I_cc) omega_b omega_c with a free coefficient: it needs
+    # the other moments, not yet known (the product is formed before filtering)
+    cross = sosfiltfilt(sos, np.column_stack([gyro[:, 1] * gyro[:, 2], gyro[:, 2] * gyro[:, 0],
+                                              gyro[:, 0] * gyro[:, 1]]), axis=0)
     value, se, share = np.full(3, np.nan), np.full(3, np.nan), np.full(3, np.nan)
     for a in range(3):
         if not np.isfinite(torque[:, a]).all():
             continue
         y = sosfiltfilt(sos, torque[:, a])
-        x = np.column_stack([wd[:, a], w[:, a]])
+        x = np.column_stack([wd[:, a], w[:, a], cross[:, a]])
         coef, *_ = np.linalg.lstsq(x, y, rcond=None)
         resid = y - x @ coef
         # at least two periods of the band's lowest frequency
