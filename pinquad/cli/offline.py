@@ -7,8 +7,8 @@ the same logs; it prints the paper's Table II and III layouts with the paper's n
 beside ours, bias, std and the Cramer-Rao bound, and writes a run directory.
 
 With ``--log PATH`` it identifies the vehicle of a recorded log (CSV, Parquet or a
-Crazyflie micro-SD binary log; ``pinquad.experiments.recorded``) and looks for
-unmodelled effects; the run directory holds report.json, report.md, the log
+Crazyflie micro-SD binary log) through ``pinquad.pipeline`` (read, check, identify,
+look for unmodelled effects, judge); the run directory holds report.json, report.md, the log
 as the E-step saw it (``logs/flight.parquet``), the smoothed state means
 (``logs/flight-smoothed.npy``, (N, 12)) and figures, written whole or not at all. Its
 headline (``estimates``) is the estimate under the final model (discovery's refit when

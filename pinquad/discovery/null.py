@@ -165,7 +165,7 @@ def score_shadow(job: ShadowScoring) -> tuple[list[float], list[bool]]:
 
 def plausible_base_fit(theta: Theta, inertia_bounds: tuple[Array, Array] | None) -> Theta:
     """The base fit the shadow flights fly, and the selection's fits and the refit start
-    from (``experiments.recorded.discover_calibrated``): ``theta`` itself when its inertia
+    from (``discovery.calibrated.discover_calibrated``): ``theta`` itself when its inertia
     diagonal lies within ``inertia_bounds`` = (lo (3,), hi (3,)) [kg m^2] (or there are none), else
     ``theta`` with the inertia diag(J') = diag(clip(diag I, lo, hi)) (products of inertia
     dropped: they belong to the implausible tensor) and the torque noise intensities

@@ -2,8 +2,8 @@
 one row per log, read from the log's own report.json (``io.runs.REPORT_SCHEMA``) or, when the log could
 not be identified, its error message; and the batch's exit code.
 
-Each log goes through exactly the single ``--log`` pipeline (pinquad.cli.offline.run_log)
-in its own subdirectory; this module only summarises what those runs wrote.
+Each log goes through exactly the single ``--log`` pipeline (``pinquad.pipeline``) in its
+own subdirectory; this module only summarises what those runs wrote.
 """
 
 from __future__ import annotations
