@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+from pyulog import ULog
 
 from pinquad.core.conventions import quat_wxyz_from_ned_frd, vector_from_ned_frd
 from pinquad.io.command_log import CommandLog, command_log
@@ -52,9 +53,7 @@ def is_ulog(path: Path) -> bool:
         return False
 
 
-def _open(path: Path):
-    from pyulog import ULog  # pyulog only where a ULog is read
-
+def _open(path: Path) -> ULog:
     try:
         return ULog(str(path), list(TOPICS))
     except Exception as exc:  # pyulog raises several types on a damaged file
