@@ -200,6 +200,13 @@ def test_ulog_round_trip_equals_csv(px4_flight):
         assert ea.value == pytest.approx(eb.value, rel=1e-6), ea.name
         assert ea.stderr == pytest.approx(eb.stderr, rel=1e-6), ea.name
         assert ea.verdict == eb.verdict, ea.name
+    # and they are the flight's: the curve and the inertia within 3 total se of the truth
+    truth = {"thrust c_1": CURVE[0], "thrust c_2": CURVE[1],
+             **dict(zip(("I_xx", "I_yy", "I_zz"), np.diag(QUAD_250.inertia_matrix),
+                        strict=True))}
+    for name, value in truth.items():
+        est = a.get(name)
+        assert abs(est.value - value) < 3.0 * est.stderr, (name, est.value, value, est.stderr)
 
 
 def test_ulog_frames_are_the_flights(px4_flight):

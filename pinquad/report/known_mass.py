@@ -69,7 +69,8 @@ def known_mass_report(result: KnownMassResult, log_path: str, vehicle: CurveVehi
             "verdict": {e.name: {"verdict": e.verdict, "reasons": list(e.reasons)}
                         for e in result.estimates},
         },
-        "em": {"iterations": 0, "loglik": [], "converged": True},
+        "em": {"iterations": 0, "loglik": [], "converged": None,
+               "note": "known-mass regression: no EM was run"},
         "discovery": {"selected": [], "not_run": "known-mass mode: no effect discovery"},
         "known_mass": {
             "estimates": [{"name": e.name, "value": e.value, "unit": e.unit,
