@@ -1,7 +1,7 @@
 """One flight, one answer: a measured micro-SD flight, pinquad's own export of it
 (``logs/flight.parquet``, whose sidecar says its thrust and torques were computed from
 the rotor speeds) and a CSV copy of that export, as a spreadsheet or pyarrow writes it
-(quoted names), are identified from the same rotor speeds."""
+(quoted names), are identified from the same rotor speeds to the same estimates."""
 
 from __future__ import annotations
 
@@ -12,13 +12,21 @@ import numpy as np
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.logs import write_log
 from pinquad.io.read import read_log
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie" / "imrc_brushed"
-OPTIONS = LogOptions(msteps=("regressor",), information=False)
+OPTIONS = LogOptions(msteps=("regressor",), information=False, max_iterations=30)
+"""30 EM iterations: the paths must take the same steps, converged or not (full runs:
+``scripts/round_trip.py``)."""
+SAME = 1e-4
+"""Relative agreement of the micro-SD reading and its export: the export stores the
+grid's times relative to the first row and its values in float64, so the E-step sees the
+same numbers up to rounding; EM then amplifies rounding by at most ~1e-6 on these logs."""
 
 
 def _values(result) -> np.ndarray:
@@ -26,11 +34,15 @@ def _values(result) -> np.ndarray:
     return np.r_[run.mass, np.diag(run.inertia)]
 
 
-@pytest.mark.parametrize("name", ["jana00", "jana02"])
-def test_micro_sd_export_and_csv_copy_give_one_answer(name, tmp_path):
+def _log(name: str):
     path = DATA / name
     assert path.is_file(), f"the Crazyflie data are missing: expected {path}"
-    first = identify_log(read_log(path), OPTIONS)
+    return read_log(path)
+
+
+@pytest.mark.parametrize("name", ["jana00", "jana05"])
+def test_micro_sd_export_and_csv_copy_give_one_answer(name, tmp_path):
+    first = identify_log(_log(name), OPTIONS)
     export = write_log(first.log, tmp_path / "flight.parquet")
     back = read_log(export)
     # the export reads back as written: the same rows, rotor speeds and poses
@@ -46,30 +58,33 @@ def test_micro_sd_export_and_csv_copy_give_one_answer(name, tmp_path):
     copy = identify_log(read_log(csv), OPTIONS)
     assert again.kind == copy.kind == "measured-table"
     np.testing.assert_allclose(_values(copy), _values(again), rtol=1e-9)
-    # against the micro-SD reading: the mass to 1e-4, roll and pitch inertia within 1 %
-    a, b = _values(first), _values(again)
-    assert abs(b[0] / a[0] - 1) < 1e-4
-    np.testing.assert_allclose(b[1:3], a[1:3], rtol=0.01)
+    # against the micro-SD reading: every estimate, the yaw inertia included (its rotor
+    # acceleration comes from the bins' mean speeds on either path)
+    np.testing.assert_allclose(_values(again), _values(first), rtol=SAME)
 
 
-@pytest.mark.xfail(strict=True, reason="I_zz of the export differs from the micro-SD "
-                   "reading's (jana05: +84 %, 10 statistical errors; jana10 +28 %): the yaw "
-                   "torque's rotor-inertia term takes the rotor acceleration from the "
-                   "export's 100 Hz speeds instead of the raw 500 Hz ones")
-def test_the_exports_yaw_inertia_is_the_micro_sd_ones(tmp_path):
-    path = DATA / "jana05"
-    assert path.is_file(), f"the Crazyflie data are missing: expected {path}"
-    first = identify_log(read_log(path), OPTIONS)
-    again = identify_log(read_log(write_log(first.log, tmp_path / "f.parquet")), OPTIONS)
-    assert abs(_values(again)[3] / _values(first)[3] - 1) < 0.10
+@settings(max_examples=3, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(name=st.sampled_from(["jana01", "jana02", "jana03", "jana10", "jana20", "jana24"]),
+       start=st.floats(0.15, 0.6))
+def test_any_stretch_of_a_real_flight_reads_back_to_its_estimates(name, start, tmp_path):
+    """A 15 s stretch of a shared IMRC flight, cut anywhere in its middle: the micro-SD
+    reading and the export of what the E-step saw give the same mass and inertia (EM
+    stopped after 8 iterations: the two paths must take the same steps, converged or not)."""
+    log = _log(name)
+    first_row = int(np.searchsorted(log.t, log.t[0] + start * (log.t[-1] - log.t[0])))
+    last_row = int(np.searchsorted(log.t, log.t[first_row] + 15.0))
+    stretch = log.slice(first_row, last_row)
+    first = identify_log(stretch, replace(OPTIONS, max_iterations=8))
+    again = identify_log(read_log(write_log(first.log, tmp_path / f"{name}.parquet")),
+                         replace(OPTIONS, max_iterations=8))
+    np.testing.assert_allclose(_values(again), _values(first), rtol=SAME)
 
 
 def test_a_simulated_log_is_not_read_from_rpm(tmp_path):
     """Without the export's sidecar key, a log with thrust and rotor-speed columns is
     identified from its thrust and torques, as before."""
-    path = DATA / "jana00"
-    assert path.is_file(), f"the Crazyflie data are missing: expected {path}"
-    first = identify_log(read_log(path), OPTIONS)
+    first = identify_log(_log("jana00"), replace(OPTIONS, max_iterations=1))
     log = replace(first.log, meta=replace(first.log.meta, wrench_from_rpm=False))
     back = read_log(write_log(log, tmp_path / "plain.parquet"))
     assert back.thrust is not None and back.rpm is None and not back.meta.wrench_from_rpm

@@ -41,7 +41,6 @@ from pinquad.core.conventions import GRAVITY, rotation_from_euler
 from pinquad.core.vehicle_file import VehicleSpec
 from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
 from pinquad.io.sdlog import is_sdlog, read_sdflight
-from pinquad.io.timebase import gap_steps
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.contact import ContactSettings, detect_floor_contact
 from pinquad.models.ssm import Observations
@@ -61,6 +60,7 @@ from pinquad.realdata.resample import (
     nearest_samples,
     pose_glitches,
 )
+from pinquad.realdata.rotor_acceleration import grid_rotor_acceleration, rotor_acceleration
 from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
 from pinquad.sim.simulator import Flight
 from pinquad.vehicle.actuators import (
@@ -223,7 +223,8 @@ class RealObservations:
     (repairs, dropouts, glitches) in words; faults: the actuation fault report of the
     original-rate log; kf: the thrust coefficient used; source: the file; repaired:
     motors (0-based) whose readings were rebuilt from PWM; rotor_acc (N,) [rad/s^2]: mean
-    over [t_k, t_k + dt) of sum_i spin_i d(omega_i)/dt (:func:`rotor_acceleration`, gaps
+    over [t_k, t_k + dt) of sum_i spin_i d(omega_i)/dt (from the bins' mean speeds,
+    ``rotor_acceleration.grid_rotor_acceleration``; held speeds: per row, binned; gaps
     interpolated), the regressor of the rotor-inertia yaw torque J_r * rotor_acc;
     rebuilt_fraction (N,) [-]: share of the log's rotor samples in [t_k, t_k + dt) with a
     speed taken from the PWM map (1 for a bin without samples; None: not recorded).
@@ -321,41 +322,6 @@ def _repair(raw: RawFlight, report: ActuationFaultReport, mode: str,
     return rec.rpm, np.zeros(log.n, dtype=bool), rec.replaced, notes
 
 
-def rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float], held: bool = False
-                       ) -> Array:
-    """(N,) sum_i spin_i d(omega_i)/dt [rad/s^2] from rotor speeds rpm (N, n) [rev/min] at
-    times t (N,) [s]: central differences of sampled readings, NaN where a neighbouring
-    interval is a log gap (``pinquad.io.timebase.gap_steps``) or a speed is not finite.
-
-    ``held``: each row's speed holds until the next row (a zero-order hold, the
-    simulator's rotor log), so the speed steps at t_i from omega_{i-1} to omega_i and the
-    acceleration of the interval from t_i is the backward difference
-    (omega_i - omega_{i-1}) / (t_i - t_{i-1}); its mean over a grid bin is then exactly
-    the bin's change of speed over dt. A central difference would put half of the next
-    row's step, which the closed loop commands in answer to this interval's disturbance,
-    into this interval (a simulated quad's I_zz +3.7 % with J_r fitted, +2.2 % without).
-
-    Times J_r [kg m^2] it is the reaction torque of the rotors' own angular acceleration on
-    the body about z, tau_z = sum_i spin_i J_r d(omega_i)/dt [N m], with the sign of the
-    rotor's drag torque (the motor supplies J_r omega_i' + Q_i to the rotor along its spin
-    axis and the body takes the opposite).
-    """
-    omega = np.asarray(rpm, dtype=float) * (2.0 * math.pi / 60.0)
-    t = np.asarray(t, dtype=float)
-    if t.size < 3:
-        return np.full(t.size, np.nan)
-    step = np.diff(t)
-    gap = gap_steps(t)
-    if held:
-        acc = np.full(t.size, np.nan)
-        acc[1:] = (np.diff(omega, axis=0) / step[:, None]) @ np.asarray(spin, dtype=float)
-        acc[1:][gap] = np.nan
-        return acc
-    acc = np.gradient(omega, t, axis=0) @ np.asarray(spin, dtype=float)
-    acc[np.concatenate([gap, [False]]) | np.concatenate([[False], gap])] = np.nan
-    return acc
-
-
 def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
                        kf: ThrustCoefficient | None = None) -> RealObservations:
     """Resample a measured flight to the grid and build the EM observations (module
@@ -396,10 +362,12 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     if finite_rpm.any():
         thrust[finite_rpm], torque[finite_rpm] = actuator.wrench(rpm[finite_rpm])
     # Rotor speeds held over each row (a table whose sidecar declares "actuation":
-    # "held", as the simulator's rotor log does), else sampled readings (micro-SD logs).
-    held = log.measured is None and log.meta.actuation == "held"
-    rotor_acc = rotor_acceleration(log.t, rpm, options.spin, held)
-    if options.rotor_inertia:  # None (not fixed) and 0 add nothing (rotor_acc may be NaN)
+    # "held", as the simulator's rotor log does), else sampled readings (micro-SD logs) or
+    # their bin means (a measured flight's export, whose wrench is "from rpm").
+    held = (log.measured is None and log.meta.actuation == "held"
+            and not log.meta.wrench_from_rpm)
+    rotor_acc = rotor_acceleration(log.t, rpm, options.spin, held) if held else None
+    if options.rotor_inertia and rotor_acc is not None:  # None (not fixed) and 0 add nothing
         torque[:, 2] += options.rotor_inertia * rotor_acc
     # Untrusted rows carry no input: their bins become NaN and are excluded below.
     wrench = np.column_stack([thrust, torque])
@@ -415,8 +383,14 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     rpm_g = bin_mean(t_src, np.where(untrusted_rows[:, None], np.nan, rpm), grid, dt, k)
     rebuilt_g = bin_mean(t_src, rebuilt.any(axis=1).astype(float), grid, dt, k)[:, 0]
     inputs = bin_mean(t_src, wrench, grid, dt, k)
-    rotor_acc_g = interp_nan(grid, bin_mean(
-        t_src, np.where(untrusted_rows, np.nan, rotor_acc), grid, dt, k)[:, 0])
+    if rotor_acc is not None:  # held speeds: the bin's change of speed over dt, exactly
+        rotor_acc_g = interp_nan(grid, bin_mean(
+            t_src, np.where(untrusted_rows, np.nan, rotor_acc), grid, dt, k)[:, 0])
+    else:  # sampled readings: from the bin means, as the resampled log carries them
+        rotor_acc_g = interp_nan(grid, grid_rotor_acceleration(fill_rows(grid, rpm_g),
+                                                               options.spin, dt))
+        if options.rotor_inertia:
+            inputs[:, 3] += options.rotor_inertia * rotor_acc_g
     vbat = None
     if log.vbat is not None and not report.vbat_stuck:
         vbat = bin_mean(t_src, log.vbat, centred, dt, k)[:, 0]
