@@ -297,3 +297,25 @@ def test_bad_px4_input_named(tmp_path):
                              for line in DDD_CSV.read_text().splitlines()[:50]) + "\n")
     with pytest.raises(LogFormatError, match=r"cut.csv: lacks column\(s\) q1, q2, q3"):
         read_command_log(cut)
+
+
+def test_ulog_nan_motor_output_named(tmp_path):
+    """A motor output that is not a number inside the armed segment: the reader names
+    the field and when, instead of interpolating NaN into the commands."""
+    n = 300
+    ts = (T0_US + 10_000 * np.arange(n, dtype=float))[:, None]
+    pwm = np.full((n, 4), 1500.0)
+    pwm[250, 2] = np.nan
+    write_ulog(tmp_path / "nan.ulg", {
+        "vehicle_status": ([("uint8_t", "arming_state", 1)], np.array([[T0_US, 2.0]])),
+        "vehicle_attitude": ([("float", "q", 4)], np.hstack([ts, np.tile([1.0, 0, 0, 0], (n, 1))])),
+        "vehicle_angular_velocity": ([("float", "xyz", 3)], np.hstack([ts, np.zeros((n, 3))])),
+        "vehicle_acceleration": ([("float", "xyz", 3)],
+                                 np.hstack([ts, np.tile([0.0, 0.0, -9.81], (n, 1))])),
+        "vehicle_local_position": ([("float", "vx", 1), ("float", "vy", 1), ("float", "vz", 1)],
+                                   np.hstack([ts, np.zeros((n, 3))])),
+        "actuator_outputs": ([("float", "output", 4)], np.hstack([ts, pwm])),
+    }, {"PWM_MAIN_MIN": 1000, "PWM_MAIN_MAX": 2000})
+    with pytest.raises(LogFormatError, match=r"nan.ulg: motor output output\[2\] is not a "
+                                             r"number 2.500 s into the armed segment"):
+        read_command_log(tmp_path / "nan.ulg")

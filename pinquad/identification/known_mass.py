@@ -276,7 +276,8 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
         raise ValueError(f"{src}: {log.t[-1] - log.t[0]:.1f} s of flight; the torque band's "
                          f"low edge {settings.band[0]:g} Hz needs at least {shortest:.0f} s")
     for name, arr in (("velocity", log.velocity), ("attitude", log.euler),
-                      ("gyro", log.gyro), ("acceleration", log.accel)):
+                      ("gyro", log.gyro), ("acceleration", log.accel),
+                      ("motor command", flight.command)):
         if not np.isfinite(arr).all():
             raise ValueError(f"{src}: {name} is missing in some rows; expected every row")
     rot = rotation_from_euler(log.euler)

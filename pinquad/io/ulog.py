@@ -162,6 +162,13 @@ def read_ulog(path: str | Path, rate: float = DEFAULT_RATE) -> CommandLog:
         raise LogFormatError(f"{path}: no armed flight segment with attitude, rates, "
                              "acceleration, velocity and motor outputs together")
     t_us = np.arange(first, last, 1e6 / rate)
+    inside = (motors["timestamp"] >= first) & (motors["timestamp"] <= last)
+    for name in fields:
+        bad = np.flatnonzero(~np.isfinite(motors[name][inside]))
+        if bad.size:
+            when = (motors["timestamp"][inside][bad[0]] - first) * 1e-6
+            raise LogFormatError(f"{path}: motor output {name} is not a number {when:.3f} s "
+                                 "into the armed segment; expected a command in every sample")
     position = None
     if "xy_valid" in lpos and (lpos["xy_valid"] > 0.5).all() and (lpos["z_valid"] > 0.5).all():
         position = vector_from_ned_frd(_interp(t_us, lpos, ["x", "y", "z"]))
