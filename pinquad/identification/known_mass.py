@@ -91,9 +91,9 @@ class Estimate:
 @dataclass(frozen=True)
 class KnownMassResult:
     """Known-mass identification of one log: estimates (thrust curve c_1, c_2, drag d_z,
-    time constant, I_xx, I_yy, I_zz), the vertical fit's explained share and the
-    torque fits' per axis, the naive regression's inertia (3,) [kg m^2, NaN: not
-    estimated] and shares, and notes."""
+    the curve's thrust and slope at the mean command, time constant, I_xx, I_yy, I_zz),
+    the vertical fit's explained share and the torque fits' per axis, the naive
+    regression's inertia (3,) [kg m^2, NaN: not estimated] and shares, and notes."""
 
     estimates: tuple[Estimate, ...]
     force_share: float
@@ -320,6 +320,18 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
                  "time_constant": float(tau_part[i])}
         estimates.append(_estimate(name, float(top.coef[i]), unit, parts, settings,
                                    curve_checks if i < 2 else []))
+    # the curve's scale where the flight flew: T(u_m) = c_1 u_m + c_2 u_m^2 and its slope
+    # dT/du = c_1 + 2 c_2 u_m at the mean command u_m; c_1 and c_2 trade against each
+    # other, these two do not (the slope is what turns command differences into torque)
+    u_m = float(motor_lag(u, tau, dt).mean())
+    notes.append(f"mean command u = {u_m:.3f}: the curve's thrust and slope dT/du there")
+    for name, grad in (("thrust at mean u", np.array([u_m, u_m * u_m, 0.0])),
+                       ("dT/du at mean u", np.array([1.0, 2.0 * u_m, 0.0]))):
+        value = float(grad @ top.coef)
+        parts = {"statistical": math.sqrt(float(grad @ top.cov @ grad)),
+                 "mass": abs(value) * settings.mass_rel_se,
+                 "time_constant": abs(float(grad @ (alt[1].coef - alt[0].coef))) / 2.0}
+        estimates.append(_estimate(name, value, "N", parts, settings, curve_checks))
     tau_checks = curve_checks + ([(NOT_IDENTIFIABLE, (
         f"the profile likelihood's interval reaches the end of the searched "
         f"{settings.lags[0]:.3f}-{settings.lags[-1]:.3f} s"))] if tau_edge else [])

@@ -25,13 +25,13 @@ def known_mass_table(result: KnownMassResult, vehicle: CurveVehicle) -> str:
     lines = [f"known mass {result.mass:g} kg; torque band {result.band[0]:g}-"
              f"{result.band[1]:g} Hz; the curve explains {result.force_share * 100:.1f} % of "
              "the vertical force",
-             "", f"{'estimate':<14} {'value':>10} {'se':>10} {'reference':>10} {'error':>7}  "
-             f"verdict", "-" * 72]
+             "", f"{'estimate':<17} {'value':>10} {'se':>10} {'reference':>10} {'error':>7}  "
+             f"verdict", "-" * 75]
     for e in result.estimates:
         truth = ref[INERTIA.index(e.name)] if ref is not None and e.name in INERTIA else None
         err = "" if truth is None or not math.isfinite(e.value) else \
             f"{(e.value / truth - 1) * 100:+.1f}%"
-        lines.append(f"{e.name:<14} {_num(e.value):>10} {_num(e.stderr):>10} "
+        lines.append(f"{e.name:<17} {_num(e.value):>10} {_num(e.stderr):>10} "
                      f"{'' if truth is None else _num(truth):>10} {err:>7}  {e.verdict} "
                      f"[{e.unit}]")
         if e.parts:
