@@ -93,7 +93,8 @@ class KnownMassResult:
     """Known-mass identification of one log: estimates (thrust curve c_1, c_2, drag d_z,
     the curve's thrust and slope at the mean command, time constant, I_xx, I_yy, I_zz),
     the vertical fit's explained share and the torque fits' per axis, the naive
-    regression's inertia (3,) [kg m^2, NaN: not estimated] and shares, and notes."""
+    regression's inertia (3,) [kg m^2, NaN: not estimated] and shares, the given mass
+    [kg] and its assumed standard uncertainty mass_se [kg], the band [Hz], and notes."""
 
     estimates: tuple[Estimate, ...]
     force_share: float
@@ -101,6 +102,7 @@ class KnownMassResult:
     naive_inertia: Array
     naive_share: tuple[float, ...]
     mass: float
+    mass_se: float
     band: tuple[float, float]
     notes: tuple[str, ...] = ()
 
@@ -404,4 +406,5 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     naive, naive_share = _naive(mass, a_z, u, log.gyro, dt, positions, spin)
     return KnownMassResult(tuple(estimates), top.share,
                            tuple(float(s) for s in share[:2 if curve.yaw_ratio is None else 3]),
-                           naive, naive_share, mass, settings.band, tuple(notes))
+                           naive, naive_share, mass, mass * settings.mass_rel_se,
+                           settings.band, tuple(notes))

@@ -29,7 +29,8 @@ def read_log(path: str | Path) -> FlightLog:
     if is_command_log(path):
         read_command_log(path)  # its own errors first (e.g. no armed flight segment)
         raise LogFormatError(f"{path}: a PX4 log: its actuation is motor commands, not thrust "
-                             "or rotor speeds; identify it with --mass KG (known-mass mode, "
+                             "or rotor speeds; identify it with python -m pinquad.offline "
+                             "--log FILE --mass KG --vehicle FILE (known-mass mode, "
                              "docs/px4.md)")
     if _is_fixed_frequency(path):
         return with_sidecar_vehicle(fixed_frequency.read_fixed_frequency(path))

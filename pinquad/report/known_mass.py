@@ -22,7 +22,7 @@ def known_mass_table(result: KnownMassResult, vehicle: CurveVehicle) -> str:
     """Estimate, total se, its parts, reference (the vehicle file's [reference] inertia),
     verdict and reasons, then the naive regression beside it."""
     ref = vehicle.spec.reference.inertia
-    lines = [f"known mass {result.mass:g} kg; torque band {result.band[0]:g}-"
+    lines = [f"known mass {result.mass:g} +- {result.mass_se:.2g} kg; torque band {result.band[0]:g}-"
              f"{result.band[1]:g} Hz; the curve explains {result.force_share * 100:.1f} % of "
              "the vertical force",
              "", f"{'estimate':<17} {'value':>10} {'se':>10} {'reference':>10} {'error':>7}  "
@@ -64,7 +64,8 @@ def known_mass_report(result: KnownMassResult, log_path: str, vehicle: CurveVehi
                    "method": "known-mass regression", "vehicle": str(vehicle.spec.source)},
         "estimates": {
             "mass": result.mass, "inertia": np.diag(inertia).tolist(), "com": None,
-            "stderr": {"mass": 0.0, "inertia_diag": inertia_se},
+            # the mass is given: its error is the uncertainty assumed for it
+            "stderr": {"mass": result.mass_se, "inertia_diag": inertia_se},
             "stderr_parts": {n: dict(result.get(n).parts) for n in INERTIA},
             "verdict": {e.name: {"verdict": e.verdict, "reasons": list(e.reasons)}
                         for e in result.estimates},
