@@ -14,7 +14,9 @@ In a vehicle file (TOML, docs/vehicles.md) these are the optional ``[actuator_cu
 table's keys ``command_range``, ``thrust``, ``time_constant``, ``yaw_ratio`` and
 ``yaw_ratio_se``; the
 rotors are the file's ``[[rotor]]`` tables (x, y [m, body], spin). Any of the curve's
-numbers may be left out: known-mass identification estimates them.
+numbers may be left out: known-mass identification estimates the thrust polynomial and
+the time constant (a given time constant is used as given; a given polynomial is kept
+but not used by it).
 :func:`toml_from_ddd_yaml` writes such a file from a PX4 data-driven-dynamics model
 configuration (YAML, FRD body frame).
 """
@@ -43,7 +45,8 @@ class ActuatorCurve:
     """The ``[actuator_curve]`` table, read (module docstring).
 
     command_range (lo, hi): raw command of u = 0 and u = 1; thrust (P,) [N] or None: the
-    polynomial's coefficients c_1..c_P (None: to be identified); time_constant [s] or
+    polynomial's coefficients c_1..c_P (kept with the vehicle; known-mass identification
+    fits its own); time_constant [s] or
     None; yaw_ratio [m] or None (I_zz cannot be identified without it); yaw_ratio_se [m]
     or None: its standard uncertainty (None: pinquad's default share,
     ``identification.budget``).

@@ -306,6 +306,9 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     tau_part = np.abs(alt[1].coef - alt[0].coef) / 2.0
 
     notes = list(flight.notes)
+    if curve.thrust is not None:
+        notes.append(f"the vehicle file's thrust curve {curve.thrust.tolist()} N is not used: "
+                     "the curve is identified from this flight")
     force_adequate = top.share >= settings.min_fit_share
     curve_checks = [] if force_adequate else [(NOT_ADEQUATE, (
         f"the curve explains {top.share * 100:.0f} % of the vertical force (at least "
