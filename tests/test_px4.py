@@ -246,11 +246,14 @@ def test_bench_ulog_refused():
 
 def test_ddd_yaml_converts_to_body_frame():
     """data-driven-dynamics' rotor_0 is 'front right' at FRD y = +0.22: body (x
-    forward, y left) puts it at y = -0.22; the converted file reads back."""
+    forward, y left) puts it at y = -0.22; its turning direction -1 makes a drag moment
+    -(-1) c u^2 about FRD z (down), so a yaw reaction of sign -1 about body z (up): the
+    front-right rotor of PX4's quad X, which turns counter-clockwise seen from above."""
     text = toml_from_ddd_yaml(DDD_YAML.read_text(), DDD_YAML)
     assert "y = -0.22" in text
     vehicle = read_curve_vehicle(DDD_YAML)
     assert vehicle.spec.positions[0].tolist() == [0.13, -0.22]
+    assert vehicle.spec.spin.tolist() == [-1.0, -1.0, 1.0, 1.0]
     assert vehicle.spec.mass == 1.5
     assert vehicle.curve.yaw_ratio is None
 

@@ -117,9 +117,10 @@ _DddLoader.add_constructor("tag:yaml.org,2002:python/tuple",
 def toml_from_ddd_yaml(text: str, path: Path) -> str:
     """A vehicle file (TOML text) from a data-driven-dynamics model configuration:
     mass, inertia diagonal, and each ``vertical_`` rotor's position (FRD -> body:
-    (x, -y)) and spin = -turning_direction (the turning direction is about the rotor
-    axis, (0, 0, -1) in FRD, which is body up; the reaction torque on the body opposes
-    it). Raises VehicleFileError naming the file and the key."""
+    (x, -y)) and spin = turning_direction: data-driven-dynamics writes a rotor's drag
+    moment about FRD z (down) as -turning_direction c u^2 with c >= 0, i.e.
+    +turning_direction c u^2 about body z (up), which is what ``spin`` signs. Raises
+    VehicleFileError naming the file and the key."""
     try:
         raw = yaml.load(text, Loader=_DddLoader)  # noqa: S506 - a safe loader subclass
         cfg = raw["model_config"]
@@ -136,7 +137,7 @@ def toml_from_ddd_yaml(text: str, path: Path) -> str:
                     raise VehicleFileError(f"{path}: {name}: rotor_axis {axis.tolist()}; "
                                            "expected [0, 0, -1] (thrust along body up)")
                 rotors.append((entry.get("dataframe_name", name), body,
-                               -int(entry["turning_direction"])))
+                               int(entry["turning_direction"])))
     except (yaml.YAMLError, KeyError, TypeError, ValueError, StopIteration) as exc:
         raise VehicleFileError(f"{path}: not a data-driven-dynamics model configuration "
                                f"({type(exc).__name__}: {exc}); expected model_config with "
@@ -144,7 +145,7 @@ def toml_from_ddd_yaml(text: str, path: Path) -> str:
     rotors.sort(key=lambda r: r[0])
     name = str(raw.get("model_name", path.stem)).replace('"', "'")
     lines = [f"# Converted from {path.name} (PX4 data-driven-dynamics model configuration):",
-             "# rotor positions FRD -> body (x, -y), spin = -turning_direction.",
+             "# rotor positions FRD -> body (x, -y), spin = turning_direction.",
              f'name = "{path.stem}"', f'description = "{name}"', "", "[body]",
              f"mass = {mass!r}", f"inertia = [{', '.join(repr(v) for v in inertia)}]", "",
              "[reference]", f"mass = {mass!r}",
