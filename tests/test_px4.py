@@ -9,6 +9,7 @@ import math
 import struct
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -322,3 +323,23 @@ def test_ulog_nan_motor_output_named(tmp_path):
     with pytest.raises(LogFormatError, match=r"nan.ulg: motor output output\[2\] is not a "
                                              r"number 2.500 s into the armed segment"):
         read_command_log(tmp_path / "nan.ulg")
+
+
+def test_given_time_constant_is_used(px4_flight):
+    """A time constant from the vehicle file replaces the profiled one in both the curve
+    and the torques: on the lag-free flight, giving 0 s (what the profile finds) gives the
+    same curve and inertia, and giving 50 ms moves them."""
+    flight = read_command_log(px4_flight["ulg"])
+    vehicle = read_curve_vehicle(px4_flight["vehicle"])
+
+    def run(tau):
+        curve = replace(vehicle.curve, time_constant=tau)
+        return identify_known_mass(flight, 0.5, vehicle.spec.positions, vehicle.spec.spin,
+                                   curve)
+
+    profiled, zero, slow = run(None), run(0.0), run(0.05)
+    assert profiled.get("time constant").value == 0.0
+    assert all(e.name != "time constant" for e in zero.estimates)
+    for name in ("thrust c_2", "I_xx", "I_yy"):
+        assert zero.get(name).value == pytest.approx(profiled.get(name).value, rel=1e-12)
+        assert slow.get(name).value != pytest.approx(profiled.get(name).value, rel=1e-3)

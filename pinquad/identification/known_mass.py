@@ -299,8 +299,9 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     tau_lo, tau_hi = float(settings.lags[inside[0]]), float(settings.lags[inside[-1]])
     tau_se = max(tau_hi - tau_lo, float(np.diff(settings.lags[:2])[0])) / 2.0
     tau_edge = inside[-1] == len(settings.lags) - 1  # 0 is physics' end, not the grid's
-    if curve.time_constant is not None:
+    if curve.time_constant is not None:  # given: the curve is fitted through it
         tau, tau_se, tau_edge = curve.time_constant, 0.0, False
+        top = _curve_fit(mass, a_z, v_bz, motor_lag(u, tau, dt), None)
     alt = [_curve_fit(mass, a_z, v_bz, motor_lag(u, max(tau + s * tau_se, 0.0), dt),
                       top.linear) for s in (-1.0, 1.0)]
     tau_part = np.abs(alt[1].coef - alt[0].coef) / 2.0
