@@ -198,3 +198,30 @@ def test_remaining_move_of_a_linearly_converging_em():
     rest = remaining_move(hist)
     assert rest[0] == pytest.approx(0.5**9, rel=1e-9)
     assert rest[1] == 0.0 and np.isinf(rest[2])
+
+
+def test_a_thrust_calibration_does_not_hide_a_mass_balance_disagreement():
+    """The model-free mass balance reads the same logged thrust as EM, so the thrust's
+    calibration (and what else scales every reading of it) cancels between them: a 4 %
+    disagreement is 'model not adequate' even when the 5 % calibration in the mass's total
+    would cover it; a disagreement within the unshared errors stays trusted."""
+    from pinquad.identification.budget import SHARED_WITH_THRUST, Calibration, ErrorBudget
+    from pinquad.identification.verdict import NOT_ADEQUATE, TRUSTED, VerdictEvidence, judge
+
+    values = np.r_[0.035, 16e-6, 17e-6, 29e-6]
+    parts = {"statistical": 0.002 * values, "thrust_calibration": 0.05 * values,
+             "between_flights": 0.003 * values, "rotor_speed_repair": 0.01 * values}
+    budget = ErrorBudget(parts, Calibration(0.05, 0.1, 0.02))
+    assert set(SHARED_WITH_THRUST) == {"thrust_calibration", "between_flights",
+                                       "rotor_speed_repair"}
+    np.testing.assert_allclose(budget.unshared_with_thrust(), 0.002 * values)
+    inertia = np.diag(values[1:])
+    for shift, expected in ((0.04, NOT_ADEQUATE), (0.002, TRUSTED)):
+        evidence = VerdictEvidence(model_free_mass=(values[0] * (1 + shift), 0.0002 * values[0]),
+                                   balance_stderr=float(budget.unshared_with_thrust()[0]))
+        verdict = judge(values[0], inertia, budget.total, evidence, None)
+        assert verdict.get("mass").verdict == expected, verdict.get("mass").reasons
+        # the mass's total alone (5 % calibration) covers the 4 % shift: the old comparison
+        # could not see it
+        blind = replace(evidence, balance_stderr=None)
+        assert judge(values[0], inertia, budget.total, blind, None).get("mass").verdict == TRUSTED

@@ -148,7 +148,8 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
         s = np.asarray(run.full.stderr_inertia)
         products = np.array([s[0, 1], s[0, 2], s[1, 2]])
     budget = run_budget(result, run)
-    ev = replace(ev, input_free_stderr=budget.total_without("input_reading"))
+    ev = replace(ev, input_free_stderr=budget.total_without("input_reading"),
+                 balance_stderr=float(budget.unshared_with_thrust()[0]))
     return judge(run.mass, run.inertia, budget.total, ev,
                  plausible_range(result), products, missing_stderr=run.stderr_problem)
 
@@ -193,7 +194,8 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
                 "base posterior's force rows)")
     budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
     stderr = budget.total
-    ev = replace(ev, input_free_stderr=budget.total_without("input_reading"))
+    ev = replace(ev, input_free_stderr=budget.total_without("input_reading"),
+                 balance_stderr=float(budget.unshared_with_thrust()[0]))
     verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result),
                     missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,

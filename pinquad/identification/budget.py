@@ -46,6 +46,10 @@ DEFAULT_ARM = 0.02
 PARTS = ("statistical", "thrust_calibration", "yaw_torque_coefficient", "arm_length",
          "input_reading", "between_flights")
 """The budget's parts, in report order."""
+SHARED_WITH_THRUST = ("thrust_calibration", "between_flights", "rotor_speed_repair")
+"""Parts that scale every reading of the log's thrust alike (its calibration, its rotor
+speeds rebuilt from PWM, what changes from flight to flight: battery, propellers), so
+that they cancel when two estimates from the same thrust are compared."""
 
 
 @dataclass(frozen=True)
@@ -78,6 +82,12 @@ class ErrorBudget:
         """The total without the named parts (4,)."""
         return np.sqrt(sum(np.asarray(p, dtype=float) ** 2 for k, p in self.parts.items()
                            if k not in parts))
+
+    def unshared_with_thrust(self) -> Array:
+        """The total without the parts any other reading of the same logged thrust shares
+        (``SHARED_WITH_THRUST``): what a model-free mass balance on the same thrust is
+        compared with (4,)."""
+        return self.total_without(*SHARED_WITH_THRUST)
 
     def to_report(self) -> dict:
         """report.json's ``stderr_parts``: per part, the mass's and the inertia

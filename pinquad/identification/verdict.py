@@ -148,7 +148,10 @@ class VerdictEvidence:
     the flight's mean vertical force without the dynamic model (``mass_balance``);
     input_free_stderr (4,) or None: the standard errors without the input reading's part,
     which the input alternative's shift is compared with (an error that counts the
-    shift would always cover it).
+    shift would always cover it); balance_stderr [kg] or None: the mass's standard error
+    without the parts the model-free balance shares (the same thrust: its calibration,
+    between-flight model error, PWM repair; ``ErrorBudget.unshared_with_thrust``), which
+    the balance is compared with (None: the mass's total).
     """
 
     torque_share: Array = field(default_factory=lambda: np.full(3, np.nan))
@@ -162,6 +165,7 @@ class VerdictEvidence:
     not_converged: str | None = None
     model_free_mass: tuple[float, float] | None = None
     input_free_stderr: Array | None = None
+    balance_stderr: float | None = None
 
 
 @dataclass(frozen=True)
@@ -269,7 +273,11 @@ def _fit_checks(name: str, evidence: VerdictEvidence) -> list[str]:
 
 def _balance_check(mass: float, se: float, evidence: VerdictEvidence) -> list[str]:
     """The mass against the model-free mass balance: they disagree when they differ by
-    more than 2 combined standard errors, |m - m_bal| > 2 sqrt(se^2 + se_bal^2)."""
+    more than 2 combined standard errors, |m - m_bal| > 2 sqrt(se^2 + se_bal^2), with se
+    the mass's error without what both readings of the thrust share
+    (``evidence.balance_stderr``; a thrust calibration cancels between them)."""
+    if evidence.balance_stderr is not None:
+        se = evidence.balance_stderr
     if evidence.model_free_mass is None or not np.isfinite(se):
         return []
     m_bal, se_bal = evidence.model_free_mass
