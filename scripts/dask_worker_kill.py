@@ -9,8 +9,11 @@ starts ``dask scheduler`` and ``dask worker --nworkers 2 --nthreads 1`` (this ch
 their PYTHONPATH), runs ``python -m pinquad.offline --log LOGS --scheduler ADDRESS`` into
 OUT_DIR/undisturbed, then again into OUT_DIR/killed while one worker process is
 SIGKILLed ``KILL_AFTER_S`` (default 15) seconds in (set the environment variable to
-change it), and prints each run's exit code, every row of both batch.json files and
-whether the rows (without their wall times) and the reports (without theirs) are equal.
+change it; with ``KILL_WHEN=held``, after that the first worker seen running a log while
+it holds another log's finished result that the batch has not read yet), and prints
+each run's exit code, every row of both batch.json files, whether the rows (without
+their wall times) and the reports (without theirs) are equal, and the error lines in
+what each log printed (``logs/<name>.txt``).
 The cluster is stopped at the end.
 """
 
@@ -44,6 +47,26 @@ def _reports(batch_dir: Path) -> dict:
             for p in sorted((batch_dir / "logs").glob("*/report.json"))}
 
 
+def _console_errors(batch_dir: Path) -> dict[str, list[str]]:
+    """Each log's error lines in what it printed (``logs/<name>.txt``): a rerun that
+    failed after the batch had read the first attempt's row shows only there."""
+    return {p.name: [line for line in p.read_text().splitlines() if line.startswith("error:")]
+            for p in sorted((batch_dir / "logs").glob("*.txt"))}
+
+
+def _victim(client, held: bool) -> str | None:
+    """The first worker seen running a log while it holds another's finished result that
+    the batch has not read yet (both are lost with it), waiting up to 10 minutes."""
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline:
+        busy = {w for w, keys in client.processing().items() if keys}
+        holding = {w for w, keys in client.has_what().items() if keys}
+        if busy & holding:
+            return sorted(busy & holding)[0]
+        time.sleep(0.2)
+    return None
+
+
 def _batch(logs: list[str], address: str, out: Path, env: dict) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "pinquad.offline", "--log", *logs,
                              "--scheduler", address, "--out", str(out)], env=env,
@@ -56,6 +79,7 @@ def main(argv: list[str]) -> int:
         return 2
     out, logs = Path(argv[0]), [str(Path(p).absolute()) for p in argv[1:]]
     kill_after = float(os.environ.get("KILL_AFTER_S", "15"))
+    held = os.environ.get("KILL_WHEN") == "held"
     out.mkdir(parents=True, exist_ok=False)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     scheduler_file = out / "scheduler.json"
@@ -81,10 +105,12 @@ def main(argv: list[str]) -> int:
             t0 = time.perf_counter()
             killed_run = _batch(logs, address, out / "killed", env)
             time.sleep(kill_after)
+            victim = _victim(client, held) if held else None
             pids = client.run(os.getpid)
-            victim, pid = sorted(pids.items())[0]
-            os.kill(pid, signal.SIGKILL)
-            print(f"killed worker {victim} (process {pid}) {kill_after:.0f} s in")
+            victim = victim or sorted(pids)[0]
+            os.kill(pids[victim], signal.SIGKILL)
+            print(f"killed worker {victim} (process {pids[victim]}) "
+                  f"{time.perf_counter() - t0:.0f} s in")
             code_killed = killed_run.wait()
             print(f"killed: exit {code_killed}, {time.perf_counter() - t0:.0f} s")
     finally:
@@ -100,9 +126,13 @@ def main(argv: list[str]) -> int:
                   f"effects {r['effects']}{', error ' + r['error'] if r['error'] else ''}")
     same_rows = undisturbed == killed
     same_reports = _reports(out / "undisturbed") == _reports(out / "killed")
+    errors = {label: {k: v for k, v in _console_errors(out / label).items() if v}
+              for label in ("undisturbed", "killed")}
     print(f"rows equal (without wall times): {same_rows}; reports equal (without wall "
-          f"times): {same_reports}; exit codes {code_undisturbed} / {code_killed}")
-    return 0 if same_rows and same_reports and code_undisturbed == code_killed else 1
+          f"times): {same_reports}; exit codes {code_undisturbed} / {code_killed}; errors "
+          f"in the logs' printed text: {errors}")
+    same = same_rows and same_reports and errors["undisturbed"] == errors["killed"]
+    return 0 if same and code_undisturbed == code_killed else 1
 
 
 if __name__ == "__main__":
