@@ -35,7 +35,7 @@ def test_em_loglik_never_decreases_on_linear_gaussian_model():
                                 m0=np.zeros(n), p0=np.eye(n))
     res = run_em(_Data(ys), start, smooth, linear_em_mstep, max_iterations=40, tol=0.0,
                  tol_loglik=0.0, model_factory=lambda data, model: model,
-                 distance=linear_change)
+                 distance=linear_change, quadcopter=False)
     ll = res.loglik
     assert ll.size >= 30
     steps = np.diff(ll)
@@ -63,7 +63,7 @@ def test_em_stops_at_the_last_good_iterate_when_the_e_step_breaks_down():
 
     res = run_em(_Data(ys), start, breaking, linear_em_mstep, max_iterations=10, tol=0.0,
                  tol_loglik=0.0, model_factory=lambda data, model: model,
-                 distance=linear_change)
+                 distance=linear_change, quadcopter=False)
     assert not res.converged
     assert res.failure is not None and "not positive definite" in res.failure
     assert res.loglik.size == 3 and res.e_steps == 4

@@ -378,7 +378,7 @@ def test_yaw_flight_rotor_inertia_is_identified_and_positive():
 def _synthetic_band(inertia, jr, k=1500, seed=0):
     """Band-passed regression data of a log whose yaw torque is t_z + jr e: the rotor drag
     torque t_z = x_z . I - jr e - nuisance, plus noise."""
-    from pinquad.realdata.band_mstep import BandStats
+    from pinquad.mstep.band import BandStats
 
     rng = np.random.default_rng(seed)
     x = rng.normal(0.0, 10.0, (k, 3, 3))

@@ -160,7 +160,7 @@ def replay(args: argparse.Namespace) -> int:
     memory = memory_label(args.memory)
     mstep = "regressor"
     if rotor_acc is not None:
-        mstep = "measured-flight (realdata.RealMStep)"
+        mstep = "measured-flight (mstep.BandMStep)"
         if args.memory is not None:
             memory = f"mass: {memory}; inertia: each window's band-passed fit alone"
     print(f"replayed {obs.n} samples of {args.log} in {hist.shape[0]} updates "

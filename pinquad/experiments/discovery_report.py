@@ -16,11 +16,10 @@ from pinquad.experiments.recorded import (
     discovery_config,
     start_from,
 )
-from pinquad.models.ssm import Observations
-from pinquad.realdata.model import RealTheta
+from pinquad.models.ssm import Observations, Theta
 
 
-def measured_effects(obs: Observations, theta: RealTheta, posterior: Posterior,
+def measured_effects(obs: Observations, theta: Theta, posterior: Posterior,
                      null: NullSettings | None = None) -> dict:
     """Effect discovery with its null calibration on a measured flight's base fit (its
     nuisance moment moved into the torques, as ``discovery_start``), summarised for the

@@ -28,10 +28,10 @@ from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge
 from pinquad.identification.window import window_em, window_prior
 from pinquad.io.logs import LogMeta
-from pinquad.models.ssm import Observations, QuadSSM, Theta
+from pinquad.models.nuisance import torque_features
+from pinquad.models.ssm import Observations, Theta, corrected
+from pinquad.mstep.band import BandMStep
 from pinquad.mstep.updates import regressor_mstep, remember_leaving
-from pinquad.realdata.band_mstep import RealMStep
-from pinquad.realdata.model import RealTheta, corrected, torque_features
 
 Array = NDArray[np.float64]
 
@@ -47,25 +47,20 @@ def window_of(obs: Observations, start: int, stop: int, x0: Array, p0: Array) ->
 
 def _measured_theta(theta: Theta, previous: tuple[int, Posterior, Observations] | None,
                     start: int, win: Observations, rotor_acc: Array) -> Theta:
-    """A measured flight's parameters moved onto the next window: the nuisance moment
-    tau_off = z moment_coef^T + [0, 0, J_r rotor_acc] (``realdata.RealMStep``) evaluated
-    on the new window's rows, with the features z from the previous posterior's means
-    (its last row repeated for the rows it has not seen yet)."""
-    if not isinstance(theta, RealTheta) or theta.moment_coef is None or previous is None:
+    """A measured flight's parameters moved onto the next window: the nuisance block's
+    moment tau_off = z moment_coef^T + [0, 0, J_r rotor_acc] (``mstep.band.BandMStep``)
+    evaluated on the new window's rows, with the features z from the previous
+    posterior's means (its last row repeated for the rows it has not seen yet)."""
+    nuisance = theta.nuisance
+    if nuisance is None or previous is None:
         return theta
     prev_start, post, _ = previous
     guess = post.mean[start - prev_start:]
     guess = np.vstack([guess, np.repeat(guess[-1:], win.n - guess.shape[0], axis=0)])
-    offset = torque_features(guess, win.inputs[:, 0]) @ theta.moment_coef.T
-    if theta.rotor_inertia is not None:
-        offset[:, 2] += theta.rotor_inertia * rotor_acc
-    return replace(theta, torque_offset=offset)
-
-
-def _measured_model(win: Observations, theta: Theta) -> QuadSSM:
-    """The E-step model of a measured flight's window: the quadcopter with the nuisance
-    moment of ``theta`` added to the rotor torques (``realdata.corrected``)."""
-    return QuadSSM(corrected(win, theta), theta)
+    offset = torque_features(guess, win.inputs[:, 0]) @ nuisance.moment_coef.T
+    if nuisance.rotor_inertia is not None:
+        offset[:, 2] += nuisance.rotor_inertia * rotor_acc
+    return replace(theta, nuisance=replace(nuisance, torque_offset=offset))
 
 
 @dataclass(frozen=True)
@@ -103,7 +98,7 @@ def stream_fit(obs: Observations, mass0: float, inertia0: Array, gravity: float,
     it), None: unbounded.
 
     rotor_acc (N,) [rad/s^2]: given for a measured flight (``RealObservations``): each
-    window then gets the measured-flight M-step (``realdata.RealMStep``: band-passed
+    window then gets the measured-flight M-step (``mstep.band.BandMStep``: band-passed
     inertia, nuisance body moment and rotor inertia, fed back into the next window's
     E-step as a torque offset), and the memory applies to the mass only (the inertia's
     band-passed sums do not add across windows)."""
@@ -126,12 +121,11 @@ def stream_fit(obs: Observations, mass0: float, inertia0: Array, gravity: float,
             theta = initial_theta(win, mass0, inertia0, gravity)
             if bounds is not None:
                 theta = project(theta, bounds)
-        mstep, model_of = functools.partial(regressor_mstep, bounds=bounds), QuadSSM
+        mstep = functools.partial(regressor_mstep, bounds=bounds)
         if rotor_acc is not None:
             theta = _measured_theta(theta, previous, start, win, rotor_acc[start:k + 1])
-            mstep, model_of = RealMStep(rotor_acc=rotor_acc[start:k + 1]), _measured_model
-        theta, post = window_em(win, theta, warm_up, iterations, smoother, mstep, earlier,
-                                model_of)
+            mstep = BandMStep(rotor_acc=rotor_acc[start:k + 1])
+        theta, post = window_em(win, theta, warm_up, iterations, smoother, mstep, earlier)
         if bounds is not None:
             theta = project(theta, bounds)
         previous = (start, post, win)
@@ -152,9 +146,9 @@ def replay_verdict(fit: StreamFit, meta: LogMeta, vrange: VehicleRange | None,
     vrange: the vehicle's plausible range (None: none known)."""
     assert fit.theta is not None and fit.window is not None and fit.posterior is not None
     theta, win = fit.theta, fit.window
-    if measured_thrust is not None:  # the nuisance moment moves into the torques
-        win = corrected(win, theta)
-    plain = Theta(theta.mass, np.asarray(theta.inertia), theta.noise, theta.gravity)
+    # a measured flight's nuisance moment moves into the torques
+    win = corrected(win, theta)
+    plain = theta.without_nuisance()
     values = np.r_[plain.mass, np.diag(plain.inertia)]
     try:
         stat = standard_errors(observed_information(win, plain, loglik_quad))
@@ -162,7 +156,7 @@ def replay_verdict(fit: StreamFit, meta: LogMeta, vrange: VehicleRange | None,
         stat = np.full(4, np.nan)
     budget = error_budget(values, stat, calibration_of(meta, measured_thrust))
     # a measured flight's window M-step reads the inertia from its torque band only
-    band = None if measured_thrust is None else RealMStep().band
+    band = None if measured_thrust is None else BandMStep().band
     evidence = data_evidence(win, plain, fit.posterior.mean, band)
     if bounds is not None:
         evidence = replace(evidence, at_bound=tuple(at_bound(values, bounds)),

@@ -44,9 +44,9 @@ from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import ProfiledFit, profiled_fit
 from pinquad.io.read import read_log
 from pinquad.io.sdlog import read_sdflight
+from pinquad.models.ssm import corrected
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real
-from pinquad.realdata.model import corrected, plain_theta
 from pinquad.realdata.observations import (
     RealDataOptions,
     build_observations,
@@ -100,7 +100,7 @@ def fit_flight(path: Path, max_iterations: int = 60, vehicle: str = "crazyflie21
     mass0, inertia0, _ = default_guess(vehicle)
     ident, post, theta = identify_real(real, mass0, inertia0, max_iterations, False, name=path.name)
     obs = corrected(real.obs, theta)
-    plain = plain_theta(theta)
+    plain = theta.without_nuisance()
     out = discover(obs, plain, post, cfg=DiscoveryConfig(refit_em=False))
     speed = np.linalg.norm(post.mean[:, 3:6], axis=1)
     flying = post.mean[:, 2] > 0.03

@@ -48,10 +48,9 @@ from pinquad.io.sanity import check_log
 from pinquad.io.timebase import gap_lines
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import floor_contact, interval_inputs, observations
-from pinquad.models.ssm import Observations, Theta
+from pinquad.models.ssm import Observations, Theta, corrected
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
-from pinquad.realdata.model import RealTheta, corrected, plain_theta
 from pinquad.realdata.observations import (
     build_observations,
     options_for_sensor,
@@ -176,20 +175,18 @@ def _from_measured(ident: RealIdentification, label: str, post: Posterior, theta
 
 def discovery_start(run: Identification) -> DiscoveryStart:
     """Where effect discovery starts from a run: its observations, parameters and
-    posterior; a measured-flight run's nuisance moment (``RealTheta``) moves into the
-    torques of its observations (``realdata.corrected``) and out of its parameters."""
+    posterior; a measured-flight run's nuisance block (``Theta.nuisance``) moves into the
+    torques of its observations (``models.ssm.corrected``) and out of its parameters."""
     if run.posterior is None or run.observations is None or run.theta is None:
         raise ValueError("this identification kept no posterior to start discovery from")
     return start_from(run.observations, run.theta, run.posterior)
 
 
-def start_from(obs: Observations, theta: Theta | RealTheta, posterior: Posterior
-               ) -> DiscoveryStart:
-    """The ``DiscoveryStart`` of a fit: a measured-flight fit's nuisance moment
-    (``RealTheta``) moved into the torques of its observations and out of its parameters."""
-    if isinstance(theta, RealTheta):
-        return DiscoveryStart(corrected(obs, theta), plain_theta(theta), posterior)
-    return DiscoveryStart(obs, theta, posterior)
+def start_from(obs: Observations, theta: Theta, posterior: Posterior) -> DiscoveryStart:
+    """The ``DiscoveryStart`` of a fit: a measured-flight fit's nuisance block
+    (``Theta.nuisance``) moved into the torques of its observations and out of its
+    parameters (discovery's models add their effects to the rotor torques alone)."""
+    return DiscoveryStart(corrected(obs, theta), theta.without_nuisance(), posterior)
 
 
 def log_kind(log: FlightLog) -> str:

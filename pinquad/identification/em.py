@@ -96,7 +96,8 @@ def _unpack(vec: Array, like: Theta) -> Theta:
     v = np.exp(vec)
     nz = like.noise
     noise = NoiseModel(wrench=v[4:10], q_kin=nz.q_kin, meas=v[10:], fixed_q=None)
-    return Theta(mass=float(v[0]), inertia=np.diag(v[1:4]), noise=noise, gravity=like.gravity)
+    return Theta(mass=float(v[0]), inertia=np.diag(v[1:4]), noise=noise, gravity=like.gravity,
+                 nuisance=like.nuisance)
 
 
 def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
@@ -106,7 +107,8 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
            model_factory: Callable[[Any, Any], StateSpaceModel] = QuadSSM,
            distance: Callable[[Any, Any], float] = relative_change,
            extrapolate: Callable[[Theta, Theta, float], Theta] | None = None,
-           per_parameter: bool = False, bounds: VehicleRange | None = None) -> EMResult:
+           per_parameter: bool = False, bounds: VehicleRange | None = None,
+           quadcopter: bool = True) -> EMResult:
     """Run EM from theta0 (see module docstring).
 
     With ``accelerate`` (the regressor M-step, or any M-step given its ``extrapolate``)
@@ -143,9 +145,11 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     data-driven warm-up); every later one the full model. ``model_factory(obs, theta)``
     builds the E-step's model and ``distance`` measures the
     parameter change; the defaults are the quadcopter's, other models (the
-    linear-Gaussian test model) pass their own.
+    linear-Gaussian test model) pass their own, with ``quadcopter=False``: their
+    parameters have no mass, inertia or noise model, so the history records NaN for
+    (m, I) and there is no warm-up, over-relaxation or bounds.
     """
-    is_quad = isinstance(theta0, Theta)
+    is_quad = quadcopter
     warm_up = (is_quad and isinstance(model_factory, type) and issubclass(model_factory, QuadSSM)
                and theta0.noise.fixed_q is not None)
 

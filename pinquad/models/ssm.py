@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from pinquad.core.conventions import euler_rate_kinematics, euler_rate_matrix_inv, wrap_angle
 from pinquad.core.effect_vocabulary import DEFAULT_GROUND_RADIUS
 from pinquad.models.continuous import continuous_step, kinematic_noise
+from pinquad.models.nuisance import NuisanceMoment
 from pinquad.vehicle.model import RigidBodyParams, state_derivative_and_jacobian
 
 Array = NDArray[np.float64]
@@ -73,14 +74,18 @@ class NoiseModel:
 @dataclass(frozen=True)
 class Theta:
     """Parameters of the E-step model: mass [kg], inertia (3, 3) about the centre of
-    mass [kg m^2], noise, gravity [m/s^2] and the centre of mass com (3,) in the body
-    frame [m] (zero except in ``pinquad.identification.full_inertia``'s ten-parameter model)."""
+    mass [kg m^2], noise, gravity [m/s^2], the centre of mass com (3,) in the body
+    frame [m] (zero except in ``pinquad.identification.full_inertia``'s ten-parameter model)
+    and the optional nuisance block (``models.nuisance.NuisanceMoment``: a measured
+    flight's nuisance body moment and rotor inertia, which the model adds to the rotor
+    torques, :func:`corrected`; None: the rotor torques alone)."""
 
     mass: float
     inertia: Array
     noise: NoiseModel
     gravity: float = 9.81
     com: Array = field(default_factory=lambda: np.zeros(3))
+    nuisance: NuisanceMoment | None = None
 
     def body(self) -> RigidBodyParams:
         inertia = np.asarray(self.inertia, dtype=float)
@@ -88,6 +93,11 @@ class Theta:
 
     def with_noise(self, noise: NoiseModel) -> Theta:
         return replace(self, noise=noise)
+
+    def without_nuisance(self) -> Theta:
+        """theta without its nuisance block (the block then travels in
+        :func:`corrected` observations instead)."""
+        return self if self.nuisance is None else replace(self, nuisance=None)
 
 
 @dataclass(frozen=True)
@@ -146,12 +156,31 @@ class Observations:
         return np.asarray(rows, dtype=np.int64)
 
 
+def corrected(obs: Observations, theta: Theta) -> Observations:
+    """obs with the nuisance moment of ``theta.nuisance`` added to the torque inputs
+    (and to the torque samples of a sampled log), tau_eff = tau + torque_offset [N m];
+    obs itself when theta has no nuisance block."""
+    if theta.nuisance is None:
+        return obs
+    off = theta.nuisance.torque_offset
+    inputs = obs.inputs.copy()
+    inputs[:, 1:4] += off
+    samples = None
+    if obs.samples is not None:
+        samples = obs.samples.copy()
+        samples[:, 1:4] += off
+    return replace(obs, inputs=inputs, samples=samples)
+
+
 class QuadSSM:
-    """StateSpaceModel of the quadcopter for given observations and parameters."""
+    """StateSpaceModel of the quadcopter for given observations and parameters; the
+    torques it is driven by are the logged ones plus theta's nuisance moment, if any
+    (:func:`corrected`; ``self.obs`` holds the corrected observations)."""
 
     state_dim = 12
 
     def __init__(self, obs: Observations, theta: Theta):
+        obs = corrected(obs, theta)
         self.obs = obs
         self.theta = theta
         self.body = theta.body()

@@ -1,7 +1,9 @@
 """Mass and inertia of the vehicle from one measured flight, with standard errors.
 
-Identification (:func:`identify_real`) is EM with the compiled EKF + RTS E-step and
-:class:`RealMStep`: the shared closed form for the mass (body-z force row), the shared
+Identification (:func:`identify_real`) is the shared EM (``identification.em.run_em``) with
+the compiled EKF + RTS E-step and the band-limited M-step
+(``pinquad.mstep.band.BandMStep``) of the inertia and the model's nuisance block
+(``Theta.nuisance``): the shared closed form for the mass (body-z force row), the shared
 profiled objective for the inertia but on the torque rows band-passed to 3-8 Hz, and a
 nuisance body moment (thrust, body-frame air speed, body rates) that the measured
 flights demand: the rotor torques that cancel rotor-drag / blade-flapping moments are
@@ -26,11 +28,10 @@ from pinquad.identification.em import initial_theta, run_em
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.identify import get_smoother, loglik_function
 from pinquad.identification.verdict import EstimateVerdict, VerdictEvidence
-from pinquad.models.ssm import Theta
-from pinquad.realdata.band_mstep import BandStats, RealMStep
+from pinquad.models.ssm import Theta, corrected
+from pinquad.mstep.band import BandMStep, BandStats
 from pinquad.realdata.input_holes import GAP_REASON
 from pinquad.realdata.mass_balance import MotorSplit, motor_split, quasi_static_mass
-from pinquad.realdata.model import RealTheta, corrected, real_model
 from pinquad.realdata.observations import RealObservations
 from pinquad.realdata.rotor_inertia import yaw_band_stats
 from pinquad.realdata.thrust import ThrustCoefficient
@@ -148,12 +149,13 @@ def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
     return np.sqrt(stat**2 + params**2 * rel)
 
 
-def used_rotor_inertia(fitted: RealTheta | None, fixed: float | None) -> float:
+def used_rotor_inertia(fitted: Theta | None, fixed: float | None) -> float:
     """J_r [kg m^2] a measured flight was identified with: the EM's fitted value
-    (``fitted``, the final RealTheta when J_r was fitted; NaN if its band fit was not
-    finite), else the fixed value (0 included), else NaN (none)."""
-    if fitted is not None:  # EM that stopped before its first M-step holds a plain Theta
-        jr = getattr(fitted, "rotor_inertia", None)
+    (``fitted``, the final Theta when J_r was fitted: its nuisance block's; NaN if its
+    band fit was not finite), else the fixed value (0 included), else NaN (none)."""
+    if fitted is not None:
+        # EM that stopped before its first M-step holds no nuisance block yet
+        jr = None if fitted.nuisance is None else fitted.nuisance.rotor_inertia
         return float(jr) if jr is not None else float("nan")
     return float(fixed) if fixed is not None else float("nan")
 
@@ -163,7 +165,7 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
                   band: tuple[float, float] = (3.0, 8.0), tol: float = 1e-4,
                   name: str | None = None, estep: str = "rts", fit_rotor_inertia: bool = True,
                   keep_band_stats: bool = False):
-    """EM on a measured flight (``RealMStep``; E-step ``estep``: ``rts`` = compiled EKF +
+    """EM on a measured flight (``BandMStep``; E-step ``estep``: ``rts`` = compiled EKF +
     RTS, or ``gtsam``) from (mass0 [kg], inertia0 (3, 3) [kg m^2]), then standard errors
     (the observed information always uses the EKF likelihood).
 
@@ -172,7 +174,7 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     when that is a value (0 included), else fitted per flight if ``fit_rotor_inertia`` and
     the log has rotor speeds, else none (``RealIdentification.rotor_inertia`` NaN).
 
-    Returns (RealIdentification, Posterior, RealTheta). EM stops when the relative change
+    Returns (RealIdentification, Posterior, Theta with its nuisance block). EM stops when the relative change
     of (m, I) is below ``tol`` (1e-4, far below the standard errors) and the relative
     log-likelihood change below tol / 10, or after ``max_iterations`` E-steps.
     """
@@ -182,16 +184,16 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     # J_r: fixed when the options give a value (0 included), else fitted if asked
     fixed_jr = real.options.rotor_inertia
     fit_jr = fit_rotor_inertia and real.rotor_acc is not None and fixed_jr is None
-    mstep = RealMStep(band, real.rotor_acc if fit_jr else None)
+    mstep = BandMStep(band, real.rotor_acc if fit_jr else None)
     theta0 = initial_theta(obs, mass0, inertia0, gravity)
     res = run_em(obs, theta0, get_smoother(estep), mstep, max_iterations=max_iterations,
-                 tol=tol, tol_loglik=0.1 * tol, accelerate=False, model_factory=real_model)
+                 tol=tol, tol_loglik=0.1 * tol, accelerate=False)
     theta = res.theta
     params = np.concatenate([[theta.mass], np.diag(theta.inertia)])
     se_info = np.full(4, np.nan)
     if information:
-        plain = Theta(theta.mass, np.asarray(theta.inertia), theta.noise, gravity)
-        info = observed_information(corrected(obs, theta), plain, loglik_function("rts"))
+        info = observed_information(corrected(obs, theta), theta.without_nuisance(),
+                                    loglik_function("rts"))
         se_info = standard_errors(info)
     se_jack = mstep.jackknife(res.posterior, obs, theta)
     se_stat = np.fmax(se_info, se_jack)
@@ -202,13 +204,13 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
                                      repair_rel=repair_rel)
     history = np.column_stack([np.concatenate([[mass0], res.mass]),
                                np.vstack([np.diag(inertia0), res.inertia_diag])])
-    coef = getattr(theta, "moment_coef", None)
     out = RealIdentification(
         name=name or Path(real.source).name, mass=theta.mass,
         inertia=np.diag(theta.inertia).copy(), se_info=se_info, se_jack=se_jack,
         se_stat=se_stat, se_total=se_total, kf=real.kf, iterations=res.iterations,
         converged=res.converged, loglik=res.loglik, e_steps=res.e_steps, history=history,
-        moment_coef=np.zeros((3, 7)) if coef is None else coef, n_used=real.n_used,
+        moment_coef=(np.zeros((3, 7)) if theta.nuisance is None
+                     else theta.nuisance.moment_coef), n_used=real.n_used,
         n_excluded=real.n_excluded, excluded=real.excluded, notes=real.notes,
         seconds=time.perf_counter() - t0, band=band,
         rotor_inertia=used_rotor_inertia(theta if fit_jr else None, fixed_jr),

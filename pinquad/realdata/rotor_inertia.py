@@ -12,7 +12,7 @@ frequency, which is what a derivative term does). Regressing the band-passed gyr
 acceleration on the drag torque alone leaves 72-86 % of its variance unexplained on
 jana01/04/05; adding J_r omega' with one J_r = 20e-9 kg m^2 for all logs leaves 25-66 %.
 J_r can be identified per flight by the M-step (a yaw-row regressor projected out with
-the nuisance features, ``RealMStep``), but within one log it trades off against I_zz
+the nuisance features, ``BandMStep``), but within one log it trades off against I_zz
 (per-flight J_r 7-23e-9, yaw I_zz spread 88 %). By default one J_r is pooled over the
 seven logs with every rotor speed measured (:func:`pooled_rotor_inertia`: each log keeps
 its own inertia; 15.5 +- 4.1 e-9 kg m^2, delete-one-log jackknife), and each of those
@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-from pinquad.realdata.band_mstep import BandStats, RealMStep, profiled_inertia
+from pinquad.mstep.band import BandMStep, BandStats, profiled_inertia
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.observations import RealObservations
 
@@ -51,7 +51,7 @@ def yaw_band_stats(real: RealObservations, post, band: tuple[float, float] = (3.
     yaw torque = t_z + J_r e."""
     if real.rotor_acc is None:
         raise ValueError(f"{real.source}: no rotor acceleration; expected measured rotor speeds")
-    bs = RealMStep(band, real.rotor_acc).band_stats(post, real.obs, real.log.meta.gravity)
+    bs = BandMStep(band, real.rotor_acc).band_stats(post, real.obs, real.log.meta.gravity)
     t = bs.t.copy()
     if real.options.rotor_inertia:
         t[:, 2] -= real.options.rotor_inertia * bs.e[:, 0]

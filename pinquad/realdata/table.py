@@ -19,10 +19,9 @@ from pinquad.identification.verdict import (
     vehicle_range,
 )
 from pinquad.io.logs import LogFormatError
-from pinquad.models.ssm import Observations
+from pinquad.models.ssm import Observations, Theta, corrected
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
-from pinquad.realdata.model import RealTheta, corrected, plain_theta
 from pinquad.realdata.observations import RealDataOptions, load_real
 from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
 
@@ -48,7 +47,7 @@ class TableJob:
     fit_rotor_inertia: bool = True
     keep_band_stats: bool = False
     rotor_source: str = ""
-    effects: Callable[[Observations, RealTheta, Posterior], dict] | None = None
+    effects: Callable[[Observations, Theta, Posterior], dict] | None = None
     kf: ThrustCoefficient | None = None
     vehicle: str = "crazyflie21"
 
@@ -77,12 +76,12 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
 
 
 def real_evidence(ident: RealIdentification, obs: Observations, mean: Array,
-                  theta: RealTheta) -> VerdictEvidence:
+                  theta: Theta) -> VerdictEvidence:
     """What a measured flight's verdict (``pinquad.identification.verdict``) rests on
     beside its total standard errors: the torques (with the fitted nuisance moment)
     explaining the angular acceleration on the M-step's band, and the EKF's innovation
     consistency at the estimate. mean (N, 12): smoothed states."""
-    plain = replace(plain_theta(theta), inertia=np.diag(ident.inertia))
+    plain = replace(theta.without_nuisance(), inertia=np.diag(ident.inertia))
     return data_evidence(corrected(obs, theta), plain, mean, tuple(ident.band))
 
 

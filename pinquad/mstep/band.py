@@ -1,8 +1,9 @@
-"""The M-step of a measured flight (:class:`RealMStep`): the shared closed form for the
+"""The M-step of a measured flight (:class:`BandMStep`): the shared closed form for the
 mass (body-z force row), the shared profiled objective for the inertia
 (:func:`profiled_inertia`) but on the torque rows band-passed to 3-8 Hz
-(:class:`BandStats`), and a nuisance body moment (thrust, body-frame air speed, body
-rates; ``pinquad.realdata.model``) that the measured flights demand."""
+(:class:`BandStats`), and the model's nuisance block (``Theta.nuisance``,
+``pinquad.models.nuisance``: a body moment on thrust, body-frame air speed and body
+rates, and the rotor inertia J_r) that the measured flights demand."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from numpy.typing import NDArray
 from scipy.signal import sosfiltfilt
 
 from pinquad.core.filters import band_sos, passband
+from pinquad.models.nuisance import NuisanceMoment, torque_features
 from pinquad.models.ssm import Observations, Theta
 from pinquad.mstep.stats import QuadraticSums, transition_mask
 from pinquad.mstep.updates import (
@@ -23,7 +25,6 @@ from pinquad.mstep.updates import (
     regressor_stats,
     update_noise,
 )
-from pinquad.realdata.model import RealTheta, torque_features
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -137,7 +138,7 @@ class BandStats:
         return a, b, c
 
 
-class RealMStep:
+class BandMStep:
     """M-step for a measured flight (a generalised EM step; equations below).
 
     Mass: the shared regressor M-step's closed form from the body-z force row,
@@ -164,8 +165,9 @@ class RealMStep:
     out e = sum_i spin_i omega_i', and with I fixed J_r = the least-squares coefficient of
     e in the band-passed yaw residual (``BandStats.rotor_inertia``).
 
-    Nuisance moment: with pi (and J_r) fixed, moment_coef = least squares of the full-band
-    residual Y pi - tau - [0, 0, J_r e] on the features z; the E-step then sees
+    Nuisance block (``Theta.nuisance``): with pi (and J_r) fixed, moment_coef = least
+    squares of the full-band residual Y pi - tau - [0, 0, J_r e] on the features z; the
+    E-step's model (``QuadSSM``, through ``models.ssm.corrected``) then sees
     tau + z moment_coef^T + [0, 0, J_r e].
 
     Noise: S = dt * residual variance of each wrench row (full band, with the moment),
@@ -238,9 +240,10 @@ class RealMStep:
         q = np.einsum("p,apq,q->a", pi, stats.a, pi) - 2.0 * b_eff @ pi + c_eff
         row_var = np.maximum(q / stats.n, 0.0)
         noise = update_noise(post, obs, theta, row_var)
-        new = RealTheta(mass=mass, inertia=np.diag(inertia), noise=noise, gravity=g,
-                        torque_offset=offset, moment_coef=coef,
-                        rotor_inertia=jr if np.isfinite(jr) else None)
+        nuisance = NuisanceMoment(torque_offset=offset, moment_coef=coef,
+                                  rotor_inertia=jr if np.isfinite(jr) else None)
+        new = Theta(mass=mass, inertia=np.diag(inertia), noise=noise, gravity=g,
+                    nuisance=nuisance)
         return MStepResult(new, objective, row_var)
 
     def jackknife(self, post, obs: Observations, theta: Theta, blocks: int = 10) -> Array:
