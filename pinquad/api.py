@@ -23,7 +23,7 @@ from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.experiments.recorded import LogOptions
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog
-from pinquad.pipeline.single import discover_from, identify_run, read
+from pinquad.pipeline.single import LOG_MAX_ITERATIONS, discover_from, identify_run, read
 from pinquad.sim.simulator import SimConfig, flight_log
 from pinquad.sim.simulator import simulate as simulate_flight
 
@@ -37,7 +37,7 @@ def read_log(path: str | Path) -> FlightLog:
 
 
 def identify(log: FlightLog, *, mstep: str = "regressor", sensor: str | None = None,
-             estep: str = "rts", max_iterations: int = 100,
+             estep: str = "rts", max_iterations: int = LOG_MAX_ITERATIONS,
              information: bool = True) -> Identification:
     """Mass [kg] and inertia (3, 3) [kg m^2] of the vehicle that flew ``log``, by EM.
 

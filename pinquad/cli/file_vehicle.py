@@ -40,7 +40,7 @@ def run_file_vehicle(args: argparse.Namespace) -> int:
                          "simulated flight cannot be logged with rotor speeds")
     band = tuple(args.band) if args.band is not None else FILE_VEHICLE_BAND
     options = LogOptions(msteps=("regressor",), estep=args.estep, band=band,
-                         max_iterations=args.max_iterations,
+                         max_iterations=args.max_iterations or 100,
                          information=not args.no_information)
     writer = RunWriter(args.out or new_run_dir("vehicle"))
     seeds = list(range(args.seed, args.seed + args.cycles))
