@@ -47,13 +47,17 @@ class Reference:
     """What the vehicle is known to be without flight data, for comparison.
 
     mass [kg] (e.g. on a scale) or None; inertia (3,) [kg m^2] diagonal or None;
-    mass_note / inertia_note: how each is known, in words.
+    mass_note / inertia_note: how each is known, in words; mass_rel_se / inertia_rel_se
+    [-]: their relative standard uncertainty, or None (not stated: the values are shown
+    beside an estimate but do not judge it).
     """
 
     mass: float | None = None
     inertia: Array | None = None
     mass_note: str = ""
     inertia_note: str = ""
+    mass_rel_se: float | None = None
+    inertia_rel_se: float | None = None
 
 
 @dataclass(frozen=True)
@@ -428,7 +432,11 @@ def parse_vehicle(text: str, path: Path) -> VehicleSpec:
             mass=r.number(ref, "reference", "mass", unit=" [kg]", required=False),
             inertia=r.inertia(ref, "reference", "inertia", required=False),
             mass_note=r.text(ref, "reference", "mass_note"),
-            inertia_note=r.text(ref, "reference", "inertia_note")),
+            inertia_note=r.text(ref, "reference", "inertia_note"),
+            mass_rel_se=r.number(ref, "reference", "mass_rel_se", required=False,
+                                 unit=" (relative uncertainty)"),
+            inertia_rel_se=r.number(ref, "reference", "inertia_rel_se", required=False,
+                                    unit=" (relative uncertainty)")),
         urdf=urdf, description=r.text(data, "", "description"), faults=_faults(r),
         aero=_aero(r), uncertainty=_uncertainty(r))
 

@@ -20,7 +20,12 @@ from pinquad.experiments.recorded import (
     input_reading,
     plausible_range,
 )
-from pinquad.identification.budget import ErrorBudget, calibration_of, error_budget
+from pinquad.identification.budget import (
+    ErrorBudget,
+    calibration_of,
+    error_budget,
+    named_vehicle,
+)
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
     observed_information,
@@ -28,6 +33,7 @@ from pinquad.identification.fisher import (
 )
 from pinquad.identification.identify import Identification, unconverged
 from pinquad.identification.mass_balance import balance_mass
+from pinquad.identification.reference import reference_values
 from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import (
     EstimateVerdict,
@@ -149,7 +155,8 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
         products = np.array([s[0, 1], s[0, 2], s[1, 2]])
     budget = run_budget(result, run)
     ev = replace(ev, input_free_stderr=budget.total_without("input_reading"),
-                 balance_stderr=float(budget.unshared_with_thrust()[0]))
+                 balance_stderr=float(budget.unshared_with_thrust()[0]),
+                 reference=reference_values(named_vehicle(result.log.meta)))
     return judge(run.mass, run.inertia, budget.total, ev,
                  plausible_range(result), products, missing_stderr=run.stderr_problem)
 
@@ -195,7 +202,8 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
     budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
     stderr = budget.total
     ev = replace(ev, input_free_stderr=budget.total_without("input_reading"),
-                 balance_stderr=float(budget.unshared_with_thrust()[0]))
+                 balance_stderr=float(budget.unshared_with_thrust()[0]),
+                 reference=reference_values(named_vehicle(result.log.meta)))
     verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result),
                     missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,

@@ -102,7 +102,8 @@ class ErrorBudget:
         return out
 
 
-def _vehicle(meta: LogMeta) -> VehicleSpec | None:
+def named_vehicle(meta: LogMeta) -> VehicleSpec | None:
+    """The vehicle a log names (a shipped name or a vehicle file), or None."""
     name = meta.vehicle if meta.vehicle_named else ""
     if is_vehicle_file(name) or name in VEHICLES:
         return load_vehicle(name)
@@ -114,7 +115,7 @@ def calibration_of(meta: LogMeta, measured_thrust: tuple[float, float] | None = 
     """What a log's estimates assume (module docstring). measured_thrust: (kf's, the yaw
     ratio's) relative uncertainty when the thrust and torques come from measured rotor
     speeds through a thrust-stand kf (None: the log's thrust and torque columns)."""
-    spec = _vehicle(meta)
+    spec = named_vehicle(meta)
     unc = None if spec is None else spec.uncertainty
     where = "the vehicle file" if spec is not None else ""
     sources: dict[str, str] = {}

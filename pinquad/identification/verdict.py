@@ -44,6 +44,7 @@ from pinquad.core.filters import band_sos
 from pinquad.core.params import VEHICLES, VehicleRange
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.estep.fast_smoother import Innovations, innovations_quad
+from pinquad.identification.reference import ReferenceValues, reference_check
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.stats import transition_mask
 
@@ -151,7 +152,8 @@ class VerdictEvidence:
     shift would always cover it); balance_stderr [kg] or None: the mass's standard error
     without the parts the model-free balance shares (the same thrust: its calibration,
     between-flight model error, PWM repair; ``ErrorBudget.unshared_with_thrust``), which
-    the balance is compared with (None: the mass's total).
+    the balance is compared with (None: the mass's total); reference: the vehicle's
+    values known without flight data (``reference``), or None.
     """
 
     torque_share: Array = field(default_factory=lambda: np.full(3, np.nan))
@@ -166,6 +168,7 @@ class VerdictEvidence:
     model_free_mass: tuple[float, float] | None = None
     input_free_stderr: Array | None = None
     balance_stderr: float | None = None
+    reference: ReferenceValues | None = None
 
 
 @dataclass(frozen=True)
@@ -338,8 +341,9 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         ident.append(missing_stderr)
     params.append(_judge("mass", mass, stderr[0], {
         NOT_IDENTIFIABLE: ident,
-        NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th) + _balance_check(mass, stderr[0],
-                                                                               evidence),
+        NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th) + _balance_check(
+            mass, stderr[0], evidence) + reference_check("mass", 0, mass, stderr[0],
+                                                         evidence.reference, 1e3, "g"),
         IMPLAUSIBLE: bad_value, NOT_JUDGED: _judged(stderr[0], missing_stderr)}))
 
     # the tensor as a whole: positive definite, principal moments obey the triangle inequality
@@ -381,7 +385,9 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
                             f"acceleration about body {name[-1]} ({evidence.torque_band}; at "
                             f"least {100 * th.min_torque_share:.0f} % needed)")
         params.append(_judge(name, value, stderr[i + 1], {
-            NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: rotation, IMPLAUSIBLE: implausible,
+            NOT_IDENTIFIABLE: ident, IMPLAUSIBLE: implausible,
+            NOT_ADEQUATE: rotation + reference_check(name, i + 1, value, stderr[i + 1],
+                                                     evidence.reference, 1e6, "e-6 kg m^2"),
             NOT_JUDGED: _judged(stderr[i + 1], missing_stderr)}))
     if stderr_products is not None:
         for (name, i, j), se in zip(PRODUCTS, np.asarray(stderr_products, dtype=float),
