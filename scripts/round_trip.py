@@ -21,9 +21,10 @@ import pyarrow.parquet as pq
 from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.logs import write_log
 from pinquad.io.read import read_log
+from pinquad.pipeline import LOG_MAX_ITERATIONS
 
 ROOT = Path(__file__).resolve().parents[1]
-OPTIONS = LogOptions(msteps=("regressor",))
+OPTIONS = LogOptions(msteps=("regressor",), max_iterations=LOG_MAX_ITERATIONS)
 
 
 def _values(result) -> tuple[np.ndarray, np.ndarray]:
