@@ -1,5 +1,5 @@
-"""How much a real logger's time stamps move the estimate: each shared IMRC brushed
-micro-SD log is exported once as pinquad's own Parquet log (its ~500 Hz rows with rotor
+"""How much a real logger's time stamps move the estimate: each shared IMRC micro-SD log
+(brushed jana*, brushless eckart*) is exported once as pinquad's own Parquet log (its ~500 Hz rows with rotor
 speeds, ``pinquad.io.logs.write_log``), identified (regressor M-step, standard errors),
 then its ``t`` column is perturbed and identified again:
 
@@ -15,9 +15,11 @@ and its statistical part alone) and the number of transitions excluded as log ga
     PYTHONPATH=$PWD python scripts/time_robustness.py [--logs jana00 jana01 ...]
         [--jitter-ms 0.5 1 2 4] [--offsets 0 1e6 1.7e9] [--out table.md]
 
-The full grid (14 logs x 4 jitters x 3 offsets plus the offsets alone) is about 20 EM
+The full grid (24 logs x 4 jitters x 3 offsets plus the offsets alone) is about 20 EM
 runs per log; ``--pairs`` runs each jitter at offset 0 and each offset without jitter,
-plus the largest jitter at the largest offset (8 runs per log).
+plus the largest jitter at the largest offset (8 runs per log); ``--cycle`` runs one
+case per log, the 12 (jitter, offset) pairs taken in turn over the logs (each pair on
+two of the 24 logs: one EM run per log besides the unperturbed one).
 """
 
 from __future__ import annotations
@@ -31,10 +33,11 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.experiments.recorded import LogOptions, identify_log
-from pinquad.io.logs import FlightLog, write_log
+from pinquad.io.logs import FlightLog, LogFormatError, write_log
 from pinquad.io.read import read_log
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie" / "imrc_brushed"
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie"
+FOLDERS = {"jana": SHARED / "imrc_brushed", "eckart": SHARED / "imrc_brushless"}
 
 
 def jittered(t: np.ndarray, amplitude: float, offset: float, seed: int) -> np.ndarray:
@@ -60,20 +63,23 @@ def estimate(path: Path, information: bool) -> tuple[np.ndarray, np.ndarray, np.
 
 
 def export(name: str, folder: Path) -> tuple[Path, FlightLog]:
-    log = read_log(DATA / name)
+    log = read_log(FOLDERS[name.rstrip("0123456789")] / name)
     log = replace(log, measured=None)
     return write_log(log, folder / f"{name}.parquet"), log
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--logs", nargs="+", default=sorted(
-        p.name for p in DATA.iterdir() if p.name.startswith("jana")))
+    shared = [p.name for prefix, folder in FOLDERS.items()
+              for p in sorted(folder.iterdir()) if p.name.startswith(prefix)]
+    ap.add_argument("--logs", nargs="+", default=shared)
     ap.add_argument("--jitter-ms", type=float, nargs="+", default=[0.5, 1.0, 2.0, 4.0])
     ap.add_argument("--offsets", type=float, nargs="+", default=[0.0, 1e6, 1.7e9])
     ap.add_argument("--pairs", action="store_true", help="the reduced design (docstring)")
+    ap.add_argument("--cycle", action="store_true", help="one case per log (docstring)")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here")
     args = ap.parse_args()
+    cycle = [(a, o) for o in args.offsets for a in args.jitter_ms]
     if args.pairs:
         cases = ([(a, 0.0) for a in args.jitter_ms] + [(0.0, o) for o in args.offsets if o]
                  + [(max(args.jitter_ms), max(args.offsets))])
@@ -88,8 +94,17 @@ def main() -> None:
         for name in args.logs:
             t0 = time.perf_counter()
             path, log = export(name, folder)
-            base, se, stat, base_gaps = estimate(path, information=True)
-            for i, (amp_ms, offset) in enumerate(cases):  # one jitter draw per amplitude
+            try:
+                base, se, stat, base_gaps = estimate(path, information=True)
+            except (LogFormatError, ValueError) as exc:  # e.g. rotor speeds only from PWM
+                lines.append(f"| {name} | - | - | - | - | - | the export is not identified: "
+                             f"{str(exc).replace(str(folder) + '/', '')} |")
+                print(lines[-1], flush=True)
+                continue
+            # --cycle: the pair of a log is fixed by its place among the shared logs
+            place = shared.index(name) if name in shared else args.logs.index(name)
+            mine = [cycle[place % len(cycle)]] if args.cycle else cases
+            for i, (amp_ms, offset) in enumerate(mine):  # one jitter draw per amplitude
                 moved = replace(log, t=jittered(log.t, amp_ms * 1e-3, offset, seed=int(amp_ms * 1000)))
                 p = write_log(moved, folder / f"{name}-{i}.parquet")
                 est, _, _, gaps = estimate(p, information=False)

@@ -60,7 +60,11 @@ from pinquad.realdata.resample import (
     nearest_samples,
     pose_glitches,
 )
-from pinquad.realdata.rotor_acceleration import grid_rotor_acceleration, rotor_acceleration
+from pinquad.realdata.rotor_acceleration import (
+    grid_rotor_acceleration,
+    held_grid_rotor_acceleration,
+    rotor_acceleration,  # noqa: F401  (its per-row form, imported from here by callers)
+)
 from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
 from pinquad.sim.simulator import Flight
 from pinquad.vehicle.actuators import (
@@ -224,7 +228,8 @@ class RealObservations:
     original-rate log; kf: the thrust coefficient used; source: the file; repaired:
     motors (0-based) whose readings were rebuilt from PWM; rotor_acc (N,) [rad/s^2]: mean
     over [t_k, t_k + dt) of sum_i spin_i d(omega_i)/dt (from the bins' mean speeds,
-    ``rotor_acceleration.grid_rotor_acceleration``; held speeds: per row, binned; gaps
+    ``rotor_acceleration.grid_rotor_acceleration``; held speeds: each bin's change of speed,
+    ``held_grid_rotor_acceleration``; gaps
     interpolated), the regressor of the rotor-inertia yaw torque J_r * rotor_acc;
     rebuilt_fraction (N,) [-]: share of the log's rotor samples in [t_k, t_k + dt) with a
     speed taken from the PWM map (1 for a bin without samples; None: not recorded).
@@ -366,9 +371,6 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     # their bin means (a measured flight's export, whose wrench is "from rpm").
     held = (log.measured is None and log.meta.actuation == "held"
             and not log.meta.wrench_from_rpm)
-    rotor_acc = rotor_acceleration(log.t, rpm, options.spin, held) if held else None
-    if options.rotor_inertia and rotor_acc is not None:  # None (not fixed) and 0 add nothing
-        torque[:, 2] += options.rotor_inertia * rotor_acc
     # Untrusted rows carry no input: their bins become NaN and are excluded below.
     wrench = np.column_stack([thrust, torque])
     wrench[untrusted_rows] = np.nan
@@ -383,14 +385,14 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     rpm_g = bin_mean(t_src, np.where(untrusted_rows[:, None], np.nan, rpm), grid, dt, k)
     rebuilt_g = bin_mean(t_src, rebuilt.any(axis=1).astype(float), grid, dt, k)[:, 0]
     inputs = bin_mean(t_src, wrench, grid, dt, k)
-    if rotor_acc is not None:  # held speeds: the bin's change of speed over dt, exactly
-        rotor_acc_g = interp_nan(grid, bin_mean(
-            t_src, np.where(untrusted_rows, np.nan, rotor_acc), grid, dt, k)[:, 0])
+    if held:  # the bin's change of speed over dt, exactly, whatever the stamps' jitter
+        rotor_acc_g = interp_nan(grid, held_grid_rotor_acceleration(
+            t_src, np.where(untrusted_rows[:, None], np.nan, rpm), options.spin, grid, dt))
     else:  # sampled readings: from the bin means, as the resampled log carries them
         rotor_acc_g = interp_nan(grid, grid_rotor_acceleration(fill_rows(grid, rpm_g),
                                                                options.spin, dt))
-        if options.rotor_inertia:
-            inputs[:, 3] += options.rotor_inertia * rotor_acc_g
+    if options.rotor_inertia:  # None (not fixed) and 0 add nothing
+        inputs[:, 3] += options.rotor_inertia * rotor_acc_g
     vbat = None
     if log.vbat is not None and not report.vbat_stuck:
         vbat = bin_mean(t_src, log.vbat, centred, dt, k)[:, 0]

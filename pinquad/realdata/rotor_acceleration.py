@@ -10,7 +10,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.io.timebase import gap_steps
+from pinquad.io.timebase import find_gaps, gap_steps, gap_transitions
 
 Array = NDArray[np.float64]
 
@@ -71,3 +71,27 @@ def grid_rotor_acceleration(rpm_bins: Array, spin: Sequence[float], dt: float) -
     if omega.shape[0] < 2:
         return np.full(omega.shape[0], np.nan)
     return np.gradient(omega, dt, axis=0) @ np.asarray(spin, dtype=float)
+
+
+def held_grid_rotor_acceleration(t: Array, rpm: Array, spin: Sequence[float], grid: Array,
+                                 dt: float) -> Array:
+    """(K,) mean of sum_i spin_i d(omega_i)/dt [rad/s^2] over each bin [g_k, g_k + dt) of a
+    uniform grid (K,) [s], for rotor speeds rpm (N, n) [rev/min] held from each row at
+    times t (N,) [s] until the next (a zero-order hold): exactly
+
+        a_k = sum_i spin_i (omega_i(g_k + dt) - omega_i(g_k)) / dt,
+
+    omega(s) the speed of the last row at or before s (the first row's before it). Only
+    which row holds at a bin's edge depends on the stamps, so a clock's jitter moves a_k by
+    one row's change of speed at most, where per-row differences divide by the jittered
+    steps themselves (two rows 30 ns apart: a rotor acceleration 1e5 times too large). NaN
+    for bins that overlap a log gap (``pinquad.io.timebase``) or meet a non-finite speed.
+    """
+    omega = np.asarray(rpm, dtype=float) * RAD_S_PER_RPM
+    t = np.asarray(t, dtype=float)
+    grid = np.asarray(grid, dtype=float)
+    start = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, t.size - 1)
+    end = np.clip(np.searchsorted(t, grid + dt, side="right") - 1, 0, t.size - 1)
+    acc = (omega[end] - omega[start]) @ np.asarray(spin, dtype=float) / dt
+    acc[gap_transitions(find_gaps(t), grid, dt)] = np.nan
+    return acc
