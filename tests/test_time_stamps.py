@@ -198,3 +198,25 @@ def test_a_flightgen_flights_2_s_gap_is_excluded_and_a_reset(flightgen_export):
     obs = observations(holed, "B")
     assert obs.exclude[:-1].sum() == 1 and obs.resets[:-1].sum() == 1
     assert identify(holed, information=False).failure is None
+
+
+@settings(max_examples=50, deadline=None, derandomize=True, database=None)
+@given(amplitude=st.floats(0.0, 4e-3), seed=st.integers(0, 2**16))
+def test_held_rotor_acceleration_is_each_bins_change_of_speed_whatever_the_jitter(amplitude,
+                                                                                 seed):
+    """Speeds held from row to row: a bin's acceleration is (omega(end) - omega(start)) /
+    dt; jittered stamps change which row holds at an edge, never divide by a step."""
+    from pinquad.realdata.rotor_acceleration import RAD_S_PER_RPM, held_grid_rotor_acceleration
+
+    t = np.arange(0.0, 2.0, 0.002)
+    rpm = np.column_stack([19000.0 + 600.0 * t, np.full(t.size, 19000.0),
+                           np.full(t.size, 19000.0), 19000.0 - 300.0 * t])
+    spin, dt = (-1.0, 1.0, -1.0, 1.0), 0.01
+    grid = 0.001 + np.arange(0.0, 1.98, dt)  # edges between rows: each bin 5 steps
+    exact = (-600.0 - 300.0) * RAD_S_PER_RPM  # the ramps' sum_i spin_i omega_i'
+    clean = held_grid_rotor_acceleration(t, rpm, spin, grid, dt)
+    np.testing.assert_allclose(clean[1:-1], exact, rtol=1e-6)
+    moved = held_grid_rotor_acceleration(jittered(t, amplitude, 0.0, seed), rpm, spin, grid, dt)
+    # at most a few rows' change at each edge (jitter up to 2 steps), over dt
+    one_row = 900.0 * 0.002 * RAD_S_PER_RPM / dt
+    assert np.nanmax(np.abs(moved[1:-1] - exact)) <= 6 * one_row
