@@ -100,8 +100,7 @@ def test_sidecar_inertia_guess_may_be_its_diagonal(tmp_path):
 def real_export(tmp_path_factory):
     """jana00's ~500 Hz rows as pinquad's own Parquet log (rotor speeds), its estimate
     with standard errors."""
-    if not JANA00.exists():
-        pytest.skip("shared IMRC data not present")
+    assert JANA00.exists(), f"shared IMRC data missing: {JANA00}"
     log = replace(read_any(JANA00), measured=None)
     path = write_log(log, tmp_path_factory.mktemp("imrc") / "jana00.parquet")
     return read_log(path), identify(read_log(path))
