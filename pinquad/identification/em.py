@@ -67,6 +67,22 @@ class EMResult:
         return int(self.loglik.shape[0])
 
 
+@dataclass(frozen=True)
+class EMSettings:
+    """How one EM run goes (``run_em``'s options): at most ``max_iterations`` E-steps;
+    stop when the relative change of (m, I) is below ``tol`` [-] and the relative
+    log-likelihood change below ``tol_loglik`` [-]; ``accelerate``: over-relaxed steps
+    (the regressor M-step's), one factor per log-parameter if ``per_parameter``; bounds:
+    the vehicle's plausible range EM does not leave (None: none)."""
+
+    max_iterations: int = 100
+    tol: float = 1e-6
+    tol_loglik: float = 1e-6
+    accelerate: bool = True
+    per_parameter: bool = False
+    bounds: VehicleRange | None = None
+
+
 def paper_noise(meas_dim: int) -> NoiseModel:
     """The paper's fixed covariances: Q0 = 0.0707 I (12), R0 = 0.00707 I."""
     return NoiseModel(wrench=np.zeros(6), q_kin=np.zeros(6), meas=np.full(meas_dim, PAPER_R0),

@@ -17,6 +17,7 @@ from pinquad.estep.fast_smoother import loglik_quad, smooth_quad
 from pinquad.identification.em import (
     SETTLED_SHARE,
     EMResult,
+    EMSettings,
     MStep,
     Smoother,
     initial_theta,
@@ -168,6 +169,20 @@ def bounded_mstep(mstep: str, bounds: VehicleRange | None) -> MStep:
     return projected
 
 
+def em_from_guess(obs: Observations, mass0: float, inertia0: Array, gravity: float,
+                  estep: str, mstep: MStep, settings: EMSettings) -> EMResult:
+    """EM on a flight from the guess (mass0 [kg], inertia0 (3, 3) [kg m^2]) with the
+    paper's noise for the first, force-free E-step (``initial_theta``), E-step ``estep``
+    (:func:`get_smoother`), the given M-step and settings: the one EM entry of a flight's
+    identification. :func:`identify` (the regressor and paper M-steps) and a measured
+    flight's ``realdata.identify_real`` (``mstep.band.BandMStep``: the inertia on the
+    torque band and the model's nuisance block) are configurations of it."""
+    return run_em(obs, initial_theta(obs, mass0, inertia0, gravity), get_smoother(estep),
+                  mstep, max_iterations=settings.max_iterations, tol=settings.tol,
+                  tol_loglik=settings.tol_loglik, accelerate=settings.accelerate,
+                  per_parameter=settings.per_parameter, bounds=settings.bounds)
+
+
 def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, estep: str,
              mstep: str, max_iterations: int, information: bool,
              truth: tuple[float, Array] | None = None,
@@ -179,11 +194,8 @@ def identify(obs: Observations, mass0: float, inertia0: Array, gravity: float, e
     was measured with. bounds: the vehicle's plausible range, which EM does not leave
     (``run_em``); None: no range (the paper's reproduction)."""
     t0 = time.perf_counter()
-    smoother = get_smoother(estep)
-    theta0 = initial_theta(obs, mass0, inertia0, gravity)
-    res: EMResult = run_em(obs, theta0, smoother, bounded_mstep(mstep, bounds),
-                           max_iterations=max_iterations, per_parameter=per_parameter,
-                           bounds=bounds)
+    res = em_from_guess(obs, mass0, inertia0, gravity, estep, bounded_mstep(mstep, bounds),
+                        EMSettings(max_iterations, per_parameter=per_parameter, bounds=bounds))
     stderr = np.full(4, np.nan)
     info_truth = None
     if information and mstep == "regressor":

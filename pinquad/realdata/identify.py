@@ -1,7 +1,7 @@
 """Mass and inertia of the vehicle from one measured flight, with standard errors.
 
-Identification (:func:`identify_real`) is the shared EM (``identification.em.run_em``) with
-the compiled EKF + RTS E-step and the band-limited M-step
+Identification (:func:`identify_real`) is a configuration of the one EM entry
+(``identification.identify.em_from_guess``) with the compiled EKF + RTS E-step and the band-limited M-step
 (``pinquad.mstep.band.BandMStep``) of the inertia and the model's nuisance block
 (``Theta.nuisance``): the shared closed form for the mass (body-z force row), the shared
 profiled objective for the inertia but on the torque rows band-passed to 3-8 Hz, and a
@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.identification.em import initial_theta, run_em
+from pinquad.identification.em import EMSettings
 from pinquad.identification.fisher import observed_information, standard_errors
-from pinquad.identification.identify import get_smoother, loglik_function
+from pinquad.identification.identify import em_from_guess, loglik_function
 from pinquad.identification.verdict import EstimateVerdict, VerdictEvidence
 from pinquad.models.ssm import Theta, corrected
 from pinquad.mstep.band import BandMStep, BandStats
@@ -185,9 +185,9 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     fixed_jr = real.options.rotor_inertia
     fit_jr = fit_rotor_inertia and real.rotor_acc is not None and fixed_jr is None
     mstep = BandMStep(band, real.rotor_acc if fit_jr else None)
-    theta0 = initial_theta(obs, mass0, inertia0, gravity)
-    res = run_em(obs, theta0, get_smoother(estep), mstep, max_iterations=max_iterations,
-                 tol=tol, tol_loglik=0.1 * tol, accelerate=False)
+    res = em_from_guess(obs, mass0, inertia0, gravity, estep, mstep,
+                        EMSettings(max_iterations, tol=tol, tol_loglik=0.1 * tol,
+                                   accelerate=False))
     theta = res.theta
     params = np.concatenate([[theta.mass], np.diag(theta.inertia)])
     se_info = np.full(4, np.nan)
