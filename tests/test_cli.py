@@ -72,6 +72,9 @@ def test_realdata_table_job_on_jana00_weighs_the_vehicle():
     assert [p.name for p in v.parameters] == ["mass", "I_xx", "I_yy", "I_zz"]
     assert v.get("mass").trusted
     assert all(p.reasons for p in v.parameters if not p.trusted)
+    # judged against the vehicle file's reference too, as offline --log judges it
+    assert result.evidence.reference is not None
+    assert result.evidence.reference.values[3] == pytest.approx(29.26e-6)
 
 
 def test_realdata_table_job_reports_a_missing_log_as_a_reason(tmp_path):

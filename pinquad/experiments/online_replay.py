@@ -16,7 +16,12 @@ from numpy.typing import NDArray
 from estimators.protocol import Posterior
 from pinquad.core.params import VehicleRange
 from pinquad.estep.fast_smoother import loglik_quad
-from pinquad.identification.budget import ErrorBudget, calibration_of, error_budget
+from pinquad.identification.budget import (
+    ErrorBudget,
+    calibration_of,
+    error_budget,
+    named_vehicle,
+)
 from pinquad.identification.em import initial_theta, project
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
@@ -24,6 +29,7 @@ from pinquad.identification.fisher import (
     standard_errors,
 )
 from pinquad.identification.identify import get_smoother
+from pinquad.identification.reference import reference_values
 from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge
 from pinquad.identification.window import window_em, window_prior
@@ -161,6 +167,7 @@ def replay_verdict(fit: StreamFit, meta: LogMeta, vrange: VehicleRange | None,
     if bounds is not None:
         evidence = replace(evidence, at_bound=tuple(at_bound(values, bounds)),
                            bound_source=bounds.source)
+    evidence = replace(evidence, reference=reference_values(named_vehicle(meta)))
     verdict = judge(plain.mass, plain.inertia, budget.total, evidence, vrange,
                     missing_stderr=STDERR_UNAVAILABLE)
     return verdict, budget

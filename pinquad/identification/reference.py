@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.vehicle_file import VehicleSpec
+from pinquad.core.params import VEHICLES
+from pinquad.core.vehicle_file import VehicleSpec, is_vehicle_file, load_vehicle
 
 Array = NDArray[np.float64]
 
@@ -52,6 +53,13 @@ def reference_values(spec: VehicleSpec | None) -> ReferenceValues | None:
     if not np.isfinite(stderr).any():
         return None
     return ReferenceValues(values, stderr, f"{spec.name}'s [reference]")
+
+
+def vehicle_reference(vehicle: str | None) -> ReferenceValues | None:
+    """:func:`reference_values` of a shipped vehicle's name or a vehicle file, or None."""
+    if vehicle and (is_vehicle_file(vehicle) or vehicle in VEHICLES):
+        return reference_values(load_vehicle(vehicle))
+    return None
 
 
 def reference_check(name: str, index: int, value: float, se: float,

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.identification.reference import vehicle_reference
 from pinquad.identification.verdict import (
     VerdictEvidence,
     data_evidence,
@@ -68,7 +69,8 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
     except (LogFormatError, ValueError) as exc:
         return str(exc)
     effects = None if job.effects is None else job.effects(real.obs, theta, post)
-    evidence = real_evidence(ident, real.obs, post.mean, theta)
+    evidence = replace(real_evidence(ident, real.obs, post.mean, theta),
+                       reference=vehicle_reference(job.vehicle))
     return replace(ident, rotor_source=job.rotor_source,
                    verdict=judge(ident.mass, np.diag(ident.inertia), ident.se_total, evidence,
                                  vehicle_range(job.vehicle)),
