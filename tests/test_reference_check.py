@@ -47,3 +47,21 @@ def test_a_reference_uncertainty_must_be_a_positive_number(tmp_path: Path):
         (Path(__file__).resolve().parents[1] / "pinquad" / "data" / "crazyflie21.urdf").read_text())
     with pytest.raises(VehicleFileError, match="reference.inertia_rel_se"):
         load_vehicle(str(bad))
+
+
+def test_a_number_only_the_reference_rejects_still_counts_in_the_scatter_between_flights():
+    """The flights' scatter measures what the model misses: an estimate that only the
+    vehicle's reference rejects was carried by its flight and counts; one the flight did
+    not carry does not."""
+    from pinquad.identification.reference import only_the_reference
+    from pinquad.identification.verdict import NOT_IDENTIFIABLE, ParameterVerdict
+    from pinquad.realdata.consistency import _carried
+
+    ref = reference_values(load_vehicle("crazyflie21"))
+    far = judge(0.0348, np.diag([16e-6, 17e-6, 15e-6]), np.r_[0.0017, 1.2e-6, 1.2e-6, 5.7e-6],
+                VerdictEvidence(reference=ref), None).get("I_zz")
+    assert far.verdict == NOT_ADEQUATE and only_the_reference(far.reasons) and _carried(far)
+    other = ParameterVerdict("I_zz", 15e-6, 9e-6, NOT_ADEQUATE, ("innovations too large",))
+    unsure = ParameterVerdict("I_zz", 15e-6, 9e-6, NOT_IDENTIFIABLE, ("cover 30 %",))
+    assert not _carried(other) and not _carried(unsure)
+    assert not only_the_reference(())

@@ -25,6 +25,8 @@ Array = NDArray[np.float64]
 
 Z_REFERENCE = 2.0
 """Combined standard errors beyond which an estimate disagrees with the reference."""
+REFERENCE_MARK = "from the vehicle's reference"
+"""In every reason :func:`reference_check` gives (:func:`only_the_reference`)."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,12 @@ def reference_check(name: str, index: int, value: float, se: float,
     if abs(value - ref) <= Z_REFERENCE * combined:
         return []
     return [f"{value * scale:.4g} {unit} is {abs(value - ref) / combined:.1f} combined standard "
-            f"errors from the vehicle's reference {ref * scale:.4g} +- {ref_se * scale:.2g} "
+            f"errors {REFERENCE_MARK} {ref * scale:.4g} +- {ref_se * scale:.2g} "
             f"{unit} ({reference.source}): the flight's model, or what it assumed, does not "
             "hold on this log"]
+
+
+def only_the_reference(reasons: tuple[str, ...]) -> bool:
+    """Whether every reason of a parameter's verdict is the reference's: the flight
+    carried the parameter, and only the vehicle's reference disagrees with the number."""
+    return bool(reasons) and all(REFERENCE_MARK in r for r in reasons)

@@ -8,7 +8,9 @@ allow, each flight carries an error the model does not know (yaw's torque model 
 Crazyflie: I_zz over the yaw flights spreads 71 % while each flight claims ~10 %). One
 flight alone cannot show that; the table of ``python -m pinquad.realdata`` can.
 
-Per parameter and group, over the flights whose verdict on it was "trusted":
+Per parameter and group, over the flights whose verdict on it was "trusted" (or "model
+not adequate" by the vehicle file's reference alone, ``identification.reference``: the
+flight carried the parameter, the reference judges the number):
 
     mu   = sum_i w_i x_i / sum_i w_i,      w_i = 1 / s_i^2  (s_i: statistical standard error)
     chi2 = sum_i w_i (x_i - mu)^2          ~ chi2(L - 1) when the s_i are the real errors
@@ -36,7 +38,14 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
-from pinquad.identification.verdict import TRUSTED, judge, vehicle_range
+from pinquad.identification.reference import only_the_reference
+from pinquad.identification.verdict import (
+    NOT_ADEQUATE,
+    TRUSTED,
+    ParameterVerdict,
+    judge,
+    vehicle_range,
+)
 from pinquad.realdata.identify import RealIdentification
 
 Array = NDArray[np.float64]
@@ -201,7 +210,7 @@ def between_flights(results: Sequence[RealIdentification]
     flights = [FlightEstimate(
         r.name, _group(r), r.params, np.array([_error(r, j) for j in range(4)]),
         np.asarray(r.se_total, dtype=float),
-        np.array([r.verdict.parameters[j].verdict == TRUSTED for j in range(4)]))
+        np.array([_carried(r.verdict.parameters[j]) for j in range(4)]))
         for r in judged]
     scale, totals, scatters = scaled_totals(flights)
     new = {r.name: (s, t) for r, s, t in zip(judged, scale, totals, strict=True)
@@ -215,6 +224,13 @@ def between_flights(results: Sequence[RealIdentification]
         verdict = judge(r.mass, np.diag(r.inertia), total, r.evidence, vehicle_range(r.vehicle))
         out.append(replace(r, se_total=total, verdict=verdict, scatter_scale=s.copy()))
     return out, scatters
+
+
+def _carried(p: ParameterVerdict) -> bool:
+    """A parameter the flight carried: trusted, or not adequate by the vehicle's reference
+    alone (``identification.reference``: the reference judges the number; the scatter of
+    such numbers between flights is what the model misses)."""
+    return p.verdict == TRUSTED or (p.verdict == NOT_ADEQUATE and only_the_reference(p.reasons))
 
 
 def _error(r: RealIdentification, j: int) -> float:
