@@ -38,8 +38,8 @@ QUAD250 = ROOT / "docs" / "vehicles" / "quad250_plus.toml"
 BRUSHLESS = ROOT / "docs" / "vehicles" / "cf21_brushless.toml"
 ECKART00 = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushless" / "eckart00"
 CRAZYFLIE_FILE = ROOT / "pinquad" / "data" / "crazyflie21.toml"
-GENERIC_NUMBERS = {-1.0, 1.0, 0.0005, 0.003, 0.006, 0.007, 0.011, 0.025, 0.05, 0.06, 0.07, 0.24,
-                   10000.0}
+GENERIC_NUMBERS = {-1.0, 1.0, 0.0005, 0.003, 0.006, 0.007, 0.011, 0.025, 0.05, 0.06, 0.07, 0.1,
+                   0.24, 10000.0}
 """Numbers of crazyflie21.toml that are also round thresholds and defaults elsewhere."""
 
 HEXA = """
