@@ -102,12 +102,17 @@ class ErrorBudget:
         return out
 
 
+def vehicle_spec(vehicle: str | None) -> VehicleSpec | None:
+    """The vehicle of a shipped name or a vehicle file, or None (no vehicle, or a name
+    that is neither)."""
+    if vehicle and (is_vehicle_file(vehicle) or vehicle in VEHICLES):
+        return load_vehicle(vehicle)
+    return None
+
+
 def named_vehicle(meta: LogMeta) -> VehicleSpec | None:
     """The vehicle a log names (a shipped name or a vehicle file), or None."""
-    name = meta.vehicle if meta.vehicle_named else ""
-    if is_vehicle_file(name) or name in VEHICLES:
-        return load_vehicle(name)
-    return None
+    return vehicle_spec(meta.vehicle if meta.vehicle_named else None)
 
 
 def calibration_of(meta: LogMeta, measured_thrust: tuple[float, float] | None = None

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.params import VEHICLES
-from pinquad.core.vehicle_file import VehicleSpec, is_vehicle_file, load_vehicle
+from pinquad.core.vehicle_file import VehicleSpec
+from pinquad.identification.budget import vehicle_spec
 
 Array = NDArray[np.float64]
 
@@ -59,9 +59,7 @@ def reference_values(spec: VehicleSpec | None) -> ReferenceValues | None:
 
 def vehicle_reference(vehicle: str | None) -> ReferenceValues | None:
     """:func:`reference_values` of a shipped vehicle's name or a vehicle file, or None."""
-    if vehicle and (is_vehicle_file(vehicle) or vehicle in VEHICLES):
-        return reference_values(load_vehicle(vehicle))
-    return None
+    return reference_values(vehicle_spec(vehicle))
 
 
 def reference_check(name: str, index: int, value: float, se: float,
