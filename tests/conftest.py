@@ -37,18 +37,25 @@ def linear_case():
     return model, ys
 
 
-def offline_on_csv(log, path: Path, out: Path, *options: str) -> subprocess.CompletedProcess:
-    """Write ``log`` to the CSV ``path`` with the paper's initial guess (m0 = 1 g, I0) in
-    its sidecar and run ``python -m pinquad.offline --log path --out out *options``."""
+def write_with_paper_guess(log, path: Path) -> Path:
+    """Write ``log`` to ``path`` (CSV or Parquet) with the paper's initial guess (m0 = 1 g,
+    I0) in its sidecar; the written path."""
     from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
     from pinquad.io.logs import write_log
 
-    written = write_log(log, path)
+    written = Path(write_log(log, path))
     sidecar_path = Path(f"{written}.json")
     sidecar = json.loads(sidecar_path.read_text())
     sidecar["mass_guess"] = PAPER_INITIAL_MASS
     sidecar["inertia_guess"] = np.asarray(PAPER_INITIAL_INERTIA).tolist()
     sidecar_path.write_text(json.dumps(sidecar))
+    return written
+
+
+def offline_on_csv(log, path: Path, out: Path, *options: str) -> subprocess.CompletedProcess:
+    """Write ``log`` to the CSV ``path`` with the paper's initial guess (m0 = 1 g, I0) in
+    its sidecar and run ``python -m pinquad.offline --log path --out out *options``."""
+    written = write_with_paper_guess(log, path)
     return subprocess.run(
         [sys.executable, "-m", "pinquad.offline", "--log", str(written), "--out", str(out),
          *options], capture_output=True, text=True, timeout=900)

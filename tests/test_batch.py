@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import write_with_paper_guess
 
 from pinquad.cli.batch import expand_logs, is_batch
 from pinquad.cli.offline import main as offline_main
-from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
 from pinquad.experiments.batch import (
     ALL_TRUSTED,
     SOME_FAILED,
@@ -22,7 +22,6 @@ from pinquad.experiments.batch import (
     row_from_report,
     unique_names,
 )
-from pinquad.io.logs import write_log
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 # a cheap run: the point is the batch's mechanics and that each log goes through the
@@ -35,13 +34,7 @@ FAST = ["--sensor", "B", "--mstep", "regressor", "--no-information", "--no-disco
 def good_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 10 s simulated sensor-B flight as CSV with the paper's initial guess."""
     log = flight_log(simulate(SimConfig(sensor="B"), np.random.default_rng(23))).slice(0, 1000)
-    written = write_log(log, tmp_path_factory.mktemp("logs") / "flight.csv")
-    sidecar = Path(f"{written}.json")
-    meta = json.loads(sidecar.read_text())
-    meta["mass_guess"] = PAPER_INITIAL_MASS
-    meta["inertia_guess"] = np.asarray(PAPER_INITIAL_INERTIA).tolist()
-    sidecar.write_text(json.dumps(meta))
-    return Path(written)
+    return write_with_paper_guess(log, tmp_path_factory.mktemp("logs") / "flight.csv")
 
 
 def test_batch_rows_equal_single_runs_and_a_broken_file_does_not_stop_it(

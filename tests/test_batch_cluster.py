@@ -16,10 +16,9 @@ from pathlib import Path
 
 import distributed
 import numpy as np
+from conftest import write_with_paper_guess
 
-from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS
 from pinquad.experiments.recorded import LogOptions
-from pinquad.io.logs import write_log
 from pinquad.pipeline import PipelineOptions, identify_many
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
@@ -35,12 +34,7 @@ def _logs(directory: Path) -> list[Path]:
     log = flight_log(simulate(SimConfig(sensor="B"), np.random.default_rng(23)))
     paths = []
     for i, (start, stop) in enumerate(((0, 1800), (1800, 2400), (2400, 3000), (3000, 3600))):
-        written = Path(write_log(log.slice(start, stop), directory / f"w{i}.csv"))
-        sidecar = Path(f"{written}.json")
-        meta = json.loads(sidecar.read_text())
-        meta["mass_guess"] = PAPER_INITIAL_MASS
-        meta["inertia_guess"] = np.asarray(PAPER_INITIAL_INERTIA).tolist()
-        sidecar.write_text(json.dumps(meta))
+        written = write_with_paper_guess(log.slice(start, stop), directory / f"w{i}.csv")
         paths.append(written)
     return paths
 

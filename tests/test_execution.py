@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import write_with_paper_guess
 from distributed import LocalCluster
 from threadpoolctl import threadpool_info
 
@@ -28,9 +29,8 @@ from pinquad.core.execution import (
     open_executor,
     parse_cluster_spec,
 )
-from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_SCENARIO
+from pinquad.core.params import PAPER_SCENARIO
 from pinquad.experiments.offline_mc import CycleJob, CycleResult, run_cycles
-from pinquad.io.logs import write_log
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 # a seeded slice, cheap: two cycles of sensor B, 3 EM iterations (accuracy is elsewhere)
@@ -50,12 +50,7 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     for seed in (5, 6):
         log = flight_log(simulate(SimConfig(sensor="B", scenario=short),
                                   np.random.default_rng(seed)))
-        written = Path(write_log(log.slice(0, 600), out / f"flight{seed}.csv"))
-        sidecar = Path(f"{written}.json")
-        meta = json.loads(sidecar.read_text())
-        meta["mass_guess"] = PAPER_INITIAL_MASS
-        meta["inertia_guess"] = np.asarray(PAPER_INITIAL_INERTIA).tolist()
-        sidecar.write_text(json.dumps(meta))
+        written = write_with_paper_guess(log.slice(0, 600), out / f"flight{seed}.csv")
         paths.append(written)
     return paths
 

@@ -115,6 +115,16 @@ def run_budget(result: LogResult, run: Identification, values: Array | None = No
     return error_budget(values, stat, calibration_of(result.log.meta), alt)
 
 
+def with_budget(evidence: VerdictEvidence, budget: ErrorBudget,
+                result: LogResult) -> VerdictEvidence:
+    """The evidence with what the estimate's error budget and the log's vehicle add: the
+    errors without the input reading's part (the input check), the mass's error without
+    what the model-free balance shares, the vehicle file's reference."""
+    return replace(evidence, input_free_stderr=budget.total_without("input_reading"),
+                   balance_stderr=float(budget.unshared_with_thrust()[0]),
+                   reference=reference_values(named_vehicle(result.log.meta)))
+
+
 def fit_evidence(result: LogResult, run: Identification) -> dict:
     """What the fit itself says against trusting a run (``VerdictEvidence`` fields):
     EM did not converge (unless its iterates have settled: the rest of the way,
@@ -154,9 +164,7 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
         s = np.asarray(run.full.stderr_inertia)
         products = np.array([s[0, 1], s[0, 2], s[1, 2]])
     budget = run_budget(result, run)
-    ev = replace(ev, input_free_stderr=budget.total_without("input_reading"),
-                 balance_stderr=float(budget.unshared_with_thrust()[0]),
-                 reference=reference_values(named_vehicle(result.log.meta)))
+    ev = with_budget(ev, budget, result)
     return judge(run.mass, run.inertia, budget.total, ev,
                  plausible_range(result), products, missing_stderr=run.stderr_problem)
 
@@ -201,9 +209,7 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
                 "base posterior's force rows)")
     budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
     stderr = budget.total
-    ev = replace(ev, input_free_stderr=budget.total_without("input_reading"),
-                 balance_stderr=float(budget.unshared_with_thrust()[0]),
-                 reference=reference_values(named_vehicle(result.log.meta)))
+    ev = with_budget(ev, budget, result)
     verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result),
                     missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,
