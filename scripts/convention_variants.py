@@ -122,7 +122,7 @@ def main() -> None:
         bare = write_log(clean, folder / "bare.parquet")
         Path(str(bare) + ".json").unlink()
         est, _, _, _, result = estimate(read_log(bare))
-        vrange = plausible_range(result)
+        vrange = plausible_range(result.log)
         note = [n for n in result.notes if n.startswith("no vehicle named")]
         row("no sidecar", "none", f"judged against "
             f"{'no vehicle' if vrange is None else vrange.source}; note: "

@@ -185,8 +185,10 @@ BREAKS: tuple[Break, ...] = (
           "the viewer reads the estimate's inertia as the truth"),
     Break("table-kf", "8 realdata table job",
           "tests/test_cli.py::test_realdata_table_job_on_jana00_weighs_the_vehicle",
-          "pinquad/realdata/table.py", "        real = load_real(job.path, job.options, kf)",
-          "        real = load_real(job.path, job.options, replace(kf, kf=1.05 * kf.kf))",
+          "pinquad/pipeline/realdata.py",
+          "        real = build_observations(raw_flight(check(read(job.path))), job.options, kf)",
+          "        real = build_observations(raw_flight(check(read(job.path))), job.options,\n"
+          "                                  replace(kf, kf=1.05 * kf.kf))",
           "the table's workers read the thrust constant 5 % high"),
     Break("realdiscovery-after", "8 realdiscovery main",
           "tests/test_cli.py::test_realdiscovery_drag_split_finds_drag",

@@ -13,10 +13,10 @@ import pytest
 from pinquad.cli import flight as cli_flight
 from pinquad.cli import offline as cli_offline
 from pinquad.cli import realdiscovery as cli_realdiscovery
+from pinquad.pipeline.realdata import TableJob, run_table_job
 from pinquad.realdata.dataset import SCALE_MASS
 from pinquad.realdata.identify import RealIdentification
 from pinquad.realdata.observations import RealDataOptions
-from pinquad.realdata.table import TableJob, run_table_job
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "crazyflie"

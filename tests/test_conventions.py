@@ -177,5 +177,5 @@ def test_a_rotor_speed_log_without_a_sidecar_is_judged_against_no_vehicle(real, 
     assert not log.meta.vehicle_named and log.meta.vehicle == "paper"
     result = identify_log(log, LogOptions(msteps=("regressor",), information=False,
                                           max_iterations=2))
-    assert plausible_range(result) is None
+    assert plausible_range(result.log) is None
     assert any(n.startswith("no vehicle named") for n in result.notes)

@@ -20,10 +20,10 @@ from pinquad.experiments.vehicle_file_mc import (
     FILE_VEHICLE_BAND,
     fly_vehicle_file,
     short_scenario,
-    vehicle_file_cycle,
 )
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.read import read_log, with_vehicle
+from pinquad.pipeline.vehicle_file import vehicle_file_cycle
 from pinquad.realdata.identify import identify_real
 from pinquad.realdata.observations import (
     RealDataOptions,

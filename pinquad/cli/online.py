@@ -1,6 +1,7 @@
 """``python -m pinquad.online``: online EM in the closed loop (the paper's online scheme,
 ``pinquad.experiments.online``), or with ``--log PATH`` a recorded log replayed through
-the online estimator as a stream (``pinquad.experiments.online_replay``)."""
+the online estimator as a stream (``pinquad.experiments.online_replay``), read, checked
+and observed by the pipeline (``pinquad.pipeline.replay``)."""
 
 from __future__ import annotations
 
@@ -18,20 +19,12 @@ from pinquad.cli.common import add_backend_arguments, backend_from_args, memory_
 from pinquad.cli.help import HelpFormatter, positive_int
 from pinquad.core import paper_results as paper
 from pinquad.core.execution import BackendError, open_executor
-from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
+from pinquad.core.params import PAPER_VEHICLE
 from pinquad.experiments.online import newest_offline_report, offline_ranges, run_online_cycle
 from pinquad.experiments.online_replay import replay_verdict, stream_fit
-from pinquad.identification.search_range import search_range
-from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import LogFormatError
-from pinquad.io.read import read_log
 from pinquad.io.runs import REPORT_SCHEMA, OutputError, RunWriter, atomic_write_json, new_run_dir
-from pinquad.io.sanity import check_log
-from pinquad.io.sdlog import is_sdlog
-from pinquad.models.sources import observations
-from pinquad.realdata.dataset import default_guess
-from pinquad.realdata.observations import build_observations
-from pinquad.realdata.raw import raw_flight
+from pinquad.pipeline.replay import replay_input
 from pinquad.report.online import online_figures, online_report, online_tables, write_online_logs
 
 
@@ -123,36 +116,13 @@ def replay(args: argparse.Namespace) -> int:
     and, with ``--out``, writes a run directory."""
     try:
         writer = RunWriter(args.out) if args.out else None  # --out checked before any work
-        path = args.log
-        measured_thrust = None
-        if path.exists() and path.is_file() and is_sdlog(path):
-            measured = read_log(path)
-            check_log(measured)
-            real = build_observations(raw_flight(measured))
-            obs, gravity, rotor_acc = real.obs, real.log.meta.gravity, real.rotor_acc
-            mass0, inertia0, _ = default_guess("crazyflie21")
-            meta = real.log.meta
-            bounds = vrange = vehicle_range("crazyflie21")
-            measured_thrust = (real.kf.rel_se,
-                               real.options.yaw_ratio_se / real.options.yaw_ratio)
-        else:
-            rotor_acc = None
-            log = read_log(path)
-            check_log(log)
-            sensor = (args.sensor or ["B" if not np.isnan(log.euler).all() else "C"])[0]
-            obs = observations(log, sensor)
-            gravity = log.meta.gravity
-            mass0 = log.meta.mass_guess or PAPER_INITIAL_MASS
-            inertia0 = (log.meta.inertia_guess if log.meta.inertia_guess is not None
-                        else PAPER_INITIAL_INERTIA)
-            meta, bounds = log.meta, search_range(log)
-            vrange = vehicle_range(meta.vehicle if meta.vehicle_named else "",
-                                   meta.mass_guess, meta.inertia_guess)
+        ready = replay_input(args.log, (args.sensor or [None])[0])
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    fit = stream_fit(obs, mass0, inertia0, gravity, memory_s=args.memory,
-                     rotor_acc=rotor_acc, bounds=bounds)
+    obs, rotor_acc = ready.obs, ready.rotor_acc
+    fit = stream_fit(obs, ready.mass0, ready.inertia0, ready.log.meta.gravity,
+                     memory_s=args.memory, rotor_acc=rotor_acc, bounds=ready.bounds)
     hist, lat = fit.history, fit.latencies
     if hist.size == 0:
         print(f"error: {args.log}: too short to replay (fewer than 50 samples)", file=sys.stderr)
@@ -170,7 +140,8 @@ def replay(args: argparse.Namespace) -> int:
     for i in np.unique(np.linspace(0, hist.shape[0] - 1, 12).astype(int)):
         r = hist[i]
         print(f"| {r[1]:.2f} | {r[2]:.5g} | {r[3]:.4g} | {r[4]:.4g} | {r[5]:.4g} |")
-    verdict, budget = replay_verdict(fit, meta, vrange, bounds, measured_thrust)
+    verdict, budget = replay_verdict(fit, ready.log.meta, ready.vrange, ready.bounds,
+                                     ready.measured_thrust)
     total = budget.total
     print(f"\nfinal estimate (last window of {fit.window.n} samples): mass "  # type: ignore[union-attr]
           f"{hist[-1, 2] * 1e3:.3f} ± {total[0] * 1e3:.3g} g, inertia diagonal "

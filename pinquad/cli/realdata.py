@@ -14,7 +14,6 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import replace
-from functools import partial
 from pathlib import Path
 
 from pinquad.cli.common import add_backend_arguments, backend_from_args, check_band
@@ -22,15 +21,14 @@ from pinquad.cli.help import non_negative_int
 from pinquad.core.execution import open_executor
 from pinquad.core.vehicle_file import load_vehicle
 from pinquad.discovery.null import NullSettings
-from pinquad.experiments.discovery_report import measured_effects
 from pinquad.io.datadir import missing_data_hint
 from pinquad.io.logs import LogFormatError, vehicle_file_named
 from pinquad.io.read import is_flight_log
+from pinquad.pipeline.realdata import TableJob, run_jobs
 from pinquad.realdata.consistency import between_flights
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
 from pinquad.realdata.observations import RealDataOptions, options_for_vehicle
 from pinquad.realdata.rotor_inertia import pooled_rotor_inertia
-from pinquad.realdata.table import TableJob, run_jobs
 from pinquad.realdata.thrust import thrust_coefficient, vehicle_thrust_coefficient
 from pinquad.report.realdata import format_table
 
@@ -137,7 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:
         print(f"error: --null-replicates: {exc}", file=sys.stderr)
         return 2
-    effects = None if args.no_discover else partial(measured_effects, null=null)
+    discover = None if args.no_discover else null
     pool: list[Path] = []
     if mode == "pooled":
         pool_names = set(args.pool if args.pool is not None else
@@ -175,7 +173,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     jobs.append(TableJob(p, replace(options, rotor_inertia=jr),
                                          args.max_iterations, not args.no_information,
                                          tuple(args.band), stand, fit_rotor_inertia=False,
-                                         rotor_source=src, effects=effects, kf=kf,
+                                         rotor_source=src, discover=discover, kf=kf,
                                          vehicle=vehicle))
             else:
                 # None: J_r not fixed (fitted with per-flight, none with none)
@@ -186,7 +184,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 jobs = [TableJob(p, replace(options, rotor_inertia=fixed), args.max_iterations,
                                  not args.no_information, tuple(args.band), stand,
                                  fit_rotor_inertia=mode == "per-flight", rotor_source=src,
-                                 effects=effects, kf=kf, vehicle=vehicle)
+                                 discover=discover, kf=kf, vehicle=vehicle)
                         for p in logs]
             results = run_jobs(jobs, executor)
     except (LogFormatError, ValueError) as exc:

@@ -166,7 +166,7 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     budget = run_budget(result, run)
     ev = with_budget(ev, budget, result)
     return judge(run.mass, run.inertia, budget.total, ev,
-                 plausible_range(result), products, missing_stderr=run.stderr_problem)
+                 plausible_range(result.log), products, missing_stderr=run.stderr_problem)
 
 
 def _base(result: LogResult, verdict: EstimateVerdict) -> Estimate:
@@ -210,7 +210,7 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
     budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
     stderr = budget.total
     ev = with_budget(ev, budget, result)
-    verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result),
+    verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result.log),
                     missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,
                     f"base model plus {', '.join(found.selected)} (discovery's refit)", verdict,

@@ -51,13 +51,11 @@ from pinquad.models.sources import floor_contact, interval_inputs, observations
 from pinquad.models.ssm import Observations, Theta, corrected
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
-from pinquad.realdata.observations import (
-    build_observations,
-    options_for_sensor,
-)
-from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient
-from pinquad.realdata.vehicle_check import measured_vehicle
+from pinquad.realdata.vehicle_check import (
+    measured_observations,
+    measured_search_range,
+)
 
 Array = NDArray[np.float64]
 
@@ -198,8 +196,6 @@ def log_kind(log: FlightLog) -> str:
 
 
 def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
-    raw = raw_flight(log)
-    base, kf = measured_vehicle(log)
     mass0, inertia0, guess = initial_guess(log)
     sensors = list(options.sensors) or [None]
     if "full" in options.msteps:
@@ -209,11 +205,11 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
     runs: list[Identification] = []
     first = None
     # the paper M-step's closed form is projected onto the range of the vehicle whose
-    # mixer reads the rotor speeds (a name that is not a file reads as crazyflie21)
+    # mixer reads the rotor speeds
     vehicle = log.meta.vehicle
-    box = vehicle_range(vehicle if is_vehicle_file(vehicle) else "crazyflie21")
+    box = measured_search_range(log)
     for sensor in sensors:
-        real = build_observations(raw, options_for_sensor(sensor, base), kf)
+        real = measured_observations(log, sensor)
         label = sensor or ",".join(real.obs.channels)
         theta = None
         if "regressor" in options.msteps:
@@ -398,12 +394,12 @@ def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:
     return open_executor(Backend(jobs=jobs)) if jobs > 1 else nullcontext()
 
 
-def plausible_range(result: LogResult) -> VehicleRange | None:
+def plausible_range(log: FlightLog) -> VehicleRange | None:
     """What the log's vehicle can physically be (``identification.verdict.vehicle_range``):
     the named vehicle's range; a log that names none is judged on its sidecar's guesses,
     never on the default ``paper`` vehicle's (a 33 g quad would be "implausible" against
     a 0.18 kg one)."""
-    meta = result.log.meta
+    meta = log.meta
     name = meta.vehicle if meta.vehicle_named else ""
     return vehicle_range(name, meta.mass_guess, meta.inertia_guess)
 
@@ -418,7 +414,7 @@ def run_discovery(result: LogResult, null: NullSettings | None = None,
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
-    vrange = plausible_range(result)
+    vrange = plausible_range(result.log)
     base = result.runs[0]
     if unconverged(base) is not None:
         return DiscoveryOutcome(None, not_run=unconverged(base))

@@ -1,14 +1,14 @@
 """A vehicle from a file, flown in the simulated world and identified from its rotor speeds.
 
-One cycle (:func:`vehicle_file_cycle`): the simulator flies the file's rigid body
-(``core.params.vehicle_from_spec``; process noise scaled to it by
+One cycle (``pinquad.pipeline.vehicle_file.vehicle_file_cycle``): the simulator flies
+the file's rigid body (``core.params.vehicle_from_spec``; process noise scaled to it by
 ``core.params.process_noise_for``) through the scenario with sensor B (motion capture,
 velocity, attitude, gyro); the flight is logged with rotor speeds ``rpm_1..rpm_n``
 (``sim.rotor_log``: the commanded wrench through the file's inverse mixer), written as a
-CSV log whose sidecar names the vehicle file, read back with ``io.read_log`` and
-identified by ``experiments.recorded.identify_log``: the path of ``python -m
-pinquad.offline --log FILE.csv --vehicle FILE.toml``, rotor speeds back to thrust and
-torques through the file's geometry and constants. The relative errors against the
+CSV log whose sidecar names the vehicle file, read back and identified by the pipeline
+(``pinquad.pipeline.single``): the path of ``python -m pinquad.offline --log FILE.csv
+--vehicle FILE.toml``, rotor speeds back to thrust and torques through the file's
+geometry and constants. The relative errors against the
 simulated truth are held to the bounds pinquad's offline experiment meets
 (``core.paper_results.OFFLINE_MASS_BOUND`` / ``OFFLINE_INERTIA_BOUND``).
 """
@@ -25,9 +25,7 @@ from numpy.typing import NDArray
 from pinquad.core.paper_results import OFFLINE_INERTIA_BOUND, OFFLINE_MASS_BOUND
 from pinquad.core.params import PAPER_SCENARIO, Scenario, vehicle_from_spec
 from pinquad.core.vehicle_file import VehicleSpec
-from pinquad.experiments.headline import run_verdict
-from pinquad.experiments.recorded import LogOptions, identify_log
-from pinquad.io.logs import FlightLog, read_log, write_log
+from pinquad.io.logs import FlightLog
 from pinquad.sim.rotor_log import rotor_speed_log
 from pinquad.sim.simulator import SimConfig, simulate, waypoint_report
 from pinquad.vehicle.actuators import ActuatorModel
@@ -98,27 +96,6 @@ def fly_vehicle_file(spec: VehicleSpec, seed: int, scenario: Scenario = PAPER_SC
     config = SimConfig(vehicle=vehicle_from_spec(spec), scenario=scenario, sensor="B")
     flight = simulate(config, np.random.default_rng(seed))
     return rotor_speed_log(flight, actuator, str(spec.source)), waypoint_report(flight)
-
-
-def vehicle_file_cycle(spec: VehicleSpec, seed: int, log_path: Path,
-                       scenario: Scenario = PAPER_SCENARIO,
-                       options: LogOptions | None = None) -> FileVehicleCycle:
-    """One cycle (module docstring): fly, write ``log_path`` (CSV + sidecar), read it
-    back, identify it with ``options`` (default: regressor M-step, the file vehicle's
-    band ``FILE_VEHICLE_BAND``)."""
-    options = options or LogOptions(msteps=("regressor",), band=FILE_VEHICLE_BAND)
-    log, flown = fly_vehicle_file(spec, seed, scenario)
-    write_log(log, log_path)
-    result = identify_log(read_log(log_path), options)
-    run = result.runs[0]
-    truth = np.concatenate([[spec.mass], np.diag(spec.inertia)])
-    estimate = np.concatenate([[run.mass], np.diag(run.inertia)])
-    verdict = run_verdict(result, run).overall
-    return FileVehicleCycle(
-        seed=seed, log=log_path, truth=truth, estimate=estimate,
-        stderr=np.asarray(run.stderr, dtype=float), converged=bool(run.converged),
-        e_steps=int(run.e_steps or 0), verdict=verdict, max_miss=float(flown["max_miss_m"]),
-        crashed=bool(flown["crashed"]))
 
 
 def rms_errors(cycles: list[FileVehicleCycle]) -> Array:

@@ -47,6 +47,7 @@ from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.runs import RunWriter
+from pinquad.io.sanity import check_log
 from pinquad.report.discovery import discovery_figure_name, draw_discovery_figures
 from pinquad.report.recorded import (
     discovery_summary,
@@ -96,13 +97,21 @@ def read(path: str | Path, vehicle: str | None = None) -> FlightLog:
     return with_vehicle(log, vehicle, Path.cwd(), "--vehicle")
 
 
+def check(log: FlightLog) -> FlightLog:
+    """The log, once its columns passed the physics checks (``pinquad.io.sanity``: units,
+    impossible values, conventions). Raises ``ImplausibleLogError`` naming the log, the
+    column and what was expected."""
+    check_log(log)
+    return log
+
+
 def identify(log: FlightLog, options: LogOptions | None = None,
              executor: Executor | None = None) -> LogResult:
     """Check the log against physics, then identify its vehicle by EM (every run of
     ``options``; ``executor``: where the runs beyond the reported one go, the same
     answer). Raises ``ImplausibleLogError`` / ValueError naming the log on bad input,
     numpy's LinAlgError when EM fails numerically."""
-    return identify_log(log, options, executor)  # check_log runs first inside
+    return identify_log(log, options, executor)  # runs check first
 
 
 def identify_run(log: FlightLog, options: LogOptions) -> Identification:

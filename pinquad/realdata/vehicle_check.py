@@ -1,6 +1,7 @@
 """Whether a measured rotor-speed log and its vehicle agree: the vehicle's mixer and thrust
 coefficient for the log, refused when the file contradicts the log (another number of
-rotors, a hover thrust above the file's maximum, rotors spinning beyond it)."""
+rotors, a hover thrust above the file's maximum, rotors spinning beyond it), and the
+observations and search range of such a log read with them."""
 
 from __future__ import annotations
 
@@ -8,9 +9,18 @@ import math
 
 import numpy as np
 
+from pinquad.core.params import VehicleRange
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
+from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import FlightLog
-from pinquad.realdata.observations import RealDataOptions, options_for_vehicle
+from pinquad.realdata.observations import (
+    RealDataOptions,
+    RealObservations,
+    build_observations,
+    options_for_sensor,
+    options_for_vehicle,
+)
+from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
 
 
@@ -65,3 +75,21 @@ def over_max_thrust(log: FlightLog, max_thrust: float, kf: float, where: object,
                          f"its rows (median {np.nanmedian(rpm[:, i]):.0f} rev/min); expected at "
                          f"most {100 * share:g} %: the file's kf or max_thrust is not this "
                          "vehicle's")
+
+
+def measured_observations(log: FlightLog, sensor: str | None = None) -> RealObservations:
+    """The EM observations of a measured rotor-speed log on the 100 Hz grid
+    (``realdata.observations.build_observations``), its rotor speeds read with its
+    vehicle's mixer and kf (:func:`measured_vehicle`) and the channels of the paper's
+    source ``sensor`` (None: every channel the log has). Raises ValueError when the
+    vehicle contradicts the log or nothing usable remains."""
+    options, kf = measured_vehicle(log)
+    return build_observations(raw_flight(log), options_for_sensor(sensor, options), kf)
+
+
+def measured_search_range(log: FlightLog) -> VehicleRange | None:
+    """The range EM searches on a measured log: that of the vehicle whose mixer reads its
+    rotor speeds (a vehicle file, else the shipped crazyflie21: a name that is not a file
+    reads as crazyflie21)."""
+    vehicle = log.meta.vehicle
+    return vehicle_range(vehicle if is_vehicle_file(vehicle) else "crazyflie21")

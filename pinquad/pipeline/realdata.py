@@ -1,9 +1,17 @@
-"""The jobs of the real-vehicle table (``python -m pinquad.realdata``): one measured log
-loaded and identified per job, in worker processes."""
+"""The jobs of the real-vehicle table (``python -m pinquad.realdata``), one measured log
+per job in worker processes: read -> check (the pipeline's steps,
+``pinquad.pipeline.single``) -> observations with the table's channels, fault handling
+and kf -> identify (``realdata.identify_real``, with the rotor inertia J_r pooled over
+the flights or fitted per flight) -> discover (``experiments.discovery_report
+.measured_effects``) -> judge against the vehicle's range and reference.
+
+The identification is not the pipeline's ``identify`` of one log: J_r comes from the
+other flights (a first pass fits it per flight on the pool logs), and the table keeps
+the band-passed regressions that pass needs."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -11,7 +19,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.protocol import Posterior
+from pinquad.discovery.null import NullSettings
+from pinquad.experiments.discovery_report import measured_effects
 from pinquad.identification.reference import vehicle_reference
 from pinquad.identification.verdict import (
     VerdictEvidence,
@@ -21,9 +30,11 @@ from pinquad.identification.verdict import (
 )
 from pinquad.io.logs import LogFormatError
 from pinquad.models.ssm import Observations, Theta, corrected
+from pinquad.pipeline.single import check, read
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import RealIdentification, identify_real
-from pinquad.realdata.observations import RealDataOptions, load_real
+from pinquad.realdata.observations import RealDataOptions, build_observations
+from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
 
 Array = NDArray[np.float64]
@@ -32,10 +43,9 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class TableJob:
     """One row of the table: the log's path, EM settings and the data directory;
-    effects: a module-level function run in the worker on the fit (observations, theta,
-    smoothed posterior) whose summary of the effects found becomes
-    ``RealIdentification.effects`` (``experiments.recorded.measured_effects``: effect
-    discovery with its null calibration; None: not run); kf: the thrust coefficient
+    discover: the null calibration of effect discovery on the fit, whose summary
+    (``measured_effects``) becomes ``RealIdentification.effects`` (None: discovery not
+    run); kf: the thrust coefficient
     (None: fitted to the ``stand`` folder); vehicle: a shipped name or a vehicle file,
     whose [guess] EM starts from and whose body the verdict's plausible range is."""
 
@@ -48,19 +58,19 @@ class TableJob:
     fit_rotor_inertia: bool = True
     keep_band_stats: bool = False
     rotor_source: str = ""
-    effects: Callable[[Observations, Theta, Posterior], dict] | None = None
+    discover: NullSettings | None = None
     kf: ThrustCoefficient | None = None
     vehicle: str = "crazyflie21"
 
 
 def run_table_job(job: TableJob) -> RealIdentification | str:
-    """Load one flight and identify it (a worker of ``python -m pinquad.realdata``); a
-    log that cannot be identified gives the reason as a string instead. J_r: fitted per
-    flight if ``job.fit_rotor_inertia`` and ``job.options.rotor_inertia`` is None, else the
-    options' fixed value (0 included)."""
+    """One flight through the table's steps (module docstring; a worker of ``python -m
+    pinquad.realdata``); a log that cannot be read, checked or identified gives the
+    reason as a string instead. J_r: fitted per flight if ``job.fit_rotor_inertia`` and
+    ``job.options.rotor_inertia`` is None, else the options' fixed value (0 included)."""
     try:
         kf = job.kf if job.kf is not None else thrust_coefficient(job.stand)
-        real = load_real(job.path, job.options, kf)
+        real = build_observations(raw_flight(check(read(job.path))), job.options, kf)
         mass0, inertia0, _ = default_guess(job.vehicle)
         ident, post, theta = identify_real(real, mass0, inertia0, job.max_iterations,
                                            job.information, job.band, name=job.path.name,
@@ -68,7 +78,8 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
                                            keep_band_stats=job.keep_band_stats)
     except (LogFormatError, ValueError) as exc:
         return str(exc)
-    effects = None if job.effects is None else job.effects(real.obs, theta, post)
+    effects = None if job.discover is None else measured_effects(real.obs, theta, post,
+                                                                 job.discover)
     evidence = replace(real_evidence(ident, real.obs, post.mean, theta),
                        reference=vehicle_reference(job.vehicle))
     return replace(ident, rotor_source=job.rotor_source,
