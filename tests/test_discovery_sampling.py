@@ -6,13 +6,9 @@ from __future__ import annotations
 from dataclasses import replace
 
 from flightgen import CRAZYFLIE, FlightSpec, generate, write_csv
+from pinquad.discovery.calibrated import discovery_config, discovery_start
 from pinquad.discovery.discover import discover
-from pinquad.experiments.recorded import (
-    LogOptions,
-    discovery_config,
-    discovery_start,
-    identify_log,
-)
+from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.read import read_log
 
 

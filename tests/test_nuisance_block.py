@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pinquad.experiments.recorded import start_from
+from pinquad.discovery.calibrated import start_from
 from pinquad.models.nuisance import NuisanceMoment, torque_features
 from pinquad.models.ssm import NoiseModel, Observations, QuadSSM, Theta, corrected
 

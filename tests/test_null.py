@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 from flightgen import Effects, FlightSpec, generate, write_csv
+from pinquad.discovery.calibrated import discovery_start
 from pinquad.discovery.null import NullSettings, calibrate, plausible_base_fit
 from pinquad.discovery.residuals import compute_residuals
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import score_candidate
-from pinquad.experiments.recorded import LogOptions, discovery_start, identify_log
+from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.identification.identify import identify
 from pinquad.io.read import read_log
 from pinquad.sim.shadow import second_difference_var, shadow_flight

@@ -247,7 +247,8 @@ def test_innovation_consistency_flags_understated_noise(noisy_torque_log):
     """At the EM estimate every channel's innovations are as large as the model says
     (ratio near 1, EM fits the noise); with the position noise variance understated
     100x the position innovations are far larger than predicted."""
-    from pinquad.experiments.recorded import LogOptions, discovery_start, identify_log
+    from pinquad.discovery.calibrated import discovery_start
+    from pinquad.experiments.recorded import LogOptions, identify_log
 
     run = identify_log(noisy_torque_log, LogOptions(msteps=("regressor",), information=False,
                                                     max_iterations=10)).runs[0]

@@ -4,8 +4,9 @@ the base fit (``pinquad.discovery.null``) and fit inside its physical domain
 (``pinquad.discovery.domain``), then the refit of the final selection.
 
 It starts from a ``DiscoveryStart`` (observations, parameters, smoothed posterior of a
-fit) and gives a ``DiscoveryOutcome`` (the result, or why there is none); the recorded-log
-pipeline (``pinquad.pipeline``) and the API call it through
+fit: ``discovery_start`` of a run) with the settings for the kind of log
+(``discovery_config``) and gives a ``DiscoveryOutcome`` (the result, or why there is
+none); the recorded-log pipeline (``pinquad.pipeline``) and the API call it through
 ``pinquad.experiments.recorded.run_discovery``.
 """
 
@@ -29,7 +30,8 @@ from pinquad.discovery.null import (
     plausible_base_fit,
 )
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
-from pinquad.models.ssm import Observations, Theta
+from pinquad.identification.identify import Identification
+from pinquad.models.ssm import Observations, Theta, corrected
 from pinquad.mstep.stats import transition_mask
 
 Array = NDArray[np.float64]
@@ -46,6 +48,22 @@ class DiscoveryStart:
     posterior: Posterior
 
 
+def discovery_start(run: Identification) -> DiscoveryStart:
+    """Where effect discovery starts from a run: its observations, parameters and
+    posterior; a measured-flight run's nuisance block (``Theta.nuisance``) moves into the
+    torques of its observations (``models.ssm.corrected``) and out of its parameters."""
+    if run.posterior is None or run.observations is None or run.theta is None:
+        raise ValueError("this identification kept no posterior to start discovery from")
+    return start_from(run.observations, run.theta, run.posterior)
+
+
+def start_from(obs: Observations, theta: Theta, posterior: Posterior) -> DiscoveryStart:
+    """The ``DiscoveryStart`` of a fit: a measured-flight fit's nuisance block
+    (``Theta.nuisance``) moved into the torques of its observations and out of its
+    parameters (discovery's models add their effects to the rotor torques alone)."""
+    return DiscoveryStart(corrected(obs, theta), theta.without_nuisance(), posterior)
+
+
 @dataclass(frozen=True)
 class DiscoveryOutcome:
     """Effect discovery on a log's reported run: its result, or why there is none (a
@@ -59,6 +77,35 @@ class DiscoveryOutcome:
     unphysical: tuple[dict, ...] = ()
     not_run: str | None = None
     note: str | None = None
+
+
+DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
+                                        "measured-table": {"refit_em": False}}
+"""DiscoveryConfig overrides by log kind (``simulated``, ``sdlog``, ``measured-table``).
+Measured flights keep the base inertia of ``realdata``'s band-limited M-step (the
+plain regressor M-step of the EM refit does not hold it: on jana10 it moved I_xx from 17
+to 24 e-6 kg m^2); their effects and the mass are fitted on the base posterior."""
+
+
+SAMPLED_NUISANCE = (0,)
+"""The sampling nuisance columns a log with sampled thrust and torque columns gets
+(``DiscoveryConfig.sampling_nuisance``): the thrust direction's move within the interval
+on the body x/y force rows. Not the vertical row's column 1 (mostly the thrust
+magnitude's change), since the input reading takes the mean of the two rows' thrust:
+there its expected coefficient is 0, and a free one (fitted -3 to -6 on gentle flightgen
+flights) traded against drag's D_z, 5-25 % too high on minimum-snap flights
+(docs/discovery.md)."""
+
+
+def discovery_config(kind: str, actuation: str = "held") -> DiscoveryConfig:
+    """Effect discovery's settings for a kind of log (``DISCOVERY_SETTINGS``) whose
+    actuation (``LogMeta.actuation``) is ``held`` or ``sampled``: a log with sampled
+    thrust and torque columns gets the sampling nuisance (``SAMPLED_NUISANCE``) in every
+    model the selection compares; held logs and measured rotor-speed flights do not."""
+    cfg = DiscoveryConfig(**DISCOVERY_SETTINGS.get(kind, {}))
+    if kind == "simulated" and actuation == "sampled":
+        cfg = replace(cfg, sampling_nuisance=SAMPLED_NUISANCE)
+    return cfg
 
 
 def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,

@@ -58,7 +58,7 @@ class DiscoveryConfig:
     the thrust direction's move on the body x/y force rows, 1: the vertical force row;
     not 2, the torque rows: docs/discovery.md, "Actuation between samples", says why; ()
     for none, the default: a log whose input was held over each interval, as pinquad's
-    simulator's, has no such change; ``experiments.recorded.discovery_config`` turns them
+    simulator's, has no such change; ``discovery.calibrated.discovery_config`` turns them
     on for sampled logs);
     two_fold: score each candidate on both folds (even blocks train and odd are held
     out, then the other way round) and sum the evidence (``selection.score_candidate``);

@@ -44,14 +44,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO
+from pinquad.discovery.calibrated import discovery_start
 from pinquad.discovery.discover import base_heldout_rms
 from pinquad.experiments.discovery_report import discovery_section
-from pinquad.experiments.recorded import (
-    LogOptions,
-    discovery_start,
-    identify_log,
-    run_discovery,
-)
+from pinquad.experiments.recorded import LogOptions, identify_log, run_discovery
 from pinquad.io.logs import read_log, write_log
 from pinquad.sim import effects
 from pinquad.sim.control import design_gains

@@ -33,10 +33,14 @@ from numpy.typing import NDArray
 from estimators.protocol import Posterior
 from pinquad.core.execution import Backend, open_executor
 from pinquad.core.vehicle_file import is_vehicle_file
-from pinquad.discovery.calibrated import DiscoveryOutcome, DiscoveryStart, discover_calibrated
+from pinquad.discovery.calibrated import (
+    DiscoveryOutcome,
+    discover_calibrated,
+    discovery_config,
+    discovery_start,
+)
 from pinquad.discovery.domain import FORCE_EFFECTS
 from pinquad.discovery.null import NullSettings
-from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
@@ -122,14 +126,6 @@ class LogResult:
     search: VehicleRange | None = None
 
 
-DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
-                                        "measured-table": {"refit_em": False}}
-"""DiscoveryConfig overrides by log kind (``simulated``, ``sdlog``, ``measured-table``).
-Measured flights keep the base inertia of ``realdata``'s band-limited M-step (the
-plain regressor M-step of the EM refit does not hold it: on jana10 it moved I_xx from 17
-to 24 e-6 kg m^2); their effects and the mass are fitted on the base posterior."""
-
-
 def initial_guess(log: FlightLog) -> tuple[float, Array, str]:
     """(mass0 [kg], inertia0 (3, 3) [kg m^2], where they came from in words): the
     sidecar's guesses, else the vehicle's default. Raises ValueError if not positive."""
@@ -169,22 +165,6 @@ def _from_measured(ident: RealIdentification, label: str, post: Posterior, theta
         loglik=ident.loglik, converged=ident.converged, seconds=ident.seconds, sensor=label,
         e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident, notes=(ident.kf.note,),
         failure=ident.failure)
-
-
-def discovery_start(run: Identification) -> DiscoveryStart:
-    """Where effect discovery starts from a run: its observations, parameters and
-    posterior; a measured-flight run's nuisance block (``Theta.nuisance``) moves into the
-    torques of its observations (``models.ssm.corrected``) and out of its parameters."""
-    if run.posterior is None or run.observations is None or run.theta is None:
-        raise ValueError("this identification kept no posterior to start discovery from")
-    return start_from(run.observations, run.theta, run.posterior)
-
-
-def start_from(obs: Observations, theta: Theta, posterior: Posterior) -> DiscoveryStart:
-    """The ``DiscoveryStart`` of a fit: a measured-flight fit's nuisance block
-    (``Theta.nuisance``) moved into the torques of its observations and out of its
-    parameters (discovery's models add their effects to the rotor torques alone)."""
-    return DiscoveryStart(corrected(obs, theta), theta.without_nuisance(), posterior)
 
 
 def log_kind(log: FlightLog) -> str:
@@ -363,27 +343,6 @@ def identify_log(log: FlightLog, options: LogOptions | None = None,
         return _with_applied_wrench(log, options, executor)
     # an export's thrust and torques are its rotor speeds' own: identified from the latter
     return _measured(replace(log, thrust=None, torque=None), options, kind)
-
-
-SAMPLED_NUISANCE = (0,)
-"""The sampling nuisance columns a log with sampled thrust and torque columns gets
-(``DiscoveryConfig.sampling_nuisance``): the thrust direction's move within the interval
-on the body x/y force rows. Not the vertical row's column 1 (mostly the thrust
-magnitude's change), since the input reading takes the mean of the two rows' thrust:
-there its expected coefficient is 0, and a free one (fitted -3 to -6 on gentle flightgen
-flights) traded against drag's D_z, 5-25 % too high on minimum-snap flights
-(docs/discovery.md)."""
-
-
-def discovery_config(kind: str, actuation: str = "held") -> DiscoveryConfig:
-    """Effect discovery's settings for a kind of log (``DISCOVERY_SETTINGS``) whose
-    actuation (``LogMeta.actuation``) is ``held`` or ``sampled``: a log with sampled
-    thrust and torque columns gets the sampling nuisance (``SAMPLED_NUISANCE``) in every
-    model the selection compares; held logs and measured rotor-speed flights do not."""
-    cfg = DiscoveryConfig(**DISCOVERY_SETTINGS.get(kind, {}))
-    if kind == "simulated" and actuation == "sampled":
-        cfg = replace(cfg, sampling_nuisance=SAMPLED_NUISANCE)
-    return cfg
 
 
 def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:

@@ -28,7 +28,12 @@ from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from pinquad.discovery.calibrated import DiscoveryOutcome, discover_calibrated
+from pinquad.discovery.calibrated import (
+    DiscoveryOutcome,
+    discover_calibrated,
+    discovery_config,
+    discovery_start,
+)
 from pinquad.discovery.null import NullSettings
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.experiments.discovery_report import discovery_section
@@ -36,8 +41,6 @@ from pinquad.experiments.headline import Headline, headline, run_verdict
 from pinquad.experiments.recorded import (
     LogOptions,
     LogResult,
-    discovery_config,
-    discovery_start,
     identify_log,
     input_reading,
     log_kind,
