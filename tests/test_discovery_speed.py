@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 
 from flightgen import Effects, FlightSpec, generate, write_csv
-from pinquad.discovery.calibrated import discovery_config, discovery_start
+from pinquad.discovery.calibrated import discover_calibrated, discovery_config, discovery_start
 from pinquad.discovery.library import TransitionData, lagged_inputs, wrench_features
 from pinquad.discovery.null import NullSettings
 from pinquad.discovery.refit import effect_mstep
 from pinquad.discovery.residuals import block_grams, compute_residuals, group_sums, step_blocks
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.estep import fast_smoother
-from pinquad.experiments.recorded import LogOptions, discover_calibrated, identify_log
+from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.identification import verdict
 from pinquad.io.read import read_log
 from pinquad.mstep.stats import transition_mask

@@ -21,13 +21,13 @@ import numpy as np
 import pytest
 
 from flightgen import Effects, FlightSpec, generate, write_csv
-from pinquad.discovery.calibrated import discovery_config, discovery_start
+from pinquad.discovery.calibrated import discover_calibrated, discovery_config, discovery_start
 from pinquad.discovery.discover import select_effects
 from pinquad.discovery.null import NullSettings
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import shortest_lag
 from pinquad.experiments.discovery_mc_flightgen import flight_spec
-from pinquad.experiments.recorded import LogOptions, discover_calibrated, identify_log, input_reading
+from pinquad.experiments.recorded import LogOptions, identify_log, input_reading
 from pinquad.io.read import read_log
 
 

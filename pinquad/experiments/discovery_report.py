@@ -9,9 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from estimators.protocol import Posterior
-from pinquad.discovery.calibrated import discovery_config, start_from
+from pinquad.discovery.calibrated import DiscoveryOutcome, discover_calibrated, discovery_config, start_from
 from pinquad.discovery.null import NullSettings, first_round_gains
-from pinquad.experiments.recorded import DiscoveryOutcome, discover_calibrated
 from pinquad.models.ssm import Observations, Theta
 
 

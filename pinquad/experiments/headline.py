@@ -9,11 +9,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.discovery.calibrated import discovery_config, discovery_start
+from pinquad.discovery.calibrated import DiscoveryOutcome, discovery_config, discovery_start
 from pinquad.discovery.refit import corrected_observations, model_factory
 from pinquad.discovery.result import DiscoveryResult
 from pinquad.estep.fast_smoother import loglik_quad
-from pinquad.experiments.recorded import DiscoveryOutcome, LogResult, input_reading, plausible_range
+from pinquad.experiments.recorded import LogResult, input_reading, plausible_range
 from pinquad.identification.budget import (
     ErrorBudget,
     calibration_of,

@@ -22,9 +22,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
-from pinquad.discovery.calibrated import discovery_config, discovery_start
+from pinquad.discovery.calibrated import DiscoveryOutcome, discovery_config, discovery_start
 from pinquad.discovery.library import TransitionData, lag_wrench, wrench_features
-from pinquad.experiments.recorded import DiscoveryOutcome, LogResult
+from pinquad.experiments.recorded import LogResult
 from pinquad.models.ssm import Observations
 from pinquad.mstep.stats import transition_mask
 from pinquad.mstep.updates import body_regressor

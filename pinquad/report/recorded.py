@@ -11,8 +11,9 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import wrap_angle
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
+from pinquad.discovery.calibrated import DiscoveryOutcome
 from pinquad.experiments.headline import Headline
-from pinquad.experiments.recorded import DiscoveryOutcome, LogResult
+from pinquad.experiments.recorded import LogResult
 from pinquad.identification.budget import ErrorBudget
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import PRODUCTS, EstimateVerdict, ParameterVerdict

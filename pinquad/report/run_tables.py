@@ -25,7 +25,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
-from pinquad.experiments.recorded import DiscoveryOutcome, LogResult
+from pinquad.discovery.calibrated import DiscoveryOutcome
+from pinquad.experiments.recorded import LogResult
 from pinquad.experiments.step_residuals import StepResiduals, step_residuals
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog
