@@ -9,6 +9,7 @@ identified model still gets wrong.
     batch = pinquad.identify_many(paths, executor=pool)  # one row per log, any executor
     px4 = pinquad.read_command_log("flight.ulg")  # a PX4 log: motor commands, no thrust
     # with the mass known: pinquad.identify_known_mass(px4, 1.5, positions, spins)
+    # and by EM beside it: pinquad.identify_known_mass_em(px4, 1.5, positions, spins, that)
 
 The names below are loaded on first use (``import pinquad`` stays cheap for the command
 lines, whose entry modules live in this package too).
@@ -49,6 +50,8 @@ _EXPORTS = {
     "identify_known_mass": "pinquad.identification.known_mass",
     "KnownMassSettings": "pinquad.identification.known_mass",
     "KnownMassResult": "pinquad.identification.known_mass",
+    "identify_known_mass_em": "pinquad.identification.known_mass_em",
+    "KnownMassEM": "pinquad.identification.known_mass_em",
 }
 __all__ = [
     "CRAZYFLIE21", "PAPER_SCENARIO", "PAPER_VEHICLE", "VEHICLES", "Batch", "DiscoveryConfig",
@@ -56,8 +59,9 @@ __all__ = [
     "NullSettings", "PipelineOptions", "Result", "SimConfig", "Vehicle", "discover",
     "identify", "identify_many", "read_log", "simulate",
     # PX4 logs, known-mass mode (docs/px4.md)
-    "ActuatorCurve", "CommandLog", "CurveVehicle", "KnownMassResult", "KnownMassSettings",
-    "identify_known_mass", "read_command_log", "read_curve_vehicle",
+    "ActuatorCurve", "CommandLog", "CurveVehicle", "KnownMassEM", "KnownMassResult",
+    "KnownMassSettings", "identify_known_mass", "identify_known_mass_em", "read_command_log",
+    "read_curve_vehicle",
 ]
 
 if TYPE_CHECKING:
@@ -73,6 +77,7 @@ if TYPE_CHECKING:
         KnownMassSettings,
         identify_known_mass,
     )
+    from pinquad.identification.known_mass_em import KnownMassEM, identify_known_mass_em
     from pinquad.io.command_log import CommandLog
     from pinquad.io.logs import FlightLog, LogFormatError
     from pinquad.io.read import read_command_log

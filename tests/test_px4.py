@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import pinquad
 from flightgen import QUAD_250, FlightSpec, Noise, generate
 from pinquad.core.actuator_curve import read_curve_vehicle, toml_from_ddd_yaml
 from pinquad.core.conventions import (
@@ -23,9 +24,12 @@ from pinquad.core.conventions import (
     rotation_from_euler,
     vector_from_ned_frd,
 )
+from pinquad.core.vehicle_file import load_vehicle
 from pinquad.identification.known_mass import identify_known_mass
+from pinquad.identification.known_mass_em import identify_known_mass_em
 from pinquad.io.datadir import checkout_data_dir
 from pinquad.io.errors import LogFormatError
+from pinquad.io.logs import write_log
 from pinquad.io.read import read_command_log
 
 REPO = Path(__file__).resolve().parents[1]
@@ -33,6 +37,7 @@ PX4 = checkout_data_dir().parent / "px4"
 DDD_CSV = PX4 / "ddd_quadrotor_model.csv"
 DDD_YAML = PX4 / "ddd_quadrotor_model.yaml"
 BENCH = PX4 / "pyulog_sample.ulg"
+JANA00 = checkout_data_dir() / "imrc_brushed" / "jana00"
 DDD_TRUTH = (0.029125, 0.029125, 0.055225)
 
 CURVE = (2.0, 8.0)
@@ -343,3 +348,52 @@ def test_given_time_constant_is_used(px4_flight):
     for name in ("thrust c_2", "I_xx", "I_yy"):
         assert zero.get(name).value == pytest.approx(profiled.get(name).value, rel=1e-12)
         assert slow.get(name).value != pytest.approx(profiled.get(name).value, rel=1e-3)
+
+
+# ------------------------------------------------------------- the EM route, velocity-only
+
+def test_em_route_velocity_only_rescales_a_wrong_curve(px4_flight):
+    """The known-mass EM route on the flightgen ULog with its position removed (the
+    E-step sees velocity, attitude and rates only) and a nominal curve 1.25 times too
+    weak (the vehicle file's T = (c_1, c_2) / 1.25): EM on the nominal wrench reads
+    m_hat = m / 1.25, so s = m / m_hat comes out 1.25 and I = s I_hat the flight's
+    inertia, each within 3 of its total standard errors and 3 % of the truth."""
+    flight = read_command_log(px4_flight["ulg"])
+    flight = replace(flight, log=replace(flight.log,
+                                         position=np.full_like(flight.log.position, np.nan)))
+    vehicle = read_curve_vehicle(px4_flight["vehicle"])
+    weak = 1.25
+    curve = replace(vehicle.curve, thrust=np.array(CURVE) / weak, time_constant=0.0)
+    regression = identify_known_mass(flight, 0.5, vehicle.spec.positions, vehicle.spec.spin,
+                                     curve)
+    em = identify_known_mass_em(flight, 0.5, vehicle.spec.positions, vehicle.spec.spin,
+                                regression, curve)
+    assert em.channels == ("vel", "euler", "gyro") and em.converged
+    assert em.mass_hat == pytest.approx(0.5 / weak, rel=0.01)
+    scale = em.get("thrust scale s")
+    assert abs(scale.value - weak) < 3.0 * scale.stderr and scale.verdict == "trusted"
+    for a, name in enumerate(("I_xx", "I_yy", "I_zz")):
+        est, truth = em.get(name), float(QUAD_250.inertia_matrix[a, a])
+        assert abs(est.value - truth) < 3.0 * est.stderr, (name, est.value, truth, est.stderr)
+        assert abs(est.value / truth - 1.0) < 0.03, (name, est.value, truth)
+        # I = s I_hat, the equation the route rests on
+        assert est.value == pytest.approx(scale.value * em.inertia_hat[a], rel=1e-12)
+        # the assumed mass's 1 % is in every inertia's error bar
+        assert dict(est.parts)["mass"] == pytest.approx(0.01 * est.value, rel=1e-12)
+
+
+def test_measured_flight_without_position_runs_on_velocity(tmp_path):
+    """A measured Crazyflie flight (jana00) exported with its position removed: EM runs
+    on velocity, attitude and rates (no 'pos' channel asked of a log without one), the
+    smoothed position's variance stays finite, and I_xx, I_yy land within their total
+    standard errors of the published values (the shipped crazyflie21 file's reference)."""
+    log = pinquad.read_log(JANA00)
+    path = write_log(replace(log, position=np.full_like(log.position, np.nan), measured=None),
+                     tmp_path / "jana00_velocity.csv")
+    fit = pinquad.identify(pinquad.read_log(path))
+    assert fit.sensor == "vel,euler,gyro"
+    assert np.isfinite(fit.posterior.cov).all()
+    published = load_vehicle("crazyflie21").reference.inertia
+    for a in range(2):
+        se = fit.stderr[a + 1]  # the total: statistical, kf, arm, between flights
+        assert abs(fit.inertia[a, a] - published[a]) < se, (a, fit.inertia[a, a], se)

@@ -124,9 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --log: known-mass mode for a PX4 log (ULog or data-driven-"
                         "dynamics CSV, docs/px4.md): the mass in kg (or 'file': the "
                         "--vehicle file's [reference] mass) fixes the scale; identifies the "
-                        "thrust curve, motor time constant and inertia by regression; "
-                        "--vehicle names the rotor positions (.toml or .yaml), --band the "
-                        "torque regression's band (default 0.3-2 Hz)")
+                        "thrust curve, motor time constant and inertia by regression, and "
+                        "the curve's scale and the inertia by EM beside it; --vehicle names "
+                        "the rotor positions (.toml or .yaml), --band the torque band of "
+                        "both (default 0.3-2 Hz)")
     return p
 
 

@@ -6,6 +6,7 @@ observations and search range of such a log read with them."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -22,6 +23,9 @@ from pinquad.realdata.observations import (
 )
 from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
+
+VELOCITY_CHANNELS = ("vel", "euler", "gyro")
+"""The channels of a measured log without any position sample (``measured_observations``)."""
 
 
 def measured_vehicle(log: FlightLog) -> tuple[RealDataOptions, ThrustCoefficient | None]:
@@ -81,10 +85,22 @@ def measured_observations(log: FlightLog, sensor: str | None = None) -> RealObse
     """The EM observations of a measured rotor-speed log on the 100 Hz grid
     (``realdata.observations.build_observations``), its rotor speeds read with its
     vehicle's mixer and kf (:func:`measured_vehicle`) and the channels of the paper's
-    source ``sensor`` (None: every channel the log has). Raises ValueError when the
-    vehicle contradicts the log or nothing usable remains."""
+    source ``sensor`` (None: every channel the log has; a log without any position
+    sample, a velocity-only export, is observed through its velocity, attitude and rates:
+    the smoother carries the unobserved position as the velocity's integral, its
+    variance growing but finite, and the translational dynamics rest on the velocity).
+    Raises ValueError when the vehicle contradicts the log or nothing usable remains."""
     options, kf = measured_vehicle(log)
-    return build_observations(raw_flight(log), options_for_sensor(sensor, options), kf)
+    raw = raw_flight(log)
+    options = options_for_sensor(sensor, options)
+    pose = raw.pose.position if raw.pose is not None else log.position
+    if not (sensor is None and not np.isfinite(pose).any()
+            and np.isfinite(log.velocity).any()):
+        return build_observations(raw, options, kf)
+    real = build_observations(raw, replace(options, channels=VELOCITY_CHANNELS), kf)
+    return replace(real, notes=(*real.notes, "no position sample in the log: observed "
+                                "through its velocity, attitude and rates; the position "
+                                "state is unobserved"))
 
 
 def measured_search_range(log: FlightLog) -> VehicleRange | None:

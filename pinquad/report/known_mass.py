@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from pinquad.core.actuator_curve import CurveVehicle
-from pinquad.identification.known_mass import KnownMassResult
+from pinquad.identification.known_mass import Estimate, KnownMassResult
+from pinquad.identification.known_mass_em import KnownMassEM
 from pinquad.identification.verdict import TRUSTED
 
 INERTIA = ("I_xx", "I_yy", "I_zz")
@@ -18,16 +19,10 @@ def _num(x: float) -> str:
     return "-" if not math.isfinite(x) else f"{x:.5g}"
 
 
-def known_mass_table(result: KnownMassResult, vehicle: CurveVehicle) -> str:
-    """Estimate, total se, its parts, reference (the vehicle file's [reference] inertia),
-    verdict and reasons, then the naive regression beside it."""
-    ref = vehicle.spec.reference.inertia
-    lines = [f"known mass {result.mass:g} +- {result.mass_se:.2g} kg; torque band {result.band[0]:g}-"
-             f"{result.band[1]:g} Hz; the curve explains {result.force_share * 100:.1f} % of "
-             "the vertical force",
-             "", f"{'estimate':<17} {'value':>10} {'se':>10} {'reference':>10} {'error':>7}  "
-             f"verdict", "-" * 75]
-    for e in result.estimates:
+def _estimate_lines(estimates: tuple[Estimate, ...], ref) -> list[str]:
+    lines = [f"{'estimate':<17} {'value':>10} {'se':>10} {'reference':>10} {'error':>7}  "
+             "verdict", "-" * 75]
+    for e in estimates:
         truth = ref[INERTIA.index(e.name)] if ref is not None and e.name in INERTIA else None
         err = "" if truth is None or not math.isfinite(e.value) else \
             f"{(e.value / truth - 1) * 100:+.1f}%"
@@ -37,6 +32,41 @@ def known_mass_table(result: KnownMassResult, vehicle: CurveVehicle) -> str:
         if e.parts:
             lines.append("    se parts: " + ", ".join(f"{k} {_num(v)}" for k, v in e.parts))
         lines += [f"    why: {r}" for r in e.reasons]
+    return lines
+
+
+def _side_by_side(result: KnownMassResult, em: KnownMassEM, ref) -> list[str]:
+    """One row per inertia entry: regression, EM, naive and the reference."""
+
+    def cell(e: Estimate, truth: float | None) -> str:
+        if not math.isfinite(e.value):
+            return f"{'-':>10} {'':>7} {e.verdict:<19}"
+        err = "" if truth is None else f"{(e.value / truth - 1) * 100:+.1f}%"
+        return f"{_num(e.value):>10} {err:>7} {e.verdict:<19}"
+
+    lines = ["", "side by side (inertia [kg m^2]; error against the reference):",
+             f"{'':<5} {'regression':>10} {'':>7} {'':<19} {'EM':>10} {'':>7} {'':<19} "
+             f"{'naive':>10} {'':>7} {'reference':>10}"]
+    for a, name in enumerate(INERTIA):
+        truth = None if ref is None else float(ref[a])
+        naive = result.naive_inertia[a]
+        naive_err = "" if truth is None or not math.isfinite(naive) else \
+            f"{(naive / truth - 1) * 100:+.1f}%"
+        lines.append(f"{name:<5} {cell(result.get(name), truth)} {cell(em.get(name), truth)} "
+                     f"{_num(naive):>10} {naive_err:>7} {'' if truth is None else _num(truth):>10}")
+    return lines
+
+
+def known_mass_table(result: KnownMassResult, vehicle: CurveVehicle,
+                     em: KnownMassEM | None = None) -> str:
+    """Estimate, total se, its parts, reference (the vehicle file's [reference] inertia),
+    verdict and reasons of the regression, then the naive regression beside it; with
+    ``em``, the EM route's estimates the same way and the three side by side."""
+    ref = vehicle.spec.reference.inertia
+    lines = [f"known mass {result.mass:g} +- {result.mass_se:.2g} kg; torque band {result.band[0]:g}-"
+             f"{result.band[1]:g} Hz; the curve explains {result.force_share * 100:.1f} % of "
+             "the vertical force", "", "regression:",
+             *_estimate_lines(result.estimates, ref)]
     lines += ["", "naive regression (no motor lag, no drag, no filter, raw d omega/dt):"]
     for a, name in enumerate(INERTIA[:2]):
         truth = None if ref is None else ref[a]
@@ -44,24 +74,65 @@ def known_mass_table(result: KnownMassResult, vehicle: CurveVehicle) -> str:
         lines.append(f"  {name} {_num(result.naive_inertia[a])}{err}, torque explains "
                      f"{result.naive_share[a] * 100:.0f} % of the angular acceleration's "
                      "variance")
+    if em is not None:
+        lines += ["", f"EM (E-step over {', '.join(em.channels)}; the thrust curve's scale s "
+                  f"= m / m_hat, I = s I_hat; {em.iterations} iterations, "
+                  f"{'converged' if em.converged else 'not converged'}; {em.seconds:.0f} s with "
+                  "its reruns for the assumptions' error parts and the band halves):",
+                  *_estimate_lines(em.estimates, ref), *_side_by_side(result, em, ref)]
     lines += ["", *(f"note: {n}" for n in result.notes)]
+    if em is not None:
+        lines += [f"note: {n}" for n in em.notes]
     return "\n".join(lines)
 
 
-def headline_trusted(result: KnownMassResult) -> bool:
-    """Whether every estimate that could be had (a value) is trusted."""
-    return all(e.verdict == TRUSTED for e in result.estimates if math.isfinite(e.value))
+def headline_trusted(result: KnownMassResult, em: KnownMassEM | None = None) -> bool:
+    """Whether every estimate that could be had (a value), by either route, is trusted."""
+    routes = (result.estimates, *(() if em is None else (em.estimates,)))
+    return all(e.verdict == TRUSTED for est in routes for e in est if math.isfinite(e.value))
+
+
+def _estimates_json(estimates: tuple[Estimate, ...]) -> list[dict]:
+    return [{"name": e.name, "value": e.value, "unit": e.unit, "stderr": e.stderr,
+             "stderr_parts": dict(e.parts), "verdict": e.verdict, "reasons": list(e.reasons)}
+            for e in estimates]
 
 
 def known_mass_report(result: KnownMassResult, log_path: str, vehicle: CurveVehicle,
-                      seconds: float) -> dict:
-    """report.json (the house's keys; the known-mass specifics under ``known_mass``)."""
+                      seconds: float, em: KnownMassEM | None = None) -> dict:
+    """report.json (the house's keys, the headline the regression's; the known-mass
+    specifics under ``known_mass``, the EM route's under ``known_mass.em``)."""
     inertia = np.array([result.get(n).value for n in INERTIA])
     inertia_se = [result.get(n).stderr for n in INERTIA]
+    em_block = ({"iterations": 0, "loglik": [], "converged": None,
+                 "note": "known-mass regression only: no EM was run"} if em is None else
+                {"iterations": em.iterations, "loglik": em.loglik.tolist(),
+                 "converged": em.converged,
+                 "note": "the known-mass EM route (known_mass.em); the headline is the "
+                         "regression's"})
+    known = {
+        "estimates": _estimates_json(result.estimates),
+        "vertical_force_share": result.force_share,
+        "torque_share": list(result.torque_share),
+        "band_hz": list(result.band),
+        "naive": {"inertia_diag": result.naive_inertia.tolist(),
+                  "torque_share": list(result.naive_share)},
+        "notes": list(result.notes), "seconds": seconds,
+    }
+    if em is not None:
+        known["em"] = {"estimates": _estimates_json(em.estimates), "mass_hat": em.mass_hat,
+                       "inertia_hat_diag": em.inertia_hat.tolist(),
+                       "nominal_curve": em.nominal.tolist(),
+                       "nominal_source": em.nominal_source, "time_constant": em.tau,
+                       "channels": list(em.channels), "iterations": em.iterations,
+                       "converged": em.converged, "failure": em.failure,
+                       "seconds": em.seconds, "notes": list(em.notes)}
     return {
         "schema": "pinquad.report/1",
-        "source": {"kind": "log", "path": log_path, "sensor": None, "estep": None,
-                   "method": "known-mass regression", "vehicle": str(vehicle.spec.source)},
+        "source": {"kind": "log", "path": log_path, "sensor": None,
+                   "estep": None if em is None else "rts",
+                   "method": "known-mass regression" + ("" if em is None else " and EM"),
+                   "vehicle": str(vehicle.spec.source)},
         "estimates": {
             "mass": result.mass, "inertia": np.diag(inertia).tolist(), "com": None,
             # the mass is given: its error is the uncertainty assumed for it
@@ -70,19 +141,7 @@ def known_mass_report(result: KnownMassResult, log_path: str, vehicle: CurveVehi
             "verdict": {e.name: {"verdict": e.verdict, "reasons": list(e.reasons)}
                         for e in result.estimates},
         },
-        "em": {"iterations": 0, "loglik": [], "converged": None,
-               "note": "known-mass regression: no EM was run"},
+        "em": em_block,
         "discovery": {"selected": [], "not_run": "known-mass mode: no effect discovery"},
-        "known_mass": {
-            "estimates": [{"name": e.name, "value": e.value, "unit": e.unit,
-                           "stderr": e.stderr, "stderr_parts": dict(e.parts),
-                           "verdict": e.verdict, "reasons": list(e.reasons)}
-                          for e in result.estimates],
-            "vertical_force_share": result.force_share,
-            "torque_share": list(result.torque_share),
-            "band_hz": list(result.band),
-            "naive": {"inertia_diag": result.naive_inertia.tolist(),
-                      "torque_share": list(result.naive_share)},
-            "notes": list(result.notes), "seconds": seconds,
-        },
+        "known_mass": known,
     }
