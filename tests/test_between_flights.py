@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import (
     NOT_IDENTIFIABLE,
     TRUSTED,
@@ -18,8 +19,8 @@ from pinquad.identification.verdict import (
     judge,
     vehicle_range,
 )
-from pinquad.realdata.consistency import between_flights, flight_scatter, scaled_total
-from pinquad.realdata.identify import RealIdentification
+from pinquad.realdata.consistency import FlightRow, between_flights, flight_scatter, scaled_total
+from pinquad.realdata.identify import MeasuredFit
 
 
 def test_scatter_of_known_values():
@@ -50,7 +51,7 @@ def test_scaled_errors_cover_the_scatter(pairs):
         assert again.chi2 == pytest.approx(sc.dof, rel=1e-9)
 
 
-def _flight(name: str, izz: float, izz_stat: float) -> RealIdentification:
+def _flight(name: str, izz: float, izz_stat: float) -> FlightRow:
     """A flight of the Crazyflie whose mass and roll/pitch agree with every other and
     whose I_zz is ``izz`` +- ``izz_stat`` (statistical), judged as the table judges it
     (kf 4.8 %, the yaw ratio 8.3 %: common to every flight)."""
@@ -61,12 +62,13 @@ def _flight(name: str, izz: float, izz_stat: float) -> RealIdentification:
     evidence = VerdictEvidence(torque_share=np.array([0.8, 0.8, 0.5]))
     verdict = judge(params[0], np.diag(params[1:]), total, evidence,
                     vehicle_range("crazyflie21"))
-    return RealIdentification(
-        name=name, mass=params[0], inertia=params[1:].copy(), se_info=stat, se_jack=stat,
-        se_stat=stat, se_total=total, kf=None, iterations=50, converged=True,
-        loglik=np.zeros(1), e_steps=50, history=np.zeros((1, 4)),
-        moment_coef=np.zeros((3, 7)), n_used=1000, n_excluded=0, excluded=(), notes=(),
-        seconds=1.0, verdict=verdict, evidence=evidence)
+    fit = MeasuredFit(kf=None, se_info=stat, se_jack=stat, se_stat=stat,  # type: ignore[arg-type]
+                      moment_coef=np.zeros((3, 7)), n_used=1000, n_excluded=0, excluded=())
+    run = Identification(
+        mstep="regressor", mass=params[0], inertia=np.diag(params[1:]), stderr=total,
+        history_mass=np.zeros(1), history_inertia=np.zeros((1, 3)), loglik=np.zeros(50),
+        converged=True, seconds=1.0, e_steps=50, measured=fit, verdict=verdict)
+    return FlightRow(name, run, evidence=evidence)
 
 
 def test_i_zz_that_scatters_beyond_its_errors_is_judged_again():
@@ -78,19 +80,19 @@ def test_i_zz_that_scatters_beyond_its_errors_is_judged_again():
     errors; mass, I_xx and I_yy, which agree, keep their errors and verdicts."""
     flights = [_flight("a", 26.9e-6, 0.8e-6), _flight("b", 15.8e-6, 2.0e-6),
                _flight("c", 13.2e-6, 1.3e-6), _flight("d", 17.7e-6, 0.6e-6)]
-    assert all(f.verdict.get("I_zz").verdict == TRUSTED for f in flights)
+    assert all(f.run.verdict.get("I_zz").verdict == TRUSTED for f in flights)
     judged, scatters = between_flights(flights)
     izz = next(s for s in scatters if s.parameter == "I_zz")
     assert izz.chi2 == pytest.approx(120.7, abs=0.5) and izz.scale == pytest.approx(6.34, abs=0.02)
     assert izz.p_value < 1e-20
-    verdicts = {f.name: f.verdict.get("I_zz").verdict for f in judged}
+    verdicts = {f.name: f.run.verdict.get("I_zz").verdict for f in judged}
     assert verdicts == {"a": TRUSTED, "b": NOT_IDENTIFIABLE, "c": NOT_IDENTIFIABLE, "d": TRUSTED}
     kept = [f for f in judged if verdicts[f.name] == TRUSTED]
-    gap = abs(kept[0].inertia[2] - kept[1].inertia[2])
-    assert gap < 2.0 * math.hypot(kept[0].se_total[3], kept[1].se_total[3])
+    gap = abs(kept[0].params[3] - kept[1].params[3])
+    assert gap < 2.0 * math.hypot(kept[0].run.stderr[3], kept[1].run.stderr[3])
     for before, after in zip(flights, judged, strict=True):
-        np.testing.assert_array_equal(after.se_total[0:3], before.se_total[0:3])
-        assert after.verdict.get("mass").verdict == TRUSTED
+        np.testing.assert_array_equal(after.run.stderr[0:3], before.run.stderr[0:3])
+        assert after.run.verdict.get("mass").verdict == TRUSTED
         assert after.scatter_scale[3] == pytest.approx(izz.scale)
     assert all(s.scale == 1.0 for s in scatters if s.parameter != "I_zz")
 
@@ -107,4 +109,4 @@ def test_a_degenerate_statistical_error_is_compared_by_its_total():
     flights = [_flight("a", 17.7e-6, 0.6e-6), _flight("b", 18.5e-6, 1e-20)]
     _, scatters = between_flights(flights)
     izz = next(s for s in scatters if s.parameter == "I_zz")
-    assert izz.stderr[1] == flights[1].se_total[3] and izz.chi2 < 1.0
+    assert izz.stderr[1] == flights[1].run.stderr[3] and izz.chi2 < 1.0

@@ -14,8 +14,8 @@ from pinquad.cli import flight as cli_flight
 from pinquad.cli import offline as cli_offline
 from pinquad.cli import realdiscovery as cli_realdiscovery
 from pinquad.pipeline.realdata import TableJob, run_table_job
+from pinquad.realdata.consistency import FlightRow
 from pinquad.realdata.dataset import SCALE_MASS
-from pinquad.realdata.identify import RealIdentification
 from pinquad.realdata.observations import RealDataOptions
 
 REPO = Path(__file__).resolve().parents[1]
@@ -60,15 +60,15 @@ def test_realdata_table_job_on_jana00_weighs_the_vehicle():
     job = TableJob(FLIGHTS / "jana00", RealDataOptions(), max_iterations=150,
                    information=False, band=(3.0, 8.0), stand=STAND, rotor_source="given")
     result = run_table_job(job)
-    assert isinstance(result, RealIdentification), result
+    assert isinstance(result, FlightRow), result
     assert result.name == "jana00"
     assert result.rotor_source == "given"
     # The scale's mass within the 3 % the realdata tests allow.
-    assert result.mass == pytest.approx(SCALE_MASS, rel=0.03)
-    assert np.all(np.asarray(result.inertia) > 0.0)
+    assert result.run.mass == pytest.approx(SCALE_MASS, rel=0.03)
+    assert np.all(result.params[1:] > 0.0)
     # the table's verdict column: the mass of this clean log is trusted, and every
     # parameter is judged with reasons wherever it is not
-    v = result.verdict
+    v = result.run.verdict
     assert [p.name for p in v.parameters] == ["mass", "I_xx", "I_yy", "I_zz"]
     assert v.get("mass").trusted
     assert all(p.reasons for p in v.parameters if not p.trusted)

@@ -17,9 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS, default_guess
-from pinquad.realdata.identify import RealIdentification, identify_real
+from pinquad.realdata.identify import identify_real, measured_fit
 from pinquad.realdata.mass_balance import quasi_static_mass
 from pinquad.realdata.observations import RealDataOptions, build_observations, load_real
 from pinquad.realdata.raw import RawFlight
@@ -39,13 +40,12 @@ def require_data() -> None:
 
 
 @cache
-def identified(name: str) -> RealIdentification:
+def identified(name: str) -> Identification:
     require_data()
     kf = thrust_coefficient(STAND)
     real = load_real(FLIGHTS / name, RealDataOptions(), kf)
     mass0, inertia0, _ = default_guess("crazyflie21")
-    ident, _, _ = identify_real(real, mass0, inertia0, max_iterations=100, information=False)
-    return ident
+    return identify_real(real, mass0, inertia0, max_iterations=100, information=False)
 
 
 def test_kf_is_the_equal_weight_mean_of_the_stand_runs():
@@ -183,13 +183,14 @@ def test_clean_log_mass_within_1p5_percent_of_the_scale():
     ident = identified("jana00")
     assert abs(ident.mass / SCALE_MASS - 1.0) < 0.015, ident.mass
     # the model-free check agrees: the rotor speeds and kf alone imply the scale's mass
-    assert abs(ident.quasi_static_mass / SCALE_MASS - 1.0) < 0.015, ident.quasi_static_mass
+    free = measured_fit(ident).quasi_static_mass
+    assert abs(free / SCALE_MASS - 1.0) < 0.015, free
     # The scale is inside two total standard errors, which carry kf's ~5 %.
-    assert abs(ident.mass - SCALE_MASS) < 2.0 * ident.se_total[0]
-    assert ident.se_total[0] > 0.04 * ident.mass > 10 * ident.se_jack[0]
+    assert abs(ident.mass - SCALE_MASS) < 2.0 * ident.stderr[0]
+    assert ident.stderr[0] > 0.04 * ident.mass > 10 * measured_fit(ident).se_jack[0]
     # roll and pitch inertia within 10 % of the bifilar-pendulum values
-    np.testing.assert_allclose(ident.inertia[:2], PUBLISHED_INERTIA[:2], rtol=0.10)
-    assert np.all(np.isfinite(ident.se_total))
+    np.testing.assert_allclose(np.diag(ident.inertia)[:2], PUBLISHED_INERTIA[:2], rtol=0.10)
+    assert np.all(np.isfinite(ident.stderr))
     assert ident.converged
 
 
@@ -204,19 +205,19 @@ def test_faulty_log_is_repaired_and_its_mass_is_near_the_scale():
     ident = identified("jana20")
     rel = ident.mass / SCALE_MASS - 1.0
     assert abs(rel) < 0.03, rel
-    assert abs(ident.mass - SCALE_MASS) < 2.0 * ident.se_total[0]
+    assert abs(ident.mass - SCALE_MASS) < 2.0 * ident.stderr[0]
     assert any("rebuilt from its PWM" in note for note in ident.notes)
     assert any("battery voltage stuck" in note for note in ident.notes)
-    np.testing.assert_allclose(ident.inertia[:2], PUBLISHED_INERTIA[:2], rtol=0.15)
+    np.testing.assert_allclose(np.diag(ident.inertia)[:2], PUBLISHED_INERTIA[:2], rtol=0.15)
     # The model-free check split by motor: M1's rebuilt share puts back exactly the
     # model-free mass, and the three measured motors alone already carry 3/4 of a vehicle
     # heavier than the scale's: M1 would need to carry less of the thrust than on any
     # clean log (jana00 has the lowest M1 share, 0.92).
     # (motor_split's arithmetic is checked against hand-computed numbers in
     # test_motor_split_of_a_hand_built_hover)
-    split = ident.motor_split
+    split = measured_fit(ident).motor_split
     assert split is not None and split.rebuilt == (0,)
-    clean = identified("jana00").motor_split
+    clean = measured_fit(identified("jana00")).motor_split
     assert clean is not None and not clean.rebuilt
     assert split.share_for(SCALE_MASS) < clean.share[0] < split.share[0]
     # Where M1's half-count reading is there (doubled), no speed comes from PWM: the
@@ -224,7 +225,8 @@ def test_faulty_log_is_repaired_and_its_mass_is_near_the_scale():
     # does not come from the PWM map either.
     assert any("counts one pulse in 2" in note for note in ident.notes)
     assert split.all_measured_rows > 500
-    assert split.all_measured_mass == pytest.approx(ident.quasi_static_mass, rel=0.01)
+    assert split.all_measured_mass == pytest.approx(measured_fit(ident).quasi_static_mass,
+                                                    rel=0.01)
     # Without the repair every airborne row is implausible: nothing left to identify.
     with pytest.raises(ValueError, match="no usable actuation"):
         load_real(FLIGHTS / "jana20", RealDataOptions(faults="exclude"),
@@ -239,7 +241,7 @@ def test_faulty_log_mass_within_the_target():
     scale's 34.7 g, by EM and by the model-free balance over the all-measured rows."""
     ident = identified("jana20")
     assert abs(ident.mass / SCALE_MASS - 1.0) < 0.015, ident.mass
-    assert abs(ident.motor_split.all_measured_mass / SCALE_MASS - 1.0) < 0.015
+    assert abs(measured_fit(ident).motor_split.all_measured_mass / SCALE_MASS - 1.0) < 0.015
 
 
 def test_motor_split_of_a_hand_built_hover():
@@ -322,10 +324,10 @@ def test_offline_cli_identifies_a_real_log(tmp_path):
     assert abs(run["model_free_mass"] / est["mass"] - 1) < 0.005
     assert run["motor_split"]["rebuilt_motors"] == []
     # the report carries the in-process model-free figures of the same log
-    assert run["model_free_mass"] == pytest.approx(identified("jana00").quasi_static_mass,
-                                                   rel=1e-9)
+    jana00 = measured_fit(identified("jana00"))
+    assert run["model_free_mass"] == pytest.approx(jana00.quasi_static_mass, rel=1e-9)
     assert run["motor_split"]["measured_motors_mass"] == pytest.approx(
-        identified("jana00").motor_split.measured_mass, rel=1e-9)
+        jana00.motor_split.measured_mass, rel=1e-9)
     md = (out / "report.md").read_text()
     assert "model-free check" in md
     assert "- note: motion capture:" in md and "- excluded: total:" in md
@@ -372,7 +374,8 @@ def test_yaw_flight_rotor_inertia_is_identified_and_positive():
     sweep: positive (the sign the physics gives) and of the size of a 45 mm propeller and
     a 7 mm motor (1e-9..1e-7 kg m^2)."""
     ident = identified("jana04")
-    assert 1e-9 < ident.rotor_inertia < 1e-7, ident.rotor_inertia
+    jr = measured_fit(ident).rotor_inertia
+    assert 1e-9 < jr < 1e-7, jr
 
 
 def _synthetic_band(inertia, jr, k=1500, seed=0):
@@ -422,12 +425,13 @@ def test_fixed_rotor_inertia_is_taken_back_out_of_the_band_stats():
     jr = 15e-9
     real = load_real(FLIGHTS / "jana02", RealDataOptions(rotor_inertia=jr), thrust_coefficient(STAND))
     mass0, inertia0, _ = default_guess("crazyflie21")
-    ident, _, _ = identify_real(real, mass0, inertia0, max_iterations=100, information=False,
-                                keep_band_stats=True)
-    assert ident.rotor_inertia == jr
-    inertia, _, var = band_fit(ident.band_stats, jr, ident.inertia)
-    np.testing.assert_allclose(inertia, ident.inertia, rtol=0.01)
-    assert var < 0.9 * band_fit(ident.band_stats, 0.0)[2]
+    run = identify_real(real, mass0, inertia0, max_iterations=100, information=False,
+                        keep_band_stats=True)
+    fit = measured_fit(run)
+    assert fit.rotor_inertia == jr
+    inertia, _, var = band_fit(fit.band_stats, jr, np.diag(run.inertia))
+    np.testing.assert_allclose(inertia, np.diag(run.inertia), rtol=0.01)
+    assert var < 0.9 * band_fit(fit.band_stats, 0.0)[2]
 
 
 def test_pooled_cli_needs_two_pool_logs():

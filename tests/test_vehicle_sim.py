@@ -24,7 +24,7 @@ from pinquad.experiments.vehicle_file_mc import (
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.pipeline.vehicle_file import vehicle_file_cycle
-from pinquad.realdata.identify import identify_real
+from pinquad.realdata.identify import identify_real, measured_fit
 from pinquad.realdata.observations import (
     RealDataOptions,
     build_observations,
@@ -162,12 +162,13 @@ def test_files_rotor_inertia_zero_fixes_j_r_and_an_absent_key_fits_it():
     assert base.rotor_inertia == 0.0
     raw = raw_flight(log)
     guess = (spec.guess_mass, spec.guess_inertia)
-    fixed, _, _ = identify_real(build_observations(raw, base, kf), *guess, max_iterations=3,
-                                information=False, band=FILE_VEHICLE_BAND)
-    assert fixed.rotor_inertia == 0.0
+    fixed = identify_real(build_observations(raw, base, kf), *guess, max_iterations=3,
+                          information=False, band=FILE_VEHICLE_BAND)
+    assert measured_fit(fixed).rotor_inertia == 0.0
     absent = options_for_vehicle(replace(spec, actuators=replace(spec.actuators,
                                                                  rotor_inertia=None)))
     assert absent.rotor_inertia is None
-    fitted, _, _ = identify_real(build_observations(raw, absent, kf), *guess, max_iterations=3,
-                                 information=False, band=FILE_VEHICLE_BAND)
-    assert np.isfinite(fitted.rotor_inertia) and fitted.rotor_inertia != 0.0
+    fitted = identify_real(build_observations(raw, absent, kf), *guess, max_iterations=3,
+                           information=False, band=FILE_VEHICLE_BAND)
+    jr = measured_fit(fitted).rotor_inertia
+    assert np.isfinite(jr) and jr != 0.0

@@ -162,7 +162,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     print("error: pool log not identified: "
                           + "; ".join(f"{n}: {w}" for n, w in bad), file=sys.stderr)
                     return 2
-                rotor = pooled_rotor_inertia({r.name: r.band_stats for r in first})
+                rotor = pooled_rotor_inertia({r.name: r.fit.band_stats for r in first})
                 pass1 = (f"; pass 1 (J_r per flight on the pool logs, then pooled) "
                          f"{time.perf_counter() - t0:.0f} s")
                 print(rotor.describe(), file=sys.stderr)
@@ -199,6 +199,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name, why in failed:
         print(f"\n{name}: not identified: {why}")
     print(f"\n{len(results)} logs in {time.perf_counter() - t0:.0f} s "
-          f"({sum(r.seconds for r in results):.0f} s of EM + standard errors in the workers"
+          f"({sum(r.run.seconds for r in results):.0f} s of EM + standard errors in the workers"
           f"{pass1})")
     return 0

@@ -98,15 +98,17 @@ def fit_flight(path: Path, max_iterations: int = 60, vehicle: str = "crazyflie21
         kf = kf or vehicle_thrust_coefficient(spec)
     real = build_observations(raw, options, kf)
     mass0, inertia0, _ = default_guess(vehicle)
-    ident, post, theta = identify_real(real, mass0, inertia0, max_iterations, False, name=path.name)
+    run = identify_real(real, mass0, inertia0, max_iterations, False)
+    theta, post = run.theta, run.posterior
+    assert theta is not None and post is not None  # identify_real keeps them
     obs = corrected(real.obs, theta)
     plain = theta.without_nuisance()
     out = discover(obs, plain, post, cfg=DiscoveryConfig(refit_em=False))
     speed = np.linalg.norm(post.mean[:, 3:6], axis=1)
     flying = post.mean[:, 2] > 0.03
-    return FlightFit(path.name, obs, plain, post, out.selected, out.to_report(), ident.mass,
-                     ident.inertia, float(np.min(post.mean[flying, 2])) if flying.any() else 0.0,
-                     float(np.max(speed)))
+    lowest = float(np.min(post.mean[flying, 2])) if flying.any() else 0.0
+    return FlightFit(path.name, obs, plain, post, out.selected, out.to_report(), run.mass,
+                     np.diag(run.inertia).copy(), lowest, float(np.max(speed)))
 
 
 def _gram(fit: FlightFit, effects: tuple[str, ...]) -> tuple[Array, int]:

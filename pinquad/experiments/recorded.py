@@ -25,12 +25,10 @@ from __future__ import annotations
 from concurrent.futures import Executor
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.protocol import Posterior
 from pinquad.core.execution import Backend, open_executor
 from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.calibrated import (
@@ -52,9 +50,9 @@ from pinquad.io.sanity import check_log
 from pinquad.io.timebase import gap_lines
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import floor_contact, interval_inputs, observations
-from pinquad.models.ssm import Observations, Theta, corrected
+from pinquad.models.ssm import Observations, corrected
 from pinquad.realdata.dataset import default_guess
-from pinquad.realdata.identify import RealIdentification, identify_real
+from pinquad.realdata.identify import identify_real
 from pinquad.realdata.thrust import ThrustCoefficient
 from pinquad.realdata.vehicle_check import (
     measured_observations,
@@ -156,17 +154,6 @@ def default_sensor(log: FlightLog) -> str:
     return "C"
 
 
-def _from_measured(ident: RealIdentification, label: str, post: Posterior, theta: Theta,
-                   obs: Observations) -> Identification:
-    """A measured flight's run; its notes say where kf came from (every estimate scales with it)."""
-    return Identification(
-        mstep="regressor", mass=ident.mass, inertia=np.diag(ident.inertia), stderr=ident.se_total,
-        history_mass=ident.history[:, 0], history_inertia=ident.history[:, 1:4], theta=theta,
-        loglik=ident.loglik, converged=ident.converged, seconds=ident.seconds, sensor=label,
-        e_steps=ident.e_steps, posterior=post, observations=obs, measured=ident, notes=(ident.kf.note,),
-        failure=ident.failure)
-
-
 def log_kind(log: FlightLog) -> str:
     """``simulated`` (thrust and torque columns), ``sdlog`` (a Crazyflie micro-SD log) or
     ``measured-table`` (a table of rotor speeds): what ``identify_log`` dispatches on."""
@@ -193,12 +180,12 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
         label = sensor or ",".join(real.obs.channels)
         theta = None
         if "regressor" in options.msteps:
-            ident, post, theta = identify_real(
-                real, mass0, inertia0, options.max_iterations, options.information,
-                band=options.band, name=Path(str(log.meta.source)).name, estep=options.estep)
-            runs.append(_from_measured(ident, label, post, theta, real.obs))
+            run = identify_real(real, mass0, inertia0, options.max_iterations,
+                                options.information, band=options.band, estep=options.estep)
+            theta = run.theta
+            runs.append(replace(run, sensor=label))
             if first is None:
-                first = (real, post.mean)
+                first = (real, run.posterior.mean)  # type: ignore[union-attr]
         if "paper" in options.msteps:
             # the paper's M-step knows no air-speed moment: the regressor run's is added
             obs = real.obs if theta is None else corrected(real.obs, theta)

@@ -81,9 +81,9 @@ class Identification:
     smoothed states at the estimate and observations: what its E-step saw (None when not
     kept); full: the ten-parameter fit
     (CoM and full tensor with their standard errors) when ``mstep == "full"``;
-    measured: the measured-flight fit (kf, jackknife, nuisance moment, model-free mass:
-    a ``pinquad.realdata`` RealIdentification, a layer above this one) when the flight
-    is a rotor-speed log; verdict: whether the log carries each estimate
+    measured: what a measured flight's fit adds (kf, jackknife, nuisance moment,
+    model-free mass: a ``pinquad.realdata.identify.MeasuredFit``, a layer above this
+    one) when the flight is a rotor-speed log; verdict: whether the log carries each estimate
     (``pinquad.identification.verdict``; set by ``pinquad.identify`` and the recorded-log
     report, None where nobody judged it); stderr_problem: why standard errors that were
     asked for are missing (``fisher.STDERR_UNAVAILABLE``), else None.

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.discovery_report import measured_effects
+from pinquad.identification.identify import Identification
 from pinquad.identification.reference import vehicle_reference
 from pinquad.identification.verdict import (
     VerdictEvidence,
@@ -29,10 +30,11 @@ from pinquad.identification.verdict import (
     vehicle_range,
 )
 from pinquad.io.logs import LogFormatError
-from pinquad.models.ssm import Observations, Theta, corrected
+from pinquad.models.ssm import corrected
 from pinquad.pipeline.single import check, read
+from pinquad.realdata.consistency import FlightRow
 from pinquad.realdata.dataset import default_guess
-from pinquad.realdata.identify import RealIdentification, identify_real
+from pinquad.realdata.identify import identify_real, measured_fit
 from pinquad.realdata.observations import RealDataOptions, build_observations
 from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
@@ -44,9 +46,8 @@ Array = NDArray[np.float64]
 class TableJob:
     """One row of the table: the log's path, EM settings and the data directory;
     discover: the null calibration of effect discovery on the fit, whose summary
-    (``measured_effects``) becomes ``RealIdentification.effects`` (None: discovery not
-    run); kf: the thrust coefficient
-    (None: fitted to the ``stand`` folder); vehicle: a shipped name or a vehicle file,
+    (``measured_effects``) becomes ``FlightRow.effects`` (None: discovery not run); kf:
+    the thrust coefficient (None: fitted to the ``stand`` folder); vehicle: a shipped name or a vehicle file,
     whose [guess] EM starts from and whose body the verdict's plausible range is."""
 
     path: Path
@@ -63,7 +64,7 @@ class TableJob:
     vehicle: str = "crazyflie21"
 
 
-def run_table_job(job: TableJob) -> RealIdentification | str:
+def run_table_job(job: TableJob) -> FlightRow | str:
     """One flight through the table's steps (module docstring; a worker of ``python -m
     pinquad.realdata``); a log that cannot be read, checked or identified gives the
     reason as a string instead. J_r: fitted per flight if ``job.fit_rotor_inertia`` and
@@ -72,33 +73,34 @@ def run_table_job(job: TableJob) -> RealIdentification | str:
         kf = job.kf if job.kf is not None else thrust_coefficient(job.stand)
         real = build_observations(raw_flight(check(read(job.path))), job.options, kf)
         mass0, inertia0, _ = default_guess(job.vehicle)
-        ident, post, theta = identify_real(real, mass0, inertia0, job.max_iterations,
-                                           job.information, job.band, name=job.path.name,
-                                           fit_rotor_inertia=job.fit_rotor_inertia,
-                                           keep_band_stats=job.keep_band_stats)
+        run = identify_real(real, mass0, inertia0, job.max_iterations, job.information,
+                            job.band, fit_rotor_inertia=job.fit_rotor_inertia,
+                            keep_band_stats=job.keep_band_stats)
     except (LogFormatError, ValueError) as exc:
         return str(exc)
-    effects = None if job.discover is None else measured_effects(real.obs, theta, post,
-                                                                 job.discover)
-    evidence = replace(real_evidence(ident, real.obs, post.mean, theta),
-                       reference=vehicle_reference(job.vehicle))
-    return replace(ident, rotor_source=job.rotor_source,
-                   verdict=judge(ident.mass, np.diag(ident.inertia), ident.se_total, evidence,
-                                 vehicle_range(job.vehicle)),
-                   effects=effects, evidence=evidence, vehicle=job.vehicle)
+    assert run.theta is not None and run.posterior is not None  # identify_real keeps them
+    effects = None if job.discover is None else measured_effects(real.obs, run.theta,
+                                                                 run.posterior, job.discover)
+    evidence = replace(real_evidence(run), reference=vehicle_reference(job.vehicle))
+    verdict = judge(run.mass, run.inertia, run.stderr, evidence, vehicle_range(job.vehicle))
+    # the row goes back from the worker without the smoothed posterior and observations
+    # (tens of MB per flight; the table reads only the estimates and their errors)
+    kept = replace(run, verdict=verdict, posterior=None, observations=None)
+    return FlightRow(job.path.name, kept, job.rotor_source, effects, evidence, job.vehicle)
 
 
-def real_evidence(ident: RealIdentification, obs: Observations, mean: Array,
-                  theta: Theta) -> VerdictEvidence:
+def real_evidence(run: Identification) -> VerdictEvidence:
     """What a measured flight's verdict (``pinquad.identification.verdict``) rests on
     beside its total standard errors: the torques (with the fitted nuisance moment)
     explaining the angular acceleration on the M-step's band, and the EKF's innovation
-    consistency at the estimate. mean (N, 12): smoothed states."""
-    plain = replace(theta.without_nuisance(), inertia=np.diag(ident.inertia))
-    return data_evidence(corrected(obs, theta), plain, mean, tuple(ident.band))
+    consistency at the estimate (the run's smoothed states)."""
+    theta, obs, post = run.theta, run.observations, run.posterior
+    assert theta is not None and obs is not None and post is not None
+    plain = replace(theta.without_nuisance(), inertia=run.inertia)
+    return data_evidence(corrected(obs, theta), plain, post.mean, tuple(measured_fit(run).band))
 
 
-def run_jobs(jobs: Sequence[TableJob], executor: Executor) -> list[RealIdentification | str]:
+def run_jobs(jobs: Sequence[TableJob], executor: Executor) -> list[FlightRow | str]:
     """run_table_job over ``jobs`` run by ``executor`` (``pinquad.core.execution``: process
     pool, this process or a Dask cluster), the results in job order."""
     # Longest logs first so the workers finish together; the results are keyed by job.

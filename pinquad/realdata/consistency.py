@@ -38,20 +38,53 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
+from pinquad.identification.identify import Identification
 from pinquad.identification.reference import only_the_reference
 from pinquad.identification.verdict import (
     NOT_ADEQUATE,
     TRUSTED,
     ParameterVerdict,
+    VerdictEvidence,
     judge,
     vehicle_range,
 )
-from pinquad.realdata.identify import RealIdentification
+from pinquad.realdata.identify import MeasuredFit, measured_fit
 
 Array = NDArray[np.float64]
 
 PARAMETERS = ("mass", "I_xx", "I_yy", "I_zz")
 UNITS = ((1e3, "g"), (1e6, "e-6 kg m^2"), (1e6, "e-6 kg m^2"), (1e6, "e-6 kg m^2"))
+
+
+@dataclass(frozen=True)
+class FlightRow:
+    """One flight of the real-vehicle table: the log's name, its identification (run:
+    ``realdata.identify_real``'s, with its ``MeasuredFit``; its stderr and verdict as the
+    table judges them) and what the table adds. rotor_source: how J_r was obtained, in
+    words; effects: the effects found on the flight with their evidence against the null
+    (``experiments.discovery_report.measured_effects``; None: discovery not run);
+    evidence: what the verdict was judged on besides the errors (so that
+    :func:`between_flights` can judge again); vehicle: the vehicle whose range it was
+    judged against; scatter_scale (4,): the between-flight scale factors S that multiply
+    the statistical errors inside the run's stderr (None: not compared)."""
+
+    name: str
+    run: Identification
+    rotor_source: str = ""
+    effects: dict | None = None
+    evidence: VerdictEvidence | None = None
+    vehicle: str = "crazyflie21"
+    scatter_scale: Array | None = None
+
+    @property
+    def fit(self) -> MeasuredFit:
+        """The run's measured-flight block (kf, the error parts, J_r, the model-free mass)."""
+        return measured_fit(self.run)
+
+    @property
+    def params(self) -> Array:
+        """[m, I_xx, I_yy, I_zz] (4,) [kg, kg m^2]."""
+        return np.r_[self.run.mass, np.diag(self.run.inertia)]
 
 
 @dataclass(frozen=True)
@@ -151,8 +184,9 @@ def comparable_error(value: float, stat: float, total: float) -> float:
     return float(total)
 
 
-def _group(r: RealIdentification) -> str:
-    rebuilt = r.motor_split.rebuilt if r.motor_split is not None else ()
+def _group(r: FlightRow) -> str:
+    split = r.fit.motor_split
+    rebuilt = split.rebuilt if split is not None else ()
     if rebuilt:
         return "rotor speeds of motor(s) " + ", ".join(f"M{i + 1}" for i in rebuilt) + \
             " rebuilt from PWM"
@@ -200,17 +234,17 @@ def scaled_totals(flights: Sequence[FlightEstimate]
     return scale, totals, scatters
 
 
-def between_flights(results: Sequence[RealIdentification]
-                    ) -> tuple[list[RealIdentification], list[FlightScatter]]:
+def between_flights(results: Sequence[FlightRow]
+                    ) -> tuple[list[FlightRow], list[FlightScatter]]:
     """The flights with their totals scaled and verdicts judged again where flights of the
     same group scatter beyond their errors (module docstring), and the scatter of every
     (parameter, group) with two or more trusted estimates. A flight without its verdict
-    or its evidence (``RealIdentification.evidence``) is left as it is."""
-    judged = [r for r in results if r.verdict is not None and r.evidence is not None]
+    or its evidence (``FlightRow.evidence``) is left as it is."""
+    judged = [r for r in results if r.run.verdict is not None and r.evidence is not None]
     flights = [FlightEstimate(
         r.name, _group(r), r.params, np.array([_error(r, j) for j in range(4)]),
-        np.asarray(r.se_total, dtype=float),
-        np.array([_carried(r.verdict.parameters[j]) for j in range(4)]))
+        np.asarray(r.run.stderr, dtype=float),
+        np.array([_carried(r.run.verdict.parameters[j]) for j in range(4)]))  # type: ignore[union-attr]
         for r in judged]
     scale, totals, scatters = scaled_totals(flights)
     new = {r.name: (s, t) for r, s, t in zip(judged, scale, totals, strict=True)
@@ -221,8 +255,9 @@ def between_flights(results: Sequence[RealIdentification]
             out.append(r)
             continue
         s, total = new[r.name]
-        verdict = judge(r.mass, np.diag(r.inertia), total, r.evidence, vehicle_range(r.vehicle))
-        out.append(replace(r, se_total=total, verdict=verdict, scatter_scale=s.copy()))
+        verdict = judge(r.run.mass, r.run.inertia, total, r.evidence, vehicle_range(r.vehicle))
+        out.append(replace(r, run=replace(r.run, stderr=total, verdict=verdict),
+                           scatter_scale=s.copy()))
     return out, scatters
 
 
@@ -233,5 +268,6 @@ def _carried(p: ParameterVerdict) -> bool:
     return p.verdict == TRUSTED or (p.verdict == NOT_ADEQUATE and only_the_reference(p.reasons))
 
 
-def _error(r: RealIdentification, j: int) -> float:
-    return comparable_error(float(r.params[j]), float(r.se_stat[j]), float(r.se_total[j]))
+def _error(r: FlightRow, j: int) -> float:
+    return comparable_error(float(r.params[j]), float(r.fit.se_stat[j]),
+                            float(r.run.stderr[j]))

@@ -19,15 +19,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.identification.em import EMSettings
 from pinquad.identification.fisher import observed_information, standard_errors
-from pinquad.identification.identify import em_from_guess, loglik_function
-from pinquad.identification.verdict import EstimateVerdict, VerdictEvidence
+from pinquad.identification.identify import Identification, em_from_guess, loglik_function
 from pinquad.models.ssm import Theta, corrected
 from pinquad.mstep.band import BandMStep, BandStats
 from pinquad.realdata.input_holes import GAP_REASON
@@ -58,76 +56,51 @@ YAW_RATIO_REL_SE = CRAZYFLIE_SPEC.actuators.yaw_ratio_se / YAW_RATIO_CRAZYFLIE  
 
 
 @dataclass(frozen=True)
-class RealIdentification:
-    """Mass and inertia of the vehicle from one measured flight.
+class MeasuredFit:
+    """What identifying a measured rotor-speed flight adds to its ``Identification``
+    (``Identification.measured``, as ``Identification.full`` holds what the ten-parameter
+    fit adds).
 
-    name: log name; mass [kg]; inertia (3,) diagonal [kg m^2]; se_info (4,): standard
-    errors of [m, I_xx, I_yy, I_zz] from the observed information (NaN if not computed
-    or not positive definite); se_jack (4,): block-jackknife standard errors;
-    se_stat (4,): the larger of the two (the statistical uncertainty with kf known);
-    se_total (4,): se_stat combined with kf's uncertainty (every estimate is
-    proportional to kf) and, for I_zz, the yaw ratio's (``YAW_RATIO_REL_SE``);
-    kf: the thrust coefficient; iterations, converged, loglik (I,), e_steps: the EM run;
-    history (I+1, 4): [m, I_xx, I_yy, I_zz] per iteration; moment_coef (3, 7): the
-    nuisance moment (``TORQUE_FEATURES``); n_used / n_excluded transitions; excluded:
-    exclusion notes; notes: other notes; seconds: wall time; band: the torque band [Hz];
-    rotor_inertia: J_r [kg m^2] used (fitted or fixed; NaN: none); band_stats: the
-    band-passed regression at the final posterior (``keep_band_stats``); rotor_source:
-    how J_r was obtained, in words (set by the table); quasi_static_mass [kg]: the
-    model-free check :func:`quasi_static_mass` on the same transitions; motor_split: that
-    check split by motor (:func:`motor_split`); verdict: the estimate's verdict
-    (``pinquad.identification.verdict``; set by the table, None until judged); effects:
-    the effects found on the flight with their evidence against the null (the table's
-    ``TableJob.effects`` summary; None: discovery not run); evidence: what the verdict
-    was judged on besides the errors (set by the table, so that ``realdata.consistency``
-    can judge again); vehicle: the vehicle whose range it was judged against;
-    scatter_scale (4,): the between-flight scale factors S that multiply the statistical
-    errors inside ``se_total`` (``realdata.consistency``; None: not compared); yaw_rel
-    [-]: the yaw ratio's relative uncertainty and repair_rel (4,) [-] or None: the PWM
-    repair's, both inside ``se_total``; failure:
-    why EM stopped early (its E-step broke down), with the log's gaps when it has any, or
-    None.
+    kf: the thrust coefficient; se_info (4,): standard errors of [m, I_xx, I_yy, I_zz]
+    from the observed information (NaN if not computed or not positive definite);
+    se_jack (4,): block-jackknife standard errors; se_stat (4,): the larger of the two
+    (the statistical uncertainty with kf known; ``Identification.stderr`` combines it
+    with kf's uncertainty, every estimate being proportional to kf, and for I_zz the yaw
+    ratio's: :func:`total_standard_errors`); moment_coef (3, 7): the nuisance moment
+    (``TORQUE_FEATURES``); n_used / n_excluded transitions; excluded: exclusion notes;
+    band: the torque band [Hz]; rotor_inertia: J_r [kg m^2] used (fitted or fixed; NaN:
+    none); band_stats: the band-passed regression at the final posterior
+    (``keep_band_stats``); quasi_static_mass [kg]: the model-free check
+    :func:`quasi_static_mass` on the same transitions; motor_split: that check split by
+    motor (:func:`motor_split`); yaw_rel [-]: the yaw ratio's relative uncertainty and
+    repair_rel (4,) [-] or None: the PWM repair's, both inside ``Identification.stderr``.
     """
 
-    name: str
-    mass: float
-    inertia: Array
+    kf: ThrustCoefficient
     se_info: Array
     se_jack: Array
     se_stat: Array
-    se_total: Array
-    kf: ThrustCoefficient
-    iterations: int
-    converged: bool
-    loglik: Array
-    e_steps: int
-    history: Array
     moment_coef: Array
     n_used: int
     n_excluded: int
     excluded: tuple[str, ...]
-    notes: tuple[str, ...]
-    seconds: float
     band: tuple[float, float] = (3.0, 8.0)
     rotor_inertia: float = float("nan")
     band_stats: BandStats | None = None
-    rotor_source: str = ""
     quasi_static_mass: float = float("nan")
     motor_split: MotorSplit | None = None
-    verdict: EstimateVerdict | None = None
-    effects: dict | None = None
-    evidence: VerdictEvidence | None = None
-    vehicle: str = "crazyflie21"
-    scatter_scale: Array | None = None
     yaw_rel: float = 0.0
     repair_rel: Array | None = None
-    failure: str | None = None
 
-    @property
-    def params(self) -> Array:
-        """[m, I_xx, I_yy, I_zz] (4,) [kg, kg m^2]."""
-        return np.concatenate([[self.mass], self.inertia])
 
+def measured_fit(run: Identification) -> MeasuredFit:
+    """The measured-flight block of a run of :func:`identify_real`. Raises ValueError for
+    a run of another path (no such block)."""
+    fit = run.measured
+    if not isinstance(fit, MeasuredFit):
+        raise ValueError(f"the {run.mstep} run on {run.sensor or 'this log'} is not a "
+                         "measured rotor-speed flight's fit")
+    return fit
 
 
 def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
@@ -163,8 +136,8 @@ def used_rotor_inertia(fitted: Theta | None, fixed: float | None) -> float:
 def identify_real(real: RealObservations, mass0: float, inertia0: Array,
                   max_iterations: int = 100, information: bool = True,
                   band: tuple[float, float] = (3.0, 8.0), tol: float = 1e-4,
-                  name: str | None = None, estep: str = "rts", fit_rotor_inertia: bool = True,
-                  keep_band_stats: bool = False):
+                  estep: str = "rts", fit_rotor_inertia: bool = True,
+                  keep_band_stats: bool = False) -> Identification:
     """EM on a measured flight (``BandMStep``; E-step ``estep``: ``rts`` = compiled EKF +
     RTS, or ``gtsam``) from (mass0 [kg], inertia0 (3, 3) [kg m^2]), then standard errors
     (the observed information always uses the EKF likelihood).
@@ -172,11 +145,15 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     keep_band_stats: store :func:`yaw_band_stats` at the final posterior in the result
     (the input of :func:`pooled_rotor_inertia`). J_r: fixed at ``real.options.rotor_inertia``
     when that is a value (0 included), else fitted per flight if ``fit_rotor_inertia`` and
-    the log has rotor speeds, else none (``RealIdentification.rotor_inertia`` NaN).
+    the log has rotor speeds, else none (``MeasuredFit.rotor_inertia`` NaN).
 
-    Returns (RealIdentification, Posterior, Theta with its nuisance block). EM stops when the relative change
-    of (m, I) is below ``tol`` (1e-4, far below the standard errors) and the relative
-    log-likelihood change below tol / 10, or after ``max_iterations`` E-steps.
+    Returns the ``Identification`` (regressor M-step; stderr: the total standard errors;
+    theta: with its nuisance block; posterior and observations kept; notes: the
+    observations' (among them where kf came from, every estimate scaling with it, and any
+    repair of the rotor speeds)) with its :class:`MeasuredFit`. EM stops when the
+    relative change of (m, I) is below ``tol`` (1e-4, far below the standard errors) and
+    the relative log-likelihood change below tol / 10, or after ``max_iterations``
+    E-steps.
     """
     t0 = time.perf_counter()
     obs = real.obs
@@ -202,23 +179,23 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
                   if real.repaired and real.options.repair_rel_se else None)
     se_total = total_standard_errors(params, se_stat, real.kf.rel_se, yaw_rel=yaw_rel,
                                      repair_rel=repair_rel)
-    history = np.column_stack([np.concatenate([[mass0], res.mass]),
-                               np.vstack([np.diag(inertia0), res.inertia_diag])])
-    out = RealIdentification(
-        name=name or Path(real.source).name, mass=theta.mass,
-        inertia=np.diag(theta.inertia).copy(), se_info=se_info, se_jack=se_jack,
-        se_stat=se_stat, se_total=se_total, kf=real.kf, iterations=res.iterations,
-        converged=res.converged, loglik=res.loglik, e_steps=res.e_steps, history=history,
+    fit = MeasuredFit(
+        kf=real.kf, se_info=se_info, se_jack=se_jack, se_stat=se_stat,
         moment_coef=(np.zeros((3, 7)) if theta.nuisance is None
                      else theta.nuisance.moment_coef), n_used=real.n_used,
-        n_excluded=real.n_excluded, excluded=real.excluded, notes=real.notes,
-        seconds=time.perf_counter() - t0, band=band,
+        n_excluded=real.n_excluded, excluded=real.excluded, band=band,
         rotor_inertia=used_rotor_inertia(theta if fit_jr else None, fixed_jr),
         band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None,
         quasi_static_mass=quasi_static_mass(real), motor_split=motor_split(real),
-        failure=failure_with_gaps(res.failure, real.exclusions), yaw_rel=yaw_rel,
-        repair_rel=repair_rel)
-    return out, res.posterior, theta
+        yaw_rel=yaw_rel, repair_rel=repair_rel)
+    return Identification(
+        mstep="regressor", mass=theta.mass, inertia=np.diag(np.diag(theta.inertia)),
+        stderr=se_total, history_mass=np.concatenate([[mass0], res.mass]),
+        history_inertia=np.vstack([np.diag(inertia0), res.inertia_diag]), loglik=res.loglik,
+        converged=res.converged, seconds=time.perf_counter() - t0, theta=theta,
+        failure=failure_with_gaps(res.failure, real.exclusions),
+        sensor=",".join(obs.channels), e_steps=res.e_steps, notes=real.notes,
+        posterior=res.posterior, observations=obs, measured=fit)
 
 
 def failure_with_gaps(failure: str | None, exclusions: tuple) -> str | None:

@@ -241,10 +241,10 @@ def simulated_response(factor: float, seed: int = 0, sensor: str = "B",
                         vehicle.gravity, "rts", "regressor", max_iterations, False)
     band_inertia = np.full(3, np.nan)
     if sensor == "B":
-        measured, _, _ = identify_real(simulated_observations(flight), vehicle.mass,
-                                       vehicle.inertia, information=False,
-                                       fit_rotor_inertia=False, band=band)
-        band_inertia = np.asarray(measured.inertia, dtype=float).copy()
+        measured = identify_real(simulated_observations(flight), vehicle.mass,
+                                 vehicle.inertia, information=False,
+                                 fit_rotor_inertia=False, band=band)
+        band_inertia = np.diag(measured.inertia).copy()
     return SimulatedResponse(factor=float(factor), seed=seed, sensor=sensor, response=response,
                              em_inertia=np.diag(ident.inertia).copy(), band_inertia=band_inertia, band=band,
                              truth=truth, crashed=bool(flight.crashed))

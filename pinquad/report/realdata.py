@@ -9,16 +9,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.vehicle_file import VehicleSpec
-from pinquad.realdata.consistency import FlightScatter
+from pinquad.realdata.consistency import FlightRow, FlightScatter
 from pinquad.realdata.dataset import FLIGHTS, YAW_FLIGHTS
-from pinquad.realdata.identify import RealIdentification
 from pinquad.realdata.rotor_inertia import PooledRotorInertia
 from pinquad.vehicle.actuators import CRAZYFLIE_SPEC
 
 
-def _short_reasons(ident: RealIdentification) -> str:
+def _short_reasons(r: FlightRow) -> str:
     words = []
-    for line in ident.excluded[:-1]:
+    for line in r.fit.excluded[:-1]:
         count, _, reason = line.partition(" transitions: ")
         key = ("contact" if reason.startswith("ground") else
                "faulty rpm" if reason.startswith("implausible") else
@@ -32,36 +31,38 @@ def _pm(value: float, total: float, stat: float, scale: float, fmt: str = ".2f")
             f"({stat * scale:{fmt}})")
 
 
-def _judged(r: RealIdentification, i: int, scale: float, fmt: str = ".2f") -> str:
+def _judged(r: FlightRow, i: int, scale: float, fmt: str = ".2f") -> str:
     """Parameter i of [m, I_xx, I_yy, I_zz] as ``value ± total (statistical)``, or, when its
     verdict is not trusted, ``value (verdict)`` without an error bar."""
     name = ("mass", "I_xx", "I_yy", "I_zz")[i]
-    v = None if r.verdict is None else r.verdict.get(name)
+    v = None if r.run.verdict is None else r.run.verdict.get(name)
     if v is None or v.trusted:
-        text = _pm(r.params[i], r.se_total[i], r.se_stat[i], scale, fmt)
+        text = _pm(r.params[i], r.run.stderr[i], r.fit.se_stat[i], scale, fmt)
         s = 1.0 if r.scatter_scale is None else float(r.scatter_scale[i])
         return text if s == 1.0 else f"{text} [x{s:.1f}]"
     return f"{r.params[i] * scale:{fmt}} ({v.verdict})"
 
 
-def _verdict_words(r: RealIdentification) -> str:
+def _verdict_words(r: FlightRow) -> str:
     """The overall verdict and, when not trusted, its reasons."""
-    if r.verdict is None:
+    verdict = r.run.verdict
+    if verdict is None:
         return "-"
-    if r.verdict.trusted:
-        return r.verdict.overall
-    return f"{r.verdict.overall}: " + "; ".join(r.verdict.reasons)
+    if verdict.trusted:
+        return verdict.overall
+    return f"{verdict.overall}: " + "; ".join(verdict.reasons)
 
 
-def _rotor_words(r: RealIdentification) -> str:
-    if not np.isfinite(r.rotor_inertia):
+def _rotor_words(r: FlightRow) -> str:
+    jr = r.fit.rotor_inertia
+    if not np.isfinite(jr):
         return f"{r.name} none"
-    return f"{r.name} {1e9 * r.rotor_inertia:.1f} ({r.rotor_source or 'fitted on this log'})"
+    return f"{r.name} {1e9 * jr:.1f} ({r.rotor_source or 'fitted on this log'})"
 
 
-def effect_words(r: RealIdentification) -> str:
+def effect_words(r: FlightRow) -> str:
     """The effects found on a flight with their held-out gain against the null's largest
-    (``RealIdentification.effects``), and those the null explained."""
+    (``FlightRow.effects``), and those the null explained."""
     if r.effects is None:
         return "not run"
     if r.effects.get("error"):
@@ -89,7 +90,7 @@ def reference_values(spec: VehicleSpec) -> tuple[float, NDArray[np.float64], str
             ref.inertia_note or "the file's body inertia")
 
 
-def format_table(results: Sequence[RealIdentification],
+def format_table(results: Sequence[FlightRow],
                  rotor: PooledRotorInertia | None = None,
                  spec: VehicleSpec = CRAZYFLIE_SPEC,
                  scatters: Sequence[FlightScatter] = ()) -> str:
@@ -99,7 +100,7 @@ def format_table(results: Sequence[RealIdentification],
     ``scatters``: the flights compared with each other, ``realdata.consistency``)."""
     if not results:
         return "(no flights)"
-    kf = results[0].kf
+    kf = results[0].fit.kf
     ref_mass, ref_inertia, _, inertia_note = reference_values(spec)
     act = spec.actuators
     yaw_rel = 0.0 if act is None else act.yaw_ratio_se / act.yaw_ratio
@@ -117,13 +118,15 @@ def format_table(results: Sequence[RealIdentification],
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
-        within = abs(r.mass - ref_mass) <= 2.0 * r.se_total[0]
+        run = r.run
+        within = abs(run.mass - ref_mass) <= 2.0 * run.stderr[0]
         lines.append(
-            f"| {r.name} | {FLIGHTS.get(r.name, '')} | {r.n_used} / {r.n_excluded} "
+            f"| {r.name} | {FLIGHTS.get(r.name, '')} | {r.fit.n_used} / {r.fit.n_excluded} "
             f"({_short_reasons(r)}) | {_judged(r, 0, 1e3)} | "
-            f"{100 * (r.mass / ref_mass - 1.0):+.2f} %{'' if within else ' (!)'} | "
+            f"{100 * (run.mass / ref_mass - 1.0):+.2f} %{'' if within else ' (!)'} | "
             + " | ".join(_judged(r, i, 1e6, ".1f") for i in (1, 2, 3))
-            + f" | {_verdict_words(r)} | {r.iterations}{'' if r.converged else ' (not converged)'}"
+            + f" | {_verdict_words(r)} | {run.iterations}"
+            + f"{'' if run.converged else ' (not converged)'}"
             + f" | {effect_words(r)} |")
     calibrated = [r.effects for r in results if r.effects and r.effects.get("replicates")]
     if any(r.effects is not None for r in results):
@@ -151,7 +154,7 @@ def format_table(results: Sequence[RealIdentification],
         lines += [f"- {sc.describe()}" for sc in scatters]
     if rotor is not None:
         lines += ["", rotor.describe()]
-    masses = np.array([r.mass for r in results])
+    masses = np.array([r.run.mass for r in results])
     rel = masses / ref_mass - 1.0
     # one log has no spread: its sd is not computed (ddof=1 over one value)
     spread = (f"spread (sd) {1e3 * masses.std(ddof=1):.2f} g" if masses.size > 1
@@ -160,7 +163,7 @@ def format_table(results: Sequence[RealIdentification],
               f"over {masses.size} logs; |error| <= 1.5 % in {int(np.sum(np.abs(rel) <= 0.015))} "
               f"of {masses.size}; worst {100 * rel[np.argmax(np.abs(rel))]:+.2f} % "
               f"({results[int(np.argmax(np.abs(rel)))].name})"]
-    qs = np.array([r.quasi_static_mass for r in results])
+    qs = np.array([r.fit.quasi_static_mass for r in results])
     if np.isfinite(qs).any():
         lines.append(
             "model-free check, mass that balances the mean vertical thrust (kf sum omega^2 "
@@ -171,7 +174,7 @@ def format_table(results: Sequence[RealIdentification],
     lines += _rebuilt_motor_lines(results, ref_mass)
     yaw = [r for r in results if r.name in YAW_FLIGHTS]
     if len(yaw) >= 2:
-        izz = np.array([r.inertia[2] for r in yaw])
+        izz = np.array([r.run.inertia[2, 2] for r in yaw])
         lines.append(
             f"I_zz on the yaw flights ({', '.join(r.name for r in yaw)}): "
             + ", ".join(f"{1e6 * v:.1f}" for v in izz)
@@ -180,7 +183,7 @@ def format_table(results: Sequence[RealIdentification],
               f"{100 * float(izz.std(ddof=1) / izz.mean()):.0f} % (kf and the yaw ratio are "
               "common to all logs and cancel in this comparison); rotor inertia J_r used "
               "[e-9 kg m^2]: " + ", ".join(_rotor_words(r) for r in yaw))
-    inert = np.array([r.inertia for r in results])
+    inert = np.array([np.diag(r.run.inertia) for r in results])
     mean, sd = inert.mean(axis=0), inert.std(ddof=1, axis=0) if len(results) > 1 else np.zeros(3)
     lines += [
         "",
@@ -196,13 +199,13 @@ def format_table(results: Sequence[RealIdentification],
     return "\n".join(lines)
 
 
-def _rebuilt_motor_lines(results: Sequence[RealIdentification], ref_mass: float
+def _rebuilt_motor_lines(results: Sequence[FlightRow], ref_mass: float
                          ) -> list[str]:
     """What the logs with rebuilt rotor speeds say about the mass without the rebuild: the
     measured motors' part of the model-free mass, and the mass if each rebuilt motor
     carried a share of the thrust anywhere in the range it carries on the clean logs
     (ref_mass [kg]: the scale's)."""
-    split = {r.name: r.motor_split for r in results if r.motor_split is not None}
+    split = {r.name: r.fit.motor_split for r in results if r.fit.motor_split is not None}
     clean = {n: m for n, m in split.items() if not m.rebuilt}
     faulty = {n: m for n, m in split.items() if m.rebuilt}
     motors = sorted({i for m in faulty.values() for i in m.rebuilt})

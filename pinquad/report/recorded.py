@@ -68,9 +68,9 @@ def run_details(r: Identification, kind: str) -> dict:
             "nuisance_moment": {"features": ["thrust", "v_body_x", "v_body_y",
                                              "v_body_z", "omega_x", "omega_y", "omega_z"],
                                 "coefficients": ident.moment_coef.tolist()},
-            "e_steps": ident.e_steps,
-            "history": ident.history.tolist(),
-            "seconds": ident.seconds,
+            "e_steps": r.e_steps,
+            "history": np.column_stack([r.history_mass, r.history_inertia]).tolist(),
+            "seconds": r.seconds,
             "model_free_mass": ident.quasi_static_mass,
             "model_free_mass_note": "kf sum omega^2 along the vertical over g + the mean "
                                     "vertical acceleration, the same transitions, no EM "
