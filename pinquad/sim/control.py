@@ -1,7 +1,7 @@
 """Waypoint reference, differential flatness and the LQG controller of the paper.
 
-Reference: minimum-jerk segments from the start through the waypoints, with a hover
-pause on each waypoint; gives p_ref, v_ref, a_ref [m, m/s, m/s^2].
+ReferenceTrajectory: minimum-jerk segments from the start through the waypoints, with a
+hover pause on each waypoint; gives p_ref, v_ref, a_ref [m, m/s, m/s^2].
 
 Position loop (LQR on the double integrator p'' = ua, gains from ``control.lqr``):
 
@@ -41,7 +41,7 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class Reference:
+class ReferenceTrajectory:
     """Sampled reference: t (N,) [s]; pos, vel, acc (N, 3) [m, m/s, m/s^2];
     yaw (N,) [rad]; segment_end (M,) [s]: time each waypoint is reached."""
 
@@ -61,7 +61,7 @@ def _min_jerk(s: Array) -> tuple[Array, Array, Array]:
     return pos, vel, acc
 
 
-def build_reference(scenario: Scenario, final_hover: float | None = None) -> Reference:
+def build_reference(scenario: Scenario, final_hover: float | None = None) -> ReferenceTrajectory:
     """Minimum-jerk reference from ``scenario.start`` through every waypoint.
 
     Segment duration T = 1.875 |d| / v_cruise (so the peak speed is v_cruise), at least
@@ -95,7 +95,7 @@ def build_reference(scenario: Scenario, final_hover: float | None = None) -> Ref
         t0 += n_h * dt
     # One grid for everything: the k-th sample is at k dt exactly.
     t = np.arange(sum(p.shape[0] for p in pieces_p)) * dt
-    return Reference(
+    return ReferenceTrajectory(
         t=t, pos=np.vstack(pieces_p), vel=np.vstack(pieces_v), acc=np.vstack(pieces_a),
         yaw=np.full(t.shape, scenario.yaw), waypoint_times=np.asarray(wp_times),
     )
@@ -159,7 +159,7 @@ class ControlOutput:
     acc_cmd: Array
 
 
-def control_step(x_est: Array, k: int, ref: Reference, gains: ControllerGains,
+def control_step(x_est: Array, k: int, ref: ReferenceTrajectory, gains: ControllerGains,
                  mass: float, inertia: Array, gravity: float,
                  thrust_limits: tuple[float, float]) -> ControlOutput:
     """One LQG control step from the state estimate (12,) at reference index k."""

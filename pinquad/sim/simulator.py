@@ -39,7 +39,13 @@ from pinquad.models.navigation import (
     StreamingNavFilter,
 )
 from pinquad.models.sources import SOURCE_CHANNELS
-from pinquad.sim.control import ControllerGains, Reference, build_reference, control_step, design_gains
+from pinquad.sim.control import (
+    ControllerGains,
+    ReferenceTrajectory,
+    build_reference,
+    control_step,
+    design_gains,
+)
 from pinquad.sim.sensors import SENSORS, measure_one
 from pinquad.vehicle.model import forward_dynamics, load_model
 
@@ -159,7 +165,7 @@ class Flight:
     nav_state: Array
     nav_cov: Array
     contact: NDArray[np.bool_]
-    reference: Reference
+    reference: ReferenceTrajectory
     onboard: FlightSoFar
     waypoint_miss: Array
     crashed: bool
