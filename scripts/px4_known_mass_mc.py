@@ -3,14 +3,16 @@ of a 0.5 kg quad (sines, 30 s at 100 Hz, sensor noise, no process noise), their 
 and torques turned into per-rotor commands through a known curve, identified with the
 mass known.
 
-    python scripts/px4_known_mass_mc.py [FLIGHTS] [MOTOR_LAG_S]
+    python scripts/px4_known_mass_mc.py [FLIGHTS] [MOTOR_LAG_S] [em]
 
 MOTOR_LAG_S = 0 (default): aggressive sines, no effects in the truth. MOTOR_LAG_S > 0:
 gentle sines (flightgen's controller does not hold aggressive ones with a lag) with a
 first-order lag of that time constant on the wrench and rotor drag (0.1, 0.1, 0.2) N s/m.
 
 Prints, per flight, each estimate's error against the truth in its total standard
-errors and its verdict, then the share of |error| < 2 se and of trusted estimates.
+errors and its verdict, then the share of |error| < 2 se and of trusted estimates. With
+``em``: the EM route too (``known_mass_em``), on the flight with its position removed
+(the E-step sees velocity, attitude and rates), its thrust scale s against 1.
 The flight is built in pinquad's frames directly (the NED/FRD conversion is the readers'
 and has its own tests)."""
 
@@ -18,12 +20,14 @@ from __future__ import annotations
 
 import math
 import sys
+from dataclasses import replace
 
 import numpy as np
 
 from flightgen import QUAD_250, Effects, FlightSpec, Noise, generate
 from pinquad.core.actuator_curve import ActuatorCurve
 from pinquad.identification.known_mass import identify_known_mass
+from pinquad.identification.known_mass_em import identify_known_mass_em
 from pinquad.io.command_log import command_log
 
 CURVE = (2.0, 8.0)
@@ -64,33 +68,53 @@ def flight_commands(seed: int, lag: float):
     return log, truth
 
 
-def main(flights: int = 8, lag: float = 0.0) -> None:
+def _row(result, names, truth, covered, trusted) -> str:
+    row = []
+    for name, true in zip(names, truth, strict=True):
+        est = next((e for e in result.estimates if e.name == name), None)
+        if est is None:
+            row.append(f"{name} -")
+            continue
+        z = (est.value - true) / est.stderr if est.stderr > 0 else math.inf
+        covered[name] += abs(z) < 2.0
+        trusted[name] += est.verdict == "trusted"
+        rel = f"{(est.value / true - 1) * 100:+.1f} %" if true else f"{est.value:.4f}"
+        row.append(f"{name} {rel} {z:+.1f} se ({est.verdict})")
+    return "; ".join(row)
+
+
+def main(flights: int = 8, lag: float = 0.0, em: bool = False) -> None:
     positions, spin = rotors()
     curve = ActuatorCurve(command_range=(0.0, 1.0), yaw_ratio=YAW_RATIO,
                           yaw_ratio_se=0.05 * YAW_RATIO)
     names = ("thrust c_1", "thrust c_2", "time constant", "I_xx", "I_yy", "I_zz")
+    em_names = ("thrust scale s", "I_xx", "I_yy", "I_zz")
     covered = {n: 0 for n in names}
     trusted = {n: 0 for n in names}
+    em_covered = {n: 0 for n in em_names}
+    em_trusted = {n: 0 for n in em_names}
     print(f"{flights} flights, motor lag {lag} s; error / total se (verdict)")
     for seed in range(flights):
         log, truth = flight_commands(seed, lag)
         result = identify_known_mass(log, QUAD_250.mass, positions, spin, curve)
-        row = []
-        for name, true in zip(names, truth, strict=True):
-            est = next((e for e in result.estimates if e.name == name), None)
-            if est is None:
-                row.append(f"{name} -")
-                continue
-            z = (est.value - true) / est.stderr if est.stderr > 0 else math.inf
-            covered[name] += abs(z) < 2.0
-            trusted[name] += est.verdict == "trusted"
-            rel = f"{(est.value / true - 1) * 100:+.1f} %" if true else f"{est.value:.4f}"
-            row.append(f"{name} {rel} {z:+.1f} se ({est.verdict})")
-        print(f"seed {seed}: " + "; ".join(row))
+        print(f"seed {seed}: " + _row(result, names, truth, covered, trusted))
+        if em:
+            blind = replace(log, log=replace(log.log, position=np.full_like(log.log.position,
+                                                                            np.nan)))
+            route = identify_known_mass_em(blind, QUAD_250.mass, positions, spin, result,
+                                           curve)
+            print(f"  EM ({route.seconds:.0f} s): " + _row(route, em_names, (1.0, *truth[3:]),
+                                                           em_covered, em_trusted))
     print("\nwithin 2 total se: " + ", ".join(f"{n} {covered[n]}/{flights}" for n in names))
     print("trusted:           " + ", ".join(f"{n} {trusted[n]}/{flights}" for n in names))
+    if em:
+        print("EM within 2 total se: " + ", ".join(f"{n} {em_covered[n]}/{flights}"
+                                                  for n in em_names))
+        print("EM trusted:           " + ", ".join(f"{n} {em_trusted[n]}/{flights}"
+                                                  for n in em_names))
 
 
 if __name__ == "__main__":
     main(*(int(sys.argv[1]),) if len(sys.argv) > 1 else (),
-         **({"lag": float(sys.argv[2])} if len(sys.argv) > 2 else {}))
+         **({"lag": float(sys.argv[2])} if len(sys.argv) > 2 else {}),
+         em=len(sys.argv) > 3 and sys.argv[3] == "em")

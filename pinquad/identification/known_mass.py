@@ -247,8 +247,12 @@ def _judge(name: str, value: float, total: float, settings: KnownMassSettings,
     return worst, tuple(r for _, r in reasons)
 
 
-def _estimate(name: str, value: float, unit: str, parts: dict[str, float],
-              settings: KnownMassSettings, extra: list[tuple[str, str]]) -> Estimate:
+def estimate_with_verdict(name: str, value: float, unit: str, parts: dict[str, float],
+                          settings: KnownMassSettings, extra: list[tuple[str, str]]
+                          ) -> Estimate:
+    """An ``Estimate`` whose total standard error is its parts (name -> se) combined in
+    quadrature, judged by its own checks ``extra`` ((verdict, reason)) and the relative
+    error limit of ``settings``."""
     total = math.sqrt(sum(v * v for v in parts.values()))
     verdict, reasons = _judge(name, value, total, settings, extra)
     return Estimate(name, value, unit, total, tuple(parts.items()), verdict, reasons)
@@ -324,8 +328,8 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
         parts = {"statistical": math.sqrt(top.cov[i, i]),
                  "mass": abs(top.coef[i]) * settings.mass_rel_se,
                  "time_constant": float(tau_part[i])}
-        estimates.append(_estimate(name, float(top.coef[i]), unit, parts, settings,
-                                   curve_checks if i < 2 else []))
+        estimates.append(estimate_with_verdict(name, float(top.coef[i]), unit, parts,
+                                               settings, curve_checks if i < 2 else []))
     # the curve's scale where the flight flew: T(u_m) = c_1 u_m + c_2 u_m^2 and its slope
     # dT/du = c_1 + 2 c_2 u_m at the mean command u_m; c_1 and c_2 trade against each
     # other, these two do not (the slope is what turns command differences into torque)
@@ -337,7 +341,7 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
         parts = {"statistical": math.sqrt(float(grad @ top.cov @ grad)),
                  "mass": abs(value) * settings.mass_rel_se,
                  "time_constant": abs(float(grad @ (alt[1].coef - alt[0].coef))) / 2.0}
-        estimates.append(_estimate(name, value, "N", parts, settings, curve_checks))
+        estimates.append(estimate_with_verdict(name, value, "N", parts, settings, curve_checks))
     tau_checks = curve_checks + ([(NOT_IDENTIFIABLE, (
         f"the profile likelihood's interval reaches the end of the searched "
         f"{settings.lags[0]:.3f}-{settings.lags[-1]:.3f} s"))] if tau_edge else [])
@@ -347,8 +351,8 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
             f"{settings.lags[inside[-1] + 1]:.3g} s: no motor lag resolvable at "
             f"{dt * 1e3:.0f} ms rows")))
     if curve.time_constant is None:
-        estimates.append(_estimate("time constant", tau, "s", {"statistical": tau_se},
-                                   settings, tau_checks))
+        estimates.append(estimate_with_verdict("time constant", tau, "s",
+                                               {"statistical": tau_se}, settings, tau_checks))
     else:
         notes.append(f"time constant {tau:.4g} s: given by the vehicle file")
 
@@ -405,8 +409,8 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
                  "mass": abs(inertia[a]) * settings.mass_rel_se, **lever,
                  "thrust_curve": float(curve_part[a]),
                  "time_constant": float(tau_inertia_part[a])}
-        estimates.append(_estimate(name, float(inertia[a]), "kg m^2", parts, settings,
-                                   checks))
+        estimates.append(estimate_with_verdict(name, float(inertia[a]), "kg m^2", parts,
+                                               settings, checks))
     naive, naive_share = _naive(mass, a_z, u, log.gyro, dt, positions, spin)
     return KnownMassResult(tuple(estimates), top.share,
                            tuple(float(s) for s in share[:2 if curve.yaw_ratio is None else 3]),

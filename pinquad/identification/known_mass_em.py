@@ -59,7 +59,7 @@ from pinquad.identification.known_mass import (
     Estimate,
     KnownMassResult,
     KnownMassSettings,
-    _estimate,
+    estimate_with_verdict,
     motor_lag,
 )
 from pinquad.identification.search_range import generic_range
@@ -298,7 +298,8 @@ def identify_known_mass_em(flight: CommandLog, mass: float, positions: Array, sp
         em_checks.append((NOT_IDENTIFIABLE, f"EM did not converge in {EM_MAX_ITERATIONS} "
                           "E-steps"))
     halves = band_halves(flight, nominal, tau, mass, positions, spin, yaw, warm, band)
-    estimates = [_estimate("thrust scale s", scale, "-", s_parts, settings, em_checks)]
+    estimates = [estimate_with_verdict("thrust scale s", scale, "-", s_parts, settings,
+                                       em_checks)]
     for a, name in enumerate(("I_xx", "I_yy", "I_zz")):
         if a == 2 and curve.yaw_ratio is None:
             estimates.append(Estimate(name, float("nan"), "kg m^2", float("nan"), (),
@@ -325,7 +326,8 @@ def identify_known_mass_em(flight: CommandLog, mass: float, positions: Array, sp
         checks = list(em_checks) + band_check + [
             (verdict.verdict if verdict.verdict in (NOT_ADEQUATE, NOT_IDENTIFIABLE)
              else NOT_ADEQUATE, r) for r in verdict.reasons]
-        estimates.append(_estimate(name, float(inertia[a]), "kg m^2", parts, settings, checks))
+        estimates.append(estimate_with_verdict(name, float(inertia[a]), "kg m^2", parts,
+                                               settings, checks))
     notes.append(f"EM on the nominal wrench ({source} curve c_1 {nominal[0]:.4g} N, c_2 "
                  f"{nominal[1]:.4g} N; time constant {tau:.4g} s; inertia from the "
                  f"{band[0]:g}-{band[1]:g} Hz torque rows): m_hat {m_hat:.5g} kg, "
