@@ -1,7 +1,9 @@
 """How much a real logger's time stamps move the estimate: each shared IMRC micro-SD log
-(brushed jana*, brushless eckart*) is exported once as pinquad's own Parquet log (its ~500 Hz rows with rotor
-speeds, ``pinquad.io.logs.write_log``), identified (regressor M-step, standard errors),
-then its ``t`` column is perturbed and identified again:
+(brushed jana*, brushless eckart*) is exported once as pinquad's own Parquet log (its
+~500 Hz rows with rotor speeds, ``pinquad.io.logs.write_log``), identified (regressor
+M-step, standard errors), then its ``t`` column is perturbed and identified again. A log
+whose rotor speeds only its PWM commands can rebuild (not in the export) is identified
+from its micro-SD reading, its row and pose stamps perturbed in memory:
 
 * jitter: every row's stamp moved by uniform(-a, +a), then the stamps sorted (the rows
   keep their order, so ``t`` stays strictly increasing as the log contract demands;
@@ -27,6 +29,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -35,6 +38,7 @@ import numpy as np
 from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.logs import FlightLog, LogFormatError, write_log
 from pinquad.io.read import read_log
+from pinquad.io.timebase import clock_times
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie"
 FOLDERS = {"jana": SHARED / "imrc_brushed", "eckart": SHARED / "imrc_brushless"}
@@ -50,11 +54,12 @@ def jittered(t: np.ndarray, amplitude: float, offset: float, seed: int) -> np.nd
     return out[0] + np.concatenate([[0.0], np.cumsum(step)]) + offset
 
 
-def estimate(path: Path, information: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+def estimate(source: Path | FlightLog,
+             information: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """([m, I_xx, I_yy, I_zz], stderr (4,), statistical stderr (4,), gap transitions) of
-    the regressor run of a log."""
-    result = identify_log(read_log(path), LogOptions(msteps=("regressor",),
-                                                     information=information))
+    the regressor run of a log (a file, or a micro-SD reading in memory)."""
+    log = source if isinstance(source, FlightLog) else read_log(source)
+    result = identify_log(log, LogOptions(msteps=("regressor",), information=information))
     run = result.runs[0]
     params = np.r_[run.mass, np.diag(run.inertia)]
     stat = run.measured.se_stat if run.measured is not None else run.stderr
@@ -62,10 +67,64 @@ def estimate(path: Path, information: bool) -> tuple[np.ndarray, np.ndarray, np.
     return params, np.asarray(run.stderr), np.asarray(stat), gaps
 
 
+def micro_sd(name: str) -> FlightLog:
+    return read_log(FOLDERS[name.rstrip("0123456789")] / name)
+
+
 def export(name: str, folder: Path) -> tuple[Path, FlightLog]:
-    log = read_log(FOLDERS[name.rstrip("0123456789")] / name)
-    log = replace(log, measured=None)
+    log = replace(micro_sd(name), measured=None)
     return write_log(log, folder / f"{name}.parquet"), log
+
+
+def moved_micro_sd(log: FlightLog, amplitude: float, offset: float, seed: int) -> FlightLog:
+    """The micro-SD reading with its row stamps and, independently, its pose stamps
+    jittered and offset (the PWM it rebuilds faulty rotor speeds from kept)."""
+    measured = log.measured
+    assert measured is not None and measured.pose_t is not None
+    pose_t = jittered(measured.pose_t, amplitude, offset, seed + 1)
+    return replace(log, t=jittered(log.t, amplitude, offset, seed),
+                   measured=replace(measured, pose_t=pose_t))
+
+
+NAMES = ("mass", "I_xx", "I_yy", "I_zz")
+
+
+def log_rows(name: str, cases: list[tuple[float, float]]) -> list[str]:
+    """The table rows of one log: each (jitter [ms], offset [s]) case against the
+    unperturbed log, one jitter draw per amplitude."""
+    t0 = time.perf_counter()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        path, log = export(name, folder)
+        card = None
+        try:
+            base, se, stat, base_gaps = estimate(path, information=True)
+        except (LogFormatError, ValueError):
+            # rotor speeds that only the PWM commands can rebuild, which the export does
+            # not carry: the micro-SD reading itself, its stamps moved in memory
+            card = micro_sd(name)
+            base, se, stat, base_gaps = estimate(card, information=True)
+        for i, (amp_ms, offset) in enumerate(cases):
+            seed = int(amp_ms * 1000)
+            if card is None:
+                moved = replace(log, t=jittered(log.t, amp_ms * 1e-3, offset, seed=seed))
+                est, _, _, gaps = estimate(write_log(moved, folder / f"{name}-{i}.parquet"),
+                                           information=False)
+            else:
+                est, _, _, gaps = estimate(moved_micro_sd(card, amp_ms * 1e-3, offset, seed),
+                                           information=False)
+            change = np.abs(est - base)
+            worst = int(np.argmax(change / se))
+            label = name if card is None else f"{name} (micro-SD)"
+            rows.append(f"| {label} | {amp_ms:g} | {offset:g} | {np.max(change / se):.3f} | "
+                        f"{np.max(change / stat):.3f} | {NAMES[worst]} | {gaps} (unperturbed "
+                        f"{base_gaps}) |")
+    shift = clock_times(log.t) - log.t
+    rows.append(f"<!-- {name}: {time.perf_counter() - t0:.0f} s; the log's clock moves its "
+                f"rows by {np.sqrt(np.mean(shift**2)) * 1e3:.3f} ms rms, at most "
+                f"{np.abs(shift).max() * 1e3:.3f} ms -->")
+    return rows
 
 
 def main() -> None:
@@ -78,6 +137,7 @@ def main() -> None:
     ap.add_argument("--pairs", action="store_true", help="the reduced design (docstring)")
     ap.add_argument("--cycle", action="store_true", help="one case per log (docstring)")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here")
+    ap.add_argument("--jobs", type=int, default=1, help="logs identified at once")
     args = ap.parse_args()
     cycle = [(a, o) for o in args.offsets for a in args.jitter_ms]
     if args.pairs:
@@ -88,34 +148,13 @@ def main() -> None:
     lines = ["| log | jitter [ms] | offset [s] | max change / stderr | max change / statistical "
              "stderr | worst parameter | gap transitions |", "|---|---|---|---|---|---|---|"]
     print("\n".join(lines), flush=True)
-    names = ("mass", "I_xx", "I_yy", "I_zz")
-    with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        for name in args.logs:
-            t0 = time.perf_counter()
-            path, log = export(name, folder)
-            try:
-                base, se, stat, base_gaps = estimate(path, information=True)
-            except (LogFormatError, ValueError) as exc:  # e.g. rotor speeds only from PWM
-                lines.append(f"| {name} | - | - | - | - | - | the export is not identified: "
-                             f"{str(exc).replace(str(folder) + '/', '')} |")
-                print(lines[-1], flush=True)
-                continue
-            # --cycle: the pair of a log is fixed by its place among the shared logs
-            place = shared.index(name) if name in shared else args.logs.index(name)
-            mine = [cycle[place % len(cycle)]] if args.cycle else cases
-            for i, (amp_ms, offset) in enumerate(mine):  # one jitter draw per amplitude
-                moved = replace(log, t=jittered(log.t, amp_ms * 1e-3, offset, seed=int(amp_ms * 1000)))
-                p = write_log(moved, folder / f"{name}-{i}.parquet")
-                est, _, _, gaps = estimate(p, information=False)
-                change = np.abs(est - base)
-                worst = int(np.argmax(change / se))
-                row = (f"| {name} | {amp_ms:g} | {offset:g} | {np.max(change / se):.3f} | "
-                       f"{np.max(change / stat):.3f} | {names[worst]} | {gaps} (unperturbed "
-                       f"{base_gaps}) |")
-                lines.append(row)
-                print(row, flush=True)
-            print(f"<!-- {name}: {time.perf_counter() - t0:.0f} s -->", flush=True)
+    jobs = [(name, [cycle[place % len(cycle)]] if args.cycle else cases)
+            for place, name in ((shared.index(n) if n in shared else args.logs.index(n), n)
+                                for n in args.logs)]
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        for rows in pool.map(log_rows, *zip(*jobs, strict=True)):
+            lines.extend(rows)
+            print("\n".join(rows), flush=True)
     if args.out is not None:
         args.out.write_text("\n".join(lines) + "\n")
 

@@ -457,7 +457,8 @@ def to_flight(raw: SdLog) -> SdFlight:
         notes.append(f"{POSE_EVENT}: {pose_rows.size} motion-capture poses placed "
                      f"({poses_hz:.0f} Hz on average)")
 
-    meta = LogMeta(vehicle="crazyflie21", mass_guess=None, source=path, notes=tuple(notes))
+    meta = LogMeta(vehicle="crazyflie21", mass_guess=None, source=path, notes=tuple(notes),
+                   actuation="sampled")  # rotor-speed readings, not held commands
     log = FlightLog(t=t, position=position, velocity=velocity, euler=euler, gyro=gyro,
                     accel=accel, rpm=rpm, vbat=vbat, meta=meta)
     return SdFlight(log=log, pwm=pwm, rows=rows, pose_rows=pose_rows, t0=t0, raw=raw)

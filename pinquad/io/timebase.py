@@ -20,6 +20,7 @@ rows in Unix time (t ~ 1.7e9 s). Both must leave the estimate unchanged:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -175,3 +176,131 @@ def irregular_note(t: Array, spread: float = 0.1) -> str | None:
     return (f"time stamps irregular: steps {lo * 1e3:.2f}-{hi * 1e3:.2f} ms (5th-95th "
             f"percentile) around the median {med * 1e3:.2f} ms; none is a log gap (longer "
             f"than {gap_threshold(t) * 1e3:.0f} ms)")
+
+
+
+CLOCK_HALF_WINDOW = 250
+"""Rows on either side of a row in the straight-line fit that gives its time on the log's
+clock (:func:`clock_times`)."""
+
+
+CLOCK_MIN_SIDE = 50
+"""A clock jump is looked for only where this many rows lie on each side: fewer would
+let a few ms of jitter pass for a jump of half a step."""
+
+
+def _line_residual(t: Array) -> Array:
+    """(N,) t minus its least-squares straight line against row number."""
+    j = np.arange(t.size, dtype=np.float64)
+    slope, icpt = np.polyfit(j, t - t[0], 1)
+    return t - (t[0] + icpt + slope * j)
+
+
+def _local_line(r: Array, half: int) -> Array:
+    """(N,) the straight-line fit of r (N,) against row number over the 2 half + 1 rows
+    around each row (the window shifted to stay inside), evaluated at that row."""
+    n = r.size
+    width = min(2 * half + 1, n)
+    if width < 3:
+        return r.copy()
+    j = np.arange(n, dtype=np.float64)
+    lo = np.clip(np.arange(n) - half, 0, n - width)
+    c0 = np.concatenate([[0.0], np.cumsum(r)])
+    c1 = np.concatenate([[0.0], np.cumsum(j * r)])
+    sum_r = c0[lo + width] - c0[lo]
+    sum_jr = c1[lo + width] - c1[lo]
+    centre = lo + 0.5 * (width - 1)
+    spread = width * (width * width - 1) / 12.0  # sum of (j - centre)^2 over the window
+    return sum_r / width + (sum_jr - centre * sum_r) / spread * (j - centre)
+
+
+def _clock_break(t: Array, step: float, half: int) -> int | None:
+    """The row where the clock jumps (rows dropped, or a late burst), or None: the row i
+    maximising |D_i|, D_i = mean(u[i:i+W]) - mean(u[i-W:i]) with u the stamps' departure
+    from a steady clock (its rate the median over spans of rows), when |D_i| exceeds half
+    a step. Jitter of standard deviation s moves D by about s sqrt(2 / W), far below half
+    a step."""
+    n = t.size
+    if n < 2 * CLOCK_MIN_SIDE:
+        return None
+    # the clock's rate from many spans of rows: their median is not moved by a jump,
+    # where a least-squares line through the rows would take part of it as a slope
+    span = min(half, n // 4)
+    rate = float(np.median((t[span:] - t[:-span]) / span))
+    u = t - t[0] - rate * np.arange(n)
+    c = np.concatenate([[0.0], np.cumsum(u)])
+    i = np.arange(CLOCK_MIN_SIDE, n - CLOCK_MIN_SIDE + 1)
+    lo, hi = np.maximum(i - half, 0), np.minimum(i + half, n)
+    jump = (c[hi] - c[i]) / (hi - i) - (c[i] - c[lo]) / (i - lo)
+    best = int(np.argmax(np.abs(jump)))
+    return int(i[best]) if abs(jump[best]) > 0.5 * step else None
+
+
+def _unexplained_steps(t: Array) -> BoolArray:
+    """(N-1,) steps longer than 1.5 median steps and than the median plus 6 robust
+    standard deviations of the steps (1.4826 x their median absolute deviation): rows
+    dropped where no jitter of this log explains it, found wherever they are, also within
+    ``CLOCK_MIN_SIDE`` rows of an end."""
+    steps = np.diff(t)
+    med = float(np.median(steps))
+    spread = 1.4826 * float(np.median(np.abs(steps - med)))
+    return steps > max(1.5 * med, med + 6.0 * spread)
+
+
+def _clock_pieces(t: Array, step: float, half: int) -> list[tuple[int, int]]:
+    """[(start, end)] row ranges of t on which the clock runs without a jump."""
+    pieces, todo = [], [(0, t.size)]
+    while todo:
+        a, b = todo.pop()
+        cut = _clock_break(t[a:b], step, half)
+        if cut is None:
+            pieces.append((a, b))
+        else:
+            todo += [(a, a + cut), (a + cut, b)]
+    return sorted(pieces)
+
+
+def clock_times(t: Array, half_window: int = CLOCK_HALF_WINDOW) -> Array:
+    """(N,) each row's time [s] on the log's own clock.
+
+    A logger samples on a steady clock and stamps each row with a few ms of jitter. The
+    rows are split where the clock stops (log gaps, :func:`gap_steps`) or jumps (rows
+    dropped: a step no jitter of the log explains, or the stamps' mean departure from a
+    steady clock jumping by more than half a step between the ``half_window`` rows
+    before and after, at least ``CLOCK_MIN_SIDE`` on each side). On each piece a row's
+    time is the straight-line fit of the stamps against row number over the 2 W + 1
+    rows around it (W = ``half_window``, the window shifted to stay inside the piece),
+
+        t_clock[i] = a_i + b_i i,   (a_i, b_i) = argmin sum_{|j - i| <= W} (t_j - a - b j)^2.
+
+    The fit follows a rate that drifts over seconds and leaves of jitter of standard
+    deviation s about s / sqrt(2 W + 1), so a row's grid bin does not depend on its
+    stamp's jitter. Evenly stamped rows come back as they are (to rounding). The fit is
+    done on the stamps' departure from the piece's straight line, so Unix times (1.7e9 s)
+    lose nothing."""
+    t = np.asarray(t, dtype=np.float64)
+    if t.size < 3:
+        return t.copy()
+    out = t.copy()
+    step = sampling_interval(t)
+    cuts = np.concatenate([[0], np.flatnonzero(gap_steps(t) | _unexplained_steps(t)) + 1,
+                           [t.size]])
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        for lo, hi in _clock_pieces(t[a:b], step, half_window):
+            seg = t[a + lo:a + hi]
+            if seg.size >= 3:
+                residual = _line_residual(seg)
+                out[a + lo:a + hi] = seg - residual + _local_line(residual, half_window)
+    return out
+
+
+def grid_times(t: Array, dt: float) -> Array:
+    """(K,) the uniform grid t_k = t_a - n dt + k dt [s] that covers rows at times t (N,)
+    [s, on the log's clock, :func:`clock_times`]: anchored on the middle row t_a, whose
+    clock time carries the least jitter (the first row's, at a piece's end, carries the
+    most), n the number of steps that puts the first grid time at or before the first
+    row, K the number that reaches the last. Rows evenly stamped dt apart lie on it."""
+    t = np.asarray(t, dtype=np.float64)
+    anchor = float(t[t.size // 2])
+    start = anchor - dt * math.ceil((anchor - t[0]) / dt - 1e-6)
+    return start + dt * np.arange(int(math.floor((t[-1] - start) / dt + 1e-6)) + 1)

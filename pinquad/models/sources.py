@@ -20,7 +20,7 @@ from estimators.ekf import run_filter
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.effect_vocabulary import vehicle_ground_radius
 from pinquad.io.logs import FlightLog
-from pinquad.io.timebase import gap_steps, uniform_step
+from pinquad.io.timebase import clock_times, gap_steps, uniform_step
 from pinquad.models.attitude_range import SingularAttitude
 from pinquad.models.contact import (
     ContactDetection,
@@ -163,8 +163,8 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     exclude = np.zeros(log.n, dtype=bool)
     resets = np.zeros(log.n, dtype=bool)
     # a log gap (io.timebase, judged on the log's own step) is no transition of the
-    # flight: the rows are taken as evenly spaced at their mean step outside gaps
-    # (io.timebase.uniform_step; jitter is not carried), so a gap would be one such step
+    # flight: the rows are taken as evenly spaced at the step of the log's clock
+    # (io.timebase.clock_times: jitter is not carried), so a gap would be one such step
     exclude[:-1] |= gap_steps(log.t)
     resets[:-1] |= gap_steps(log.t)
     rows = contact.rows if contact is not None else log.contact
@@ -187,6 +187,7 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     radius = vehicle_ground_radius(log.meta.vehicle if log.meta.vehicle_named else None)
     # a sampled log is a faster controller's record of a continuous flight; a held one is
     # pinquad's simulator, which moves by explicit Euler at the log's step
-    return Observations(t=log.t, dt=uniform_step(log.t), inputs=inputs, channels=channels, ys=ys, x0=x0,
+    clock = clock_times(log.t)
+    return Observations(t=clock, dt=uniform_step(clock), inputs=inputs, channels=channels, ys=ys, x0=x0,
                         p0=p0, exclude=exclude, resets=resets, ground_radius=radius,
                         samples=samples, continuous=log.meta.actuation == "sampled")

@@ -1,19 +1,28 @@
 """Measured Crazyflie flights as EM observations on a uniform grid.
 
 A micro-SD log (``pinquad.io.sdlog``, ~500 Hz ``fixedFrequency`` rows plus motion capture
-at ~55 Hz on average) becomes :class:`~pinquad.models.ssm.Observations` on a uniform grid t_k = k dt,
-dt = 0.01 s:
+at ~55 Hz on average) becomes :class:`~pinquad.models.ssm.Observations` on a uniform grid
+t_k = t_0 + k dt, dt = 0.01 s. Rows are placed by their time on the log's own clock
+(``io.timebase.clock_times``: a steady clock fitted through the stamps, so a few ms of
+stamp jitter or a Unix-time offset moves no row), and the grid is anchored on the middle
+row (``io.timebase.grid_times``). Each bin's value moves continuously with the rows'
+times (``realdata.resample``), so no row jumps from one bin to the next:
 
-* gyro, accelerometer, onboard velocity: mean of the samples with
-  t in [t_k - dt/2, t_k + dt/2) (centred, so the mean estimates the value at t_k);
-* inputs u_k = [F, M_x, M_y, M_z]: mean over [t_k, t_k + dt) of the wrench of each
-  ~2 ms sample, F = kf sum_i omega_i^2 [N], M = mixer (``ActuatorModel``) [N m]. The
-  forward bin is what the explicit-Euler transition x_{k+1} = x_k + dt f(x_k, u_k)
-  integrates: v_{k+1} - v_k = int_{t_k}^{t_k+dt} a dt ~ dt * mean(a);
+* gyro, accelerometer, onboard velocity: the mean, over the bin t in [t_k - dt/2,
+  t_k + dt/2) (centred, so it estimates the value at t_k), of the straight line through
+  the samples at the bin's row points (``resample.sample_average``);
+* inputs u_k = [F, M_x, M_y, M_z] over [t_k, t_k + dt): the wrench of the bin's mean rotor
+  speeds (the same points, forward bin), F = kf sum_i omega_i^2 [N], M = mixer
+  (``ActuatorModel``) [N m], which is what the resampled log carries, so its export
+  reads back to the same inputs; speeds held from row to row (a sidecar's
+  ``"actuation": "held"``) give the bin's exact time average of the wrench
+  (``resample.held_average``). The forward bin is what the explicit-Euler transition
+  x_{k+1} = x_k + dt f(x_k, u_k) integrates: v_{k+1} - v_k = int_{t_k}^{t_k+dt} a dt;
 * motion-capture position [m] and Euler angles [rad] (from the ``locSrv`` quaternion):
-  the pose sample nearest t_k within dt/2, else NaN (a dropout is a missing sample);
-  a pose more than ``outlier_m`` / ``outlier_rad`` away from the median of its
-  neighbours is a tracking glitch and is dropped too.
+  a grid step with a pose sample within dt/2 reads that pose at t_k, along the straight
+  line to the next pose on t_k's other side (up to ``resample.POSE_BRIDGE_S`` away), else NaN (a
+  dropout is a missing sample); a pose more than ``outlier_m`` / ``outlier_rad`` away
+  from the median of its neighbours is a tracking glitch and is dropped too.
 
 Transitions k -> k+1 the M-step must skip (``Observations.exclude``): ground contact and
 the take-off / landing around it (height below ``contact_height`` at low speed, or rotors
@@ -41,6 +50,7 @@ from pinquad.core.conventions import GRAVITY, rotation_from_euler
 from pinquad.core.vehicle_file import VehicleSpec
 from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
 from pinquad.io.sdlog import is_sdlog, read_sdflight
+from pinquad.io.timebase import clock_times, grid_times, sampling_interval
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.contact import ContactSettings, detect_floor_contact
 from pinquad.models.ssm import Observations
@@ -56,9 +66,11 @@ from pinquad.realdata.raw import PoseSamples, RawFlight, raw_from_sdflight, raw_
 from pinquad.realdata.resample import (
     bin_mean,
     fill_rows,
+    held_average,
     interp_nan,
-    nearest_samples,
     pose_glitches,
+    poses_on_grid,
+    sample_average,
 )
 from pinquad.realdata.rotor_acceleration import (
     grid_rotor_acceleration,
@@ -375,16 +387,31 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     wrench = np.column_stack([thrust, torque])
     wrench[untrusted_rows] = np.nan
 
-    t_src = log.t
-    k = int(math.floor((t_src[-1] - t_src[0]) / dt)) + 1
-    grid = t_src[0] + dt * np.arange(k)
+    # rows binned by their time on the log's clock, not by their jittered stamps
+    t_src = clock_times(log.t)
+    grid = grid_times(t_src, dt)
+    k = grid.size
     centred = grid - 0.5 * dt
-    gyro = bin_mean(t_src, log.gyro, centred, dt, k)
-    accel = bin_mean(t_src, log.accel, centred, dt, k)
-    vel = bin_mean(t_src, log.velocity, centred, dt, k)
-    rpm_g = bin_mean(t_src, np.where(untrusted_rows[:, None], np.nan, rpm), grid, dt, k)
+    row_step = sampling_interval(t_src)
+
+    def centred_mean(values: Array) -> Array:  # a reading's mean around t_k
+        return sample_average(t_src, values, centred, dt, k, row_step, 0.5)
+
+    def forward_mean(values: Array) -> Array:  # over [t_k, t_k + dt)
+        if held:
+            return held_average(t_src, values, grid, dt, k)
+        return sample_average(t_src, values, grid, dt, k, row_step, 0.0)
+
+    gyro, accel, vel = (centred_mean(x) for x in (log.gyro, log.accel, log.velocity))
+    rpm_g = forward_mean(np.where(untrusted_rows[:, None], np.nan, rpm))
     rebuilt_g = bin_mean(t_src, rebuilt.any(axis=1).astype(float), grid, dt, k)[:, 0]
-    inputs = bin_mean(t_src, wrench, grid, dt, k)
+    if held:  # speeds held over each row: the bin's exact time average of the wrench
+        inputs = forward_mean(wrench)
+    else:  # readings: the wrench of the bin's mean speeds, as the resampled log carries it
+        inputs = np.full((k, 4), np.nan)
+        finite_bins = np.isfinite(rpm_g).all(axis=1)
+        if finite_bins.any():
+            inputs[finite_bins, 0], inputs[finite_bins, 1:] = actuator.wrench(rpm_g[finite_bins])
     if held:  # the bin's change of speed over dt, exactly, whatever the stamps' jitter
         rotor_acc_g = interp_nan(grid, held_grid_rotor_acceleration(
             t_src, np.where(untrusted_rows[:, None], np.nan, rpm), options.spin, grid, dt))
@@ -395,14 +422,14 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         inputs[:, 3] += options.rotor_inertia * rotor_acc_g
     vbat = None
     if log.vbat is not None and not report.vbat_stuck:
-        vbat = bin_mean(t_src, log.vbat, centred, dt, k)[:, 0]
+        vbat = centred_mean(log.vbat)[:, 0]
     onboard_pos = None
     if raw.onboard_pos is not None:
-        onboard_pos = bin_mean(t_src, raw.onboard_pos, centred, dt, k)
+        onboard_pos = centred_mean(raw.onboard_pos)
 
-    # Motion capture: nearest sample within half a bin.
-    if raw.pose is not None:
-        pose = raw.pose
+    # Motion capture: the grid steps with a sample within half a bin.
+    if raw.pose is not None:  # its own stamps, read on the same clock
+        pose = replace(raw.pose, t=raw.pose.t + np.interp(raw.pose.t, log.t, t_src - log.t))
     else:
         pose = PoseSamples(t=t_src, position=log.position, euler=log.euler)
     has_pose = np.isfinite(pose.position).all(axis=1) | np.isfinite(pose.euler).all(axis=1)
@@ -411,11 +438,7 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     glitch_eul = pose_glitches(p_eul, options.outlier_rad, angle=True)
     p_pos = np.where(glitch_pos[:, None], np.nan, p_pos)
     p_eul = np.where(glitch_eul[:, None], np.nan, p_eul)
-    rows, which = nearest_samples(grid, p_t, 0.5 * dt)
-    position = np.full((k, 3), np.nan)
-    euler = np.full((k, 3), np.nan)
-    position[rows] = p_pos[which]
-    euler[rows] = p_eul[which]
+    position, euler = poses_on_grid(grid, p_t, p_pos, p_eul, dt)
     n_pose = int(np.isfinite(position).all(axis=1).sum())
     notes.append(f"motion capture: {p_t.size} poses; {n_pose} of {k} grid steps have one "
                  f"within {0.5 * dt * 1e3:.0f} ms ({100 * n_pose / k:.0f} %), the others are "

@@ -34,6 +34,76 @@ def bin_mean(t: Array, values: Array, start: Array, dt: float, k: int) -> Array:
     return out
 
 
+def sample_average(t: Array, values: Array, start: Array, dt: float, k: int,
+                   row_step: float, phase: float) -> Array:
+    """(k, C) each bin's mean of the straight line through the finite samples,
+
+        y_j = (1/S) sum_{s=0}^{S-1} x(start[j] + (s + phase) dt / S),   S = round(dt / row_step),
+
+    x the samples (t (N,) [s], values (N, C)) joined linearly; NaN where the row
+    nearest the point has no finite value in a channel finite on most rows (a row
+    flagged implausible; a channel only some rows carry is joined across the others),
+    or where no finite sample lies within a row step plus a bin of the point
+    on both sides (a dropout). ``phase`` puts the points where rows
+    on the grid's lattice would be: 1/2 for bins centred on the grid times, 0 for bins
+    that start at them. At one row per bin the value is that row's own; at five rows per
+    bin it averages five points as the bin's five rows would. Unlike the rows' plain mean it moves
+    continuously with the rows' times: a row crossing a bin's edge changes the bin by a
+    fraction of a row, not by a whole one."""
+    values = np.asarray(values, dtype=float).reshape(t.size, -1)
+    sub = max(1, int(round(dt / row_step))) if row_step > 0 else 1
+    points = (start[:k, None] + (np.arange(sub) + phase) * dt / sub).ravel()
+    reach = row_step + dt
+    # the row nearest each point: a point whose nearest row has no finite value is NaN
+    upper = np.clip(np.searchsorted(t, points), 1, max(t.size - 1, 1))
+    nearest = np.where(np.abs(t[upper] - points) < np.abs(points - t[upper - 1]), upper,
+                       upper - 1) if t.size > 1 else np.zeros(points.size, dtype=np.int64)
+    out = np.full((k, values.shape[1]), np.nan)
+    for c in range(values.shape[1]):
+        ok = np.isfinite(values[:, c])
+        if ok.sum() < 2:
+            continue
+        ts, xs = t[ok], values[ok, c]
+        right = np.clip(np.searchsorted(ts, points, side="right"), 1, ts.size - 1)
+        after, before = ts[right] - points, points - ts[right - 1]
+        on_sample = np.minimum(np.abs(after), np.abs(before)) <= 1e-9 * dt
+        near = on_sample | ((after <= reach) & (before <= reach))
+        if ok.mean() >= 0.5:  # a channel of every row: its NaN rows are holes
+            near &= ok[nearest]
+        x = np.where(near, np.interp(points, ts, xs), 0.0).reshape(k, sub)
+        count = near.reshape(k, sub).sum(axis=1)
+        out[:, c] = np.where(count > 0, x.sum(axis=1) / np.maximum(count, 1), np.nan)
+    return out
+
+
+def held_average(t: Array, values: Array, start: Array, dt: float, k: int) -> Array:
+    """(k, C) each bin's time average of values held from each row to the next,
+
+        y_j = (1/dt) int_{start[j]}^{start[j] + dt} x(tau) dtau,   x(tau) = x_i on [t_i, t_{i+1}),
+
+    the last row held for one median step; a bin the rows cover only in part averages
+    over that part; NaN where a held NaN covers part of the bin or no row covers it. The
+    integral is a straight line between the rows' cumulative sums, so a bin moves
+    continuously with the rows' times."""
+    values = np.asarray(values, dtype=float).reshape(t.size, -1)
+    step = float(np.median(np.diff(t))) if t.size > 1 else dt
+    knots = np.append(t, t[-1] + step)
+    widths = np.diff(knots)
+    a = np.clip(start[:k], knots[0], knots[-1])
+    b = np.clip(start[:k] + dt, knots[0], knots[-1])
+    covered = b - a
+    out = np.empty((k, values.shape[1]))
+    for c in range(values.shape[1]):
+        bad = ~np.isfinite(values[:, c])
+        area = np.concatenate([[0.0], np.cumsum(np.where(bad, 0.0, values[:, c]) * widths)])
+        holes = np.concatenate([[0.0], np.cumsum(bad * widths)])
+        inside = np.interp(b, knots, area) - np.interp(a, knots, area)
+        hole = np.interp(b, knots, holes) - np.interp(a, knots, holes)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[:, c] = np.where((hole > 0) | (covered <= 0), np.nan, inside / covered)
+    return out
+
+
 def nearest_samples(grid_t: Array, times: Array, tol: float) -> tuple[NDArray[np.int64],
                                                                  NDArray[np.int64]]:
     """(rows, which): grid row ``rows[i]`` takes sample ``which[i]``, the sample nearest
@@ -49,6 +119,55 @@ def nearest_samples(grid_t: Array, times: Array, tol: float) -> tuple[NDArray[np
         np.zeros(0, dtype=bool)
     which = order[first]
     return rows[which], which
+
+
+def at_grid_time(grid_t: Array, times: Array, values: Array, rows: NDArray[np.int64],
+                 which: NDArray[np.int64], span: float, angle: bool = False) -> Array:
+    """(R, C) the samples (times (P,) [s], values (P, C)) at the grid times of ``rows``,
+    each row's nearest sample ``which`` (:func:`nearest_samples`) moved to the row's time
+    along the straight line to its neighbour on the row's other side,
+
+        y = x_w + (x_o - x_w) (t_row - t_w) / (t_o - t_w),
+
+    when that neighbour is finite and at most ``span`` [s] away, else x_w as it is
+    (angles [rad] taken the short way round). A pose sample a few ms from its grid step
+    is then read at the step's time, not at its own, and moves with its stamp
+    continuously instead of jumping from one step to the next."""
+    values = np.asarray(values, dtype=float).reshape(times.size, -1)
+    at = grid_t[rows]
+    other = np.where(times[which] <= at, which + 1, which - 1)
+    inside = (other >= 0) & (other < times.size)
+    other = np.clip(other, 0, times.size - 1)
+    near = inside & (np.abs(times[other] - times[which]) <= span) & (other != which)
+    x_w, x_o = values[which], values[other]
+    if angle:
+        x_o = x_w + (x_o - x_w + np.pi) % (2 * np.pi) - np.pi
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(near, (at - times[which]) / (times[other] - times[which]), 0.0)
+    moved = x_w + frac[:, None] * (x_o - x_w)
+    if angle:  # back into (-pi, pi], as every Euler angle pinquad reads
+        moved = np.where(np.isfinite(moved), (moved + np.pi) % (2 * np.pi) - np.pi, moved)
+    return np.where(near[:, None] & np.isfinite(moved), moved, x_w)
+
+
+POSE_BRIDGE_S = 0.1
+"""Two pose samples at most this far apart [s] are joined by a straight line to read a
+pose at its grid step's time; further apart, the nearer sample is taken as it is.
+Motion capture over radio arrives in bursts (IMRC: 5 % of its steps over 40 ms)."""
+
+
+def poses_on_grid(grid_t: Array, times: Array, position: Array, euler: Array,
+                  dt: float) -> tuple[Array, Array]:
+    """((K, 3) position [m], (K, 3) Euler angles [rad]) on the grid grid_t (K,) [s]: each
+    grid step with a pose sample (times (P,) [s], position and euler (P, 3)) within dt/2
+    reads the nearest one at its own time (:func:`at_grid_time`, bridging up to
+    ``POSE_BRIDGE_S``); the other steps are NaN (missing samples)."""
+    rows, which = nearest_samples(grid_t, times, 0.5 * dt)
+    pos = np.full((grid_t.size, 3), np.nan)
+    eul = np.full((grid_t.size, 3), np.nan)
+    pos[rows] = at_grid_time(grid_t, times, position, rows, which, POSE_BRIDGE_S)
+    eul[rows] = at_grid_time(grid_t, times, euler, rows, which, POSE_BRIDGE_S, angle=True)
+    return pos, eul
 
 
 def pose_glitches(x: Array, limit: float, angle: bool = False, half: int = 3) -> BoolArray:

@@ -1,0 +1,97 @@
+"""The log's own clock and the grid bins that move continuously with the rows' times
+(``pinquad.io.timebase.clock_times``, ``pinquad.realdata.resample``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pinquad.io.timebase import clock_times, grid_times
+from pinquad.realdata.resample import at_grid_time, held_average, sample_average
+
+FAST = settings(max_examples=40, deadline=None, derandomize=True, database=None)
+
+
+@FAST
+@given(rate=st.sampled_from([100.0, 250.0, 500.0]), offset=st.sampled_from([0.0, 1e6, 1.7e9]))
+def test_evenly_stamped_rows_keep_their_times(rate, offset):
+    t = offset + np.arange(0.0, 20.0, 1.0 / rate)
+    np.testing.assert_allclose(clock_times(t) - offset, t - offset, rtol=0, atol=1e-6)
+
+
+@FAST
+@given(rate=st.sampled_from([100.0, 500.0]), amplitude=st.floats(0.0, 4e-3),
+       seed=st.integers(0, 2**16), dropped=st.lists(st.integers(200, 1700), max_size=3,
+                                                    unique=True))
+def test_the_clock_takes_out_jitter_and_keeps_dropped_rows(rate, amplitude, seed, dropped):
+    """Stamps jittered by uniform(-a, a) (sorted), rows dropped: the clock is back within
+    a fraction of the jitter on all but the few rows next to a drop, where the jitter
+    itself cannot tell which side a row belongs to."""
+    true = np.delete(np.arange(0.0, 20.0, 1.0 / rate), dropped)
+    rng = np.random.default_rng(seed)
+    stamps = np.sort(true + rng.uniform(-amplitude, amplitude, true.size))
+    error = np.abs(clock_times(stamps) - true)
+    assert np.sqrt(np.mean(error**2)) <= 0.1 * amplitude + 1e-9
+    assert np.mean(error > 0.5 * amplitude + 1e-9) <= 0.01
+
+
+def test_a_dropped_row_is_not_spread_over_its_neighbours():
+    t = np.delete(np.arange(0.0, 10.0, 0.002), [4, 2000])  # one near the start, as IMRC has
+    np.testing.assert_allclose(clock_times(t), t, rtol=0, atol=1e-9)
+
+
+def test_the_grid_passes_through_evenly_stamped_rows_and_covers_them():
+    t = 3.0 + np.arange(0.0, 5.0, 0.01)
+    np.testing.assert_allclose(grid_times(t, 0.01), t, rtol=0, atol=1e-9)
+    odd = 3.0 + np.arange(0.0, 5.0, 0.002) + 0.0013
+    grid = grid_times(odd, 0.01)
+    assert grid[0] <= odd[0] < grid[0] + 0.01 and grid[-1] <= odd[-1] < grid[-1] + 0.01
+
+
+def test_one_row_per_bin_is_read_as_it_is():
+    t = np.arange(0.0, 2.0, 0.01)
+    x = np.column_stack([np.sin(3 * t), np.cos(5 * t)])
+    np.testing.assert_array_equal(sample_average(t, x, t - 0.005, 0.01, t.size, 0.01, 0.5), x)
+    np.testing.assert_array_equal(sample_average(t, x, t, 0.01, t.size, 0.01, 0.0), x)
+    np.testing.assert_allclose(held_average(t, x, t, 0.01, t.size), x, rtol=0, atol=1e-12)
+
+
+@FAST
+@given(shift=st.floats(0.0, 2e-3))
+def test_a_bin_moves_continuously_with_its_rows(shift):
+    """Rows moved by up to a row step change each bin by at most the samples' largest
+    difference times the fraction of a row moved, never by a whole row's reading."""
+    rng = np.random.default_rng(0)
+    t = np.arange(0.0, 1.0, 0.002)
+    x = rng.normal(size=(t.size, 1))
+    start = np.arange(0.0, 0.99, 0.01)
+    base = sample_average(t, x, start, 0.01, start.size, 0.002, 0.0)
+    moved = sample_average(t + shift, x, start, 0.01, start.size, 0.002, 0.0)
+    jump = np.nanmax(np.abs(np.diff(x[:, 0])))
+    assert np.nanmax(np.abs(moved - base)) <= jump * shift / 0.002 + 1e-12
+
+
+def test_a_held_bin_is_the_exact_time_average():
+    t = np.array([0.0, 0.004, 0.013, 0.02, 0.03])
+    x = np.array([[1.0], [2.0], [3.0], [4.0], [5.0]])
+    got = held_average(t, x, np.array([0.0, 0.01]), 0.01, 2)
+    np.testing.assert_allclose(got[:, 0], [(1 * 4 + 2 * 6) / 10, (2 * 3 + 3 * 7) / 10])
+
+
+def test_a_row_flagged_nan_is_a_hole_not_bridged():
+    t = np.arange(0.0, 0.1, 0.01)
+    x = np.arange(10.0)[:, None]
+    x[4] = np.nan
+    got = sample_average(t, x, t, 0.01, t.size, 0.01, 0.0)
+    assert np.isnan(got[4, 0]) and np.isfinite(np.delete(got[:, 0], 4)).all()
+
+
+def test_a_pose_is_read_at_its_grid_steps_time_and_angles_wrap():
+    times = np.array([0.0, 0.012, 0.021])
+    values = np.array([[3.1], [-3.1], [-3.0]])
+    grid = np.array([0.01])
+    got = at_grid_time(grid, times, values, np.array([0]), np.array([1]), 0.1, angle=True)
+    # from -3.1 at 12 ms back towards 3.1 at 0 ms, the short way round through pi
+    expected = -3.1 - (2 * np.pi - 6.2) * (0.002 / 0.012)
+    np.testing.assert_allclose(got[0, 0], expected, atol=1e-12)
