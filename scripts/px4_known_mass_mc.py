@@ -79,7 +79,8 @@ def _row(result, names, truth, covered, trusted) -> str:
         covered[name] += abs(z) < 2.0
         trusted[name] += est.verdict == "trusted"
         rel = f"{(est.value / true - 1) * 100:+.1f} %" if true else f"{est.value:.4f}"
-        row.append(f"{name} {rel} {z:+.1f} se ({est.verdict})")
+        why = f": {est.reasons[0][:90]}" if est.reasons else ""
+        row.append(f"{name} {rel} {z:+.1f} se ({est.verdict}{why})")
     return "; ".join(row)
 
 
