@@ -427,3 +427,27 @@ def test_continuous_noise_is_the_integrated_noise(flight):
         rtol=1e-12)
     np.testing.assert_allclose(q, q.T, rtol=0, atol=1e-14 * np.abs(q).max())
     assert np.linalg.eigvalsh(q).min() >= -1e-12 * np.abs(q).max()
+
+
+def test_a_log_gaps_restart_matches_the_generic_smoother(flight):
+    """Two seconds of resets without a measurement (a log gap): the compiled pass
+    restarts the filter where the generic one does (``ssm.restart_mask``: mean held,
+    F = 0, P = diag(RESTART_VAR)), the lag-one cross-covariances over the restarts are
+    exact zeros (the smoother runs on each side alone) and nothing grows past the prior."""
+    from pinquad.models.ssm import RESTART_VAR, restart_mask
+
+    obs = _observations(flight, "B")
+    resets = np.zeros(obs.n, dtype=bool)
+    resets[200:401] = True
+    ys = obs.ys.copy()
+    ys[201:401] = np.nan
+    obs = replace(obs, ys=ys, resets=resets)
+    restarts = restart_mask(obs)
+    assert np.array_equal(np.flatnonzero(restarts), np.arange(200, 400))
+    model = QuadSSM(obs, _theta(obs, "structured"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fast = smooth_quad(model, obs.ys)
+    _assert_same_posterior(fast, smooth(model, obs.ys))
+    assert not fast.cross_cov[200:400].any()
+    assert np.abs(fast.cov).max() <= RESTART_VAR.max()

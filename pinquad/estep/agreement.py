@@ -2,7 +2,8 @@
 still compute what a model computes (``pinquad.models`` may grow new terms), checked at
 a probe state and cached per code identity.
 
-Checked, at the first and the last transition (and the first reset one, if any), to
+Checked, at the first and the last transition (and the first reset and the first
+restart one, if any), to
 1e-12 of each array's largest entry (Q's off-diagonal entries are cancellation noise of
 order 1e-16 of its diagonal, in either evaluation order): the transition x + dt f, its
 Jacobian F and Q, as the forward pass itself computes them (``kernel_step``); and
@@ -43,7 +44,8 @@ def kernel_step(desc: KernelDescription, x: Array, k: int) -> tuple[Array, Array
     the forward pass itself (two steps, nothing observed): from P_0 = 0 the predicted
     covariance is Q_k (symmetrised), from P_0 = I the stored product F P_0 is F (through
     the block-pattern product, so an entry outside the pattern shows as a mismatch)."""
-    step = desc._replace(inputs=desc.inputs[k:k + 2], resets=desc.resets[k:k + 2])
+    step = desc._replace(inputs=desc.inputs[k:k + 2], resets=desc.resets[k:k + 2],
+                         restarts=desc.restarts[k:k + 2])
     ys = np.full((2, desc.meas_var.shape[0]), np.nan)
     x = np.ascontiguousarray(x, dtype=float)
     work = filter_arrays(2)
@@ -60,8 +62,9 @@ def agrees_with_model(model: QuadSSM, desc: KernelDescription) -> bool:
     x = np.asarray(model.obs.x0, dtype=float) + _PROBE
     resets = desc.resets
     probes = {0, max(n_steps - 2, 0)}
-    if resets[:max(n_steps - 1, 0)].any():
-        probes.add(int(np.flatnonzero(resets[:n_steps - 1])[0]))
+    for marked in (resets & ~desc.restarts, desc.restarts):
+        if marked[:max(n_steps - 1, 0)].any():
+            probes.add(int(np.flatnonzero(marked[:n_steps - 1])[0]))
     for k in probes:
         ref_x, ref_jac = model.transition(x, k)
         x_next, jac, q = kernel_step(desc, x, k)
@@ -83,7 +86,7 @@ def agrees_with_model(model: QuadSSM, desc: KernelDescription) -> bool:
 def code_key(model: QuadSSM, desc: KernelDescription) -> tuple | None:
     """Identity of the code behind ``model`` and of the kernel variant it needs (channels,
     fixed or structured Q, continuous or Euler positions, kinematic or dynamic, resets,
-    drag, wind); None when an
+    restarts, drag, wind); None when an
     instance overrides a method (then every call is checked)."""
     if any(name in vars(model) for name in MODEL_METHODS):
         return None
@@ -92,7 +95,7 @@ def code_key(model: QuadSSM, desc: KernelDescription) -> tuple | None:
             ssm.state_derivative_and_jacobian, ssm.wrap_angle, ssm.continuous_step,
             ssm.kinematic_noise, model.obs.channels, desc.use_fixed,
             desc.continuous, desc.kind == KINEMATIC, bool(desc.resets.any()),
-            bool(desc.drag.any()), bool(desc.wind.any()))
+            bool(desc.restarts.any()), bool(desc.drag.any()), bool(desc.wind.any()))
 
 
 def agrees_cached(model: QuadSSM, desc: KernelDescription) -> bool:

@@ -23,6 +23,10 @@ Forward pass (``estimators.ekf``), steps k = 0 .. N-1, prior (m^-_0, P^-_0) = (x
         P^-_{k+1} = F_k P_k F_k^T + Q_k(m_k)      (symmetrised; F P and F (F P)^T skip
                                                    the entries outside F's block pattern)
         Q_k += diag(reset_var) on the transitions marked in ``desc.resets``
+    except on a restart (``desc.restarts``, ``models.ssm.restart_mask``: a log gap), where
+    the state is re-initialised about the filtered mean instead of propagated:
+        m^-_{k+1} = m_k,  F_k = 0,  P^-_{k+1} = diag(restart_var)
+    (so the backward pass's gain over it is zero: the smoother restarts there)
 
 Backward pass (``estimators.rts``), k = N-2 .. 0:
 
@@ -48,7 +52,7 @@ from numpy.typing import NDArray
 from pinquad.core.kernels import wrap
 from pinquad.estep.effect_kernels import effect_dynamics, f_times_effect
 from pinquad.estep.full_kernels import f_times_full, full_dynamics, process_cov_full
-from pinquad.estep.linalg import chol_solve, cholesky, copy_mat, copy_vec, symmetrise
+from pinquad.estep.linalg import chol_solve, cholesky, copy_mat, copy_vec, fill, symmetrise
 from pinquad.estep.quad_kernels import (
     continuous_rows,
     f_times_dense_rows,
@@ -117,6 +121,17 @@ def _f_times(kind, continuous, f, p, out):
 
 
 @njit(cache=True)
+def _restart(mean, restart_var, x_next, jac, q):
+    """A restart's transition (module docstring): x_next = mean (12,), jac = 0 and
+    q = diag(restart_var) (12, 12)."""
+    fill(jac, 0.0)
+    fill(q, 0.0)
+    for i in range(_N):
+        x_next[i] = mean[i]
+        q[i, i] = restart_var[i]
+
+
+@njit(cache=True)
 def forward_into(desc, x0, p0, ys, store, work):
     """EKF forward pass (module docstring) of the model ``desc`` from the prior x0 (12,),
     P0 (12, 12) over ys (N, m) (NaN: not observed). With store, writes the per-step
@@ -132,6 +147,7 @@ def forward_into(desc, x0, p0, ys, store, work):
     meas_var, state_of_row, is_angle = desc.meas_var, desc.state_of_row, desc.is_angle
     fixed_q, q_kin, s_f, q_tau = desc.fixed_q, desc.q_kin, desc.s_f, desc.q_tau
     resets, reset_var = desc.resets, desc.reset_var
+    restarts, restart_var = desc.restarts, desc.restart_var
     m_inv, first_moment, i_o, s_wrench = desc.m_inv, desc.first_moment, desc.i_o, desc.s_wrench
     drag, wind, continuous = desc.drag, desc.wind, desc.continuous
     n_steps, m = ys.shape
@@ -221,30 +237,34 @@ def forward_into(desc, x0, p0, ys, store, work):
             copy_vec(mean, f_mean[k])
             copy_mat(cov, f_cov[k])
         if k + 1 < n_steps:
-            if kind == FULL:
-                process_cov_full(mean, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q)
+            flowing = False
+            if restarts[k]:
+                _restart(mean, restart_var, x_next, jac, q)
             else:
-                process_cov_quad(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q, rot)
-            flowing = continuous and kind != KINEMATIC  # the warm-up's rates are constant
-            if flowing and not use_fixed:
-                kinematic_noise(mean, dt, q, s33[0], rows_3x12, s33[1])
-            if resets[k]:
-                for i in range(_N):
-                    q[i, i] += reset_var[i]
-            if kind == KINEMATIC:
-                transition_kinematic(mean, dt, x_next, jac)
-            else:
-                u = inputs[k]
-                transition_quad(mean, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
                 if kind == FULL:
-                    full_dynamics(mean, u, dt, gravity, m_inv, first_moment, i_o, x_next, jac,
-                                  accel, d_accel)
+                    process_cov_full(mean, dt, use_fixed, fixed_q, q_kin, m_inv, s_wrench, q)
                 else:
-                    accel[2] = u[0] / mass
-                    if kind == EFFECT:
-                        effect_dynamics(mean, dt, mass, drag, wind, x_next, jac, rot, f_body)
-                if flowing:
-                    continuous_rows(mean, dt, accel, d_accel, x_next, jac, s33, d_rot, rows_3x12)
+                    process_cov_quad(mean, dt, mass, use_fixed, fixed_q, q_kin, s_f, q_tau, q, rot)
+                flowing = continuous and kind != KINEMATIC  # the warm-up's rates are constant
+                if flowing and not use_fixed:
+                    kinematic_noise(mean, dt, q, s33[0], rows_3x12, s33[1])
+                if resets[k]:
+                    for i in range(_N):
+                        q[i, i] += reset_var[i]
+                if kind == KINEMATIC:
+                    transition_kinematic(mean, dt, x_next, jac)
+                else:
+                    u = inputs[k]
+                    transition_quad(mean, u, dt, mass, inertia, inertia_inv, gravity, x_next, jac)
+                    if kind == FULL:
+                        full_dynamics(mean, u, dt, gravity, m_inv, first_moment, i_o, x_next, jac,
+                                      accel, d_accel)
+                    else:
+                        accel[2] = u[0] / mass
+                        if kind == EFFECT:
+                            effect_dynamics(mean, dt, mass, drag, wind, x_next, jac, rot, f_body)
+                    if flowing:
+                        continuous_rows(mean, dt, accel, d_accel, x_next, jac, s33, d_rot, rows_3x12)
             _f_times(kind, flowing, jac, cov, fp)
             if store:
                 copy_mat(fp, fps[k])

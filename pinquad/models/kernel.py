@@ -23,7 +23,14 @@ from numpy.typing import NDArray
 
 from pinquad.models.effect import EffectSSM
 from pinquad.models.full import FullQuadSSM
-from pinquad.models.ssm import RESET_VAR, KinematicSSM, Observations, QuadSSM
+from pinquad.models.ssm import (
+    RESET_VAR,
+    RESTART_VAR,
+    KinematicSSM,
+    Observations,
+    QuadSSM,
+    restart_mask,
+)
 
 Array = NDArray[np.float64]
 
@@ -53,6 +60,8 @@ class KernelDescription(NamedTuple):
     q_kin (6,) [m^2, rad^2], s_f = S_f (3,) [N^2 s] and q_tau = dt I^-1 diag(S_tau) I^-1
     (3, 3) (FULL: s_wrench = S (6,) and m_inv instead of s_f and q_tau);
     resets (N,) bool: transitions whose Q gets diag(reset_var) (12,) added;
+    restarts (N,) bool: transitions that restart the filter (``ssm.restart_mask``:
+    x_{k+1} = x_k, F = 0, Q = diag(restart_var) (12,)), whatever ``resets`` says;
     m_inv (6, 6), first_moment (3,) [kg m], i_o (3, 3) [kg m^2]: FULL's M_O^-1, h, I_O;
     drag (3,) [N s/m], wind (3,) [N, world]: EFFECT's lateral forces (z entries 0);
     continuous: the kinematic rows advance by their mean rates over each interval and a
@@ -77,6 +86,8 @@ class KernelDescription(NamedTuple):
     q_tau: Array
     resets: NDArray[np.bool_]
     reset_var: Array
+    restarts: NDArray[np.bool_]
+    restart_var: Array
     m_inv: Array
     first_moment: Array
     i_o: Array
@@ -134,7 +145,8 @@ def kernel_description(model: object) -> KernelDescription | None:
         q_kin=np.ascontiguousarray(nz.q_kin, dtype=float),
         s_f=np.ascontiguousarray(nz.wrench[0:3], dtype=float),
         q_tau=np.ascontiguousarray(q_tau), resets=reset_mask(obs),
-        reset_var=RESET_VAR.copy(),
+        reset_var=RESET_VAR.copy(), restarts=restart_mask(obs),
+        restart_var=RESTART_VAR.copy(),
         m_inv=np.ascontiguousarray(m_inv, dtype=float),
         first_moment=np.ascontiguousarray(first_moment, dtype=float),
         i_o=np.ascontiguousarray(i_o, dtype=float),

@@ -22,7 +22,18 @@ velocity noise, the Euler rows theirs of the rate noise (``continuous.kinematic_
 On a transition marked in ``Observations.resets`` (touch-down on the floor: an impulse
 the model does not have stops and levels the vehicle within a step) the covariance is
 widened by diag(RESET_VAR), so that the smoother does not carry the flight dynamics
-across the impulse and the states on either side follow their own data.
+across the impulse and the states on either side follow their own data. A reset into a row
+that measures nothing (inside a log gap: ``restart_mask``) restarts the filter instead:
+neither the model nor the data say where the vehicle went, so the state is not
+propagated through the dynamics (carried blind over a 2 s gap, the rates integrate
+the torques to tens of rad/s, the attitude spins and the covariance overflows), but
+re-initialised to a wide prior around the last estimate,
+
+    x_{k+1} = x_k + w_k,  F_k = 0,  Cov(w_k) = diag(RESTART_VAR)
+
+which makes the states after the restart independent of those before it: the RTS gain
+over it is zero, so the smoother runs on each side of the gap as if the log were cut
+there.
 
 Measurements y_k: the rows of ``channels`` (pos, vel, euler, gyro, each 3 rows, world
 or body as in the log), y = H x + v, v ~ N(0, diag(r)); Euler rows wrap.
@@ -52,6 +63,14 @@ RESET_VAR = np.array([1e-4] * 3 + [1.0] * 3 + [0.1] * 3 + [4.0] * 3)
 what a floor contact can change in one 10 ms step at take-off speeds, as standard
 deviations: position 1 cm (it is continuous), velocity 1 m/s, attitude 0.3 rad, body
 rates 2 rad/s (it stops them)."""
+
+RESTART_VAR = np.array([1.0] * 3 + [25.0] * 3 + [1.0] * 3 + [25.0] * 3)
+"""(12,) prior variances of the state after a restart (``restart_mask``) [m^2, (m/s)^2,
+rad^2, (rad/s)^2], about the last estimate: a hundred times the first row's prior
+(realdata's p0), as standard deviations position 1 m, velocity 5 m/s, attitude 1 rad,
+body rates 5 rad/s; wide against the measurements' noise, so the next measurements set
+the state, yet not so wide that an update from it loses digits (against mocap's 5 mm,
+P / R ~ 4e4: the compiled and generic passes still agree to 1e-11)."""
 
 
 @dataclass(frozen=True)
@@ -111,7 +130,9 @@ class Observations:
     not use (ground contact, implausible actuation); resets (N,) bool: transitions
     k -> k+1 that the flight dynamics do not describe because something outside the
     model changed the state (the floor stopping the vehicle as it touches down), whose
-    process covariance is widened by ``RESET_VAR`` (empty: none); ground_radius [m]: the
+    process covariance is widened by ``RESET_VAR`` or, into a row without any
+    measurement (inside a log gap), from which the filter restarts (``restart_mask``)
+    (empty: none); ground_radius [m]: the
     flown vehicle's ground-effect radius, which discovery's ``ground_effect`` feature
     evaluates (``core.effect_vocabulary.vehicle_ground_radius``; the default is for
     observations built without a vehicle); samples (N, 4) or None: the logged thrust [N]
@@ -195,13 +216,18 @@ class QuadSSM:
         self._q_tau = obs.dt * self.body.inertia_inv @ np.diag(nz.wrench[3:6]) @ self.body.inertia_inv
         self._resets = np.asarray(obs.resets, dtype=bool)
         self._reset_q = np.diag(RESET_VAR)
+        self._restarts = restart_mask(obs)
+        self._restart_q = np.diag(RESTART_VAR)
 
     def initial(self) -> tuple[Array, Array]:
         return self.obs.x0, np.diag(self.obs.p0)
 
     def transition(self, x: Array, k: int) -> tuple[Array, Array]:
         """(x_{k+1}, F_k): ``euler_step``, with the kinematic rows by their mean rates
-        over the interval on a continuous flight (``continuous.continuous_step``)."""
+        over the interval on a continuous flight (``continuous.continuous_step``); on a
+        restart (``restart_mask``), (x_k, 0)."""
+        if self._restarts[k]:
+            return x.copy(), np.zeros((12, 12))
         nxt, jac = self.euler_step(x, k)
         if self.obs.continuous:
             accel, d_accel = self.body_acceleration(x, k)
@@ -220,6 +246,8 @@ class QuadSSM:
         return x + dt * f, self._eye + dt * jac
 
     def process_cov(self, x: Array, k: int) -> Array:
+        if self._restarts[k]:
+            return self._restart_q
         q = self._flight_process_cov(x)
         if self.obs.continuous and self._fixed_q is None:
             q = kinematic_noise(q, self.obs.dt, euler_rate_matrix_inv(x[6:9]))
@@ -273,6 +301,8 @@ class KinematicSSM(QuadSSM):
     are constant over each interval, so a continuous flight moves it the same way."""
 
     def transition(self, x: Array, k: int) -> tuple[Array, Array]:
+        if self._restarts[k]:
+            return x.copy(), np.zeros((12, 12))
         return self.euler_step(x, k)
 
     def euler_step(self, x: Array, k: int) -> tuple[Array, Array]:
@@ -294,6 +324,23 @@ class KinematicSSM(QuadSSM):
         if self._fixed_q is None:
             raise ValueError("the kinematic warm-up model needs a fixed process covariance")
         return self._fixed_q
+
+
+def restart_mask(obs: Observations) -> NDArray[np.bool_]:
+    """(N,) whether transition k -> k+1 restarts the filter (module docstring): a reset
+    (``Observations.resets``) into a row without any measurement in ``obs.ys``, as are
+    the transitions inside a log gap longer than the grid's step. The last transition
+    of a gap, into a measured row, stays a reset (from the restarted state), as do a
+    touch-down's."""
+    n = obs.n
+    mask = np.zeros(n, dtype=bool)
+    resets = np.asarray(obs.resets, dtype=bool)[:max(n - 1, 0)]
+    if not resets.any():
+        return mask
+    blind = np.isnan(np.asarray(obs.ys, dtype=float)).all(axis=1)
+    m = min(resets.size, blind.size - 1)  # ys may hold fewer rows than t (a bad call)
+    mask[:m] = resets[:m] & blind[1:m + 1]
+    return mask
 
 
 def kinematic_floor(dt: float, accel: float = 1.0, angular_accel: float = 10.0) -> Array:

@@ -199,11 +199,12 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
 
 
 def failure_with_gaps(failure: str | None, exclusions: tuple) -> str | None:
-    """EM's failure (None: none) with the log's gaps (``realdata.input_holes``), which a
-    smoother crossing them without a measurement is the likeliest cause of."""
+    """EM's failure (None: none) with the log's gaps (``realdata.input_holes``): the
+    smoother restarts after each (``models.ssm.restart_mask``), from a wide prior the
+    first rows after it must pin down, the likeliest place for a filter to break."""
     gaps = [e.reason for e in exclusions if e.reason.startswith(GAP_REASON) and e.transitions]
     if failure is None or not gaps:
         return failure
     gap = gaps[0].removeprefix(GAP_REASON + ": ").removesuffix(" (resets for the E-step)")
-    return (f"{failure}; the log has {gap}, which the smoother crosses without any "
-            "measurement (cut the log at the gap)")
+    return (f"{failure}; the log has {gap}, after which the smoother restarts from a "
+            "wide prior (cut the log at the gap to see whether it is the cause)")
