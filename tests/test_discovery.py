@@ -382,11 +382,11 @@ def test_ground_effect_coefficient_converges_in_the_joint_refinement():
 def test_real_circle_flight_names_drag():
     """The measured circle flight (jana10) names drag with a lateral coefficient between
     the rotor-drag value (0.006 N s/m) and five times it; fails if the data are missing."""
-    from pinquad.experiments.realdiscovery import fit_flight
+    from pinquad.pipeline.measured import flight_fit
 
     path = FLIGHTS / "jana10"
     assert path.is_file(), f"the Crazyflie data are missing: expected {path}"
-    fit = fit_flight(path)
+    fit = flight_fit(path)
     assert "drag" in fit.selected
     sel = next(s for s in fit.section["selected"] if s["effect"] == "drag")
     for name in ("D_x", "D_y"):

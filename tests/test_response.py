@@ -156,3 +156,30 @@ def test_missing_log_exits_2_with_the_path(tmp_path):
                          capture_output=True, text=True, env=env, timeout=120)
     assert out.returncode == 2
     assert "nosuchlog" in out.stderr and "Traceback" not in out.stderr
+
+
+def _rotor_speed_log_in_milliseconds(path: Path) -> Path:
+    """A 3 s hover log with rotor speeds whose time column is in milliseconds (the
+    pipeline's check names it; the readers themselves accept any increasing times)."""
+    t = 10.0 * np.arange(300)  # [ms], a 100 Hz log
+    cols = {"t": t, "pos_x": np.zeros(300), "pos_y": np.zeros(300),
+            "pos_z": np.full(300, 0.5), "quat_w": np.ones(300), "quat_x": np.zeros(300),
+            "quat_y": np.zeros(300), "quat_z": np.zeros(300), "gyro_x": np.zeros(300),
+            "gyro_y": np.zeros(300), "gyro_z": np.zeros(300),
+            **{f"rpm_{i}": np.full(300, 16000.0) for i in range(1, 5)}}
+    np.savetxt(path, np.column_stack(list(cols.values())), delimiter=",",
+               header=",".join(cols), comments="")
+    return path
+
+
+@pytest.mark.parametrize("command", ["response", "axis_inertia"])
+def test_measured_log_commands_check_the_log_before_any_work(command, tmp_path, capsys):
+    """``response`` and ``axis_inertia`` read a log through the pipeline's read and check:
+    a time column in milliseconds exits 2 naming the file and the column."""
+    import importlib
+
+    main = importlib.import_module(f"pinquad.cli.{command}").main
+    path = _rotor_speed_log_in_milliseconds(tmp_path / "ms.csv")
+    assert main([str(path)]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and "column 't'" in err and "milliseconds" in err, err

@@ -1,4 +1,4 @@
-"""A vehicle from a file in the simulated world (issue 24): the 250 mm + quad of
+"""A vehicle from a file in the simulated world: the 250 mm + quad of
 docs/vehicles/quad250_plus.toml flown, logged with rotor speeds and identified from its
 CSV log as a user's log is; the vehicle file against the log; --vehicle on the
 measured-flight commands; the shipped vehicles' constants only in their files."""

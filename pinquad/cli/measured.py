@@ -1,6 +1,7 @@
 """What the measured-flight diagnostics' command lines share (``python -m
-pinquad.response``, ``python -m pinquad.axis_inertia``): the log arguments, loading the
-logs they name, and the check of the ``--simulate`` factors."""
+pinquad.response``, ``python -m pinquad.axis_inertia``): the log arguments, the logs
+they name through the pipeline's read and check (``pinquad.pipeline.measured``), and the
+check of the ``--simulate`` factors."""
 
 from __future__ import annotations
 
@@ -17,14 +18,10 @@ from tqdm import tqdm
 from pinquad.core.vehicle_file import VehicleSpec, load_vehicle
 from pinquad.io.datadir import missing_data_hint
 from pinquad.io.logs import vehicle_file_named
+from pinquad.pipeline.measured import measured_log
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
-from pinquad.realdata.observations import (
-    RealDataOptions,
-    RealObservations,
-    load_real,
-    options_for_vehicle,
-)
-from pinquad.realdata.thrust import thrust_coefficient, vehicle_thrust_coefficient
+from pinquad.realdata.observations import RealObservations
+from pinquad.realdata.thrust import thrust_coefficient
 
 Array = NDArray[np.float64]
 
@@ -65,20 +62,19 @@ def reference_inertia(spec: VehicleSpec) -> Array:
 def measured_logs(logs: Sequence[str], data: Path | None, vehicle: str = "crazyflie21"
                   ) -> Iterator[tuple[str, RealObservations]]:
     """Yield (name, observations) for ``logs`` (names in ``data``'s flight directory, or
-    paths) under a progress bar: the shipped crazyflie21 with kf from the data's thrust
-    stand, a vehicle file with its mixer, fault thresholds and kf. Raises LogFormatError /
-    ValueError / FileNotFoundError."""
+    paths) under a progress bar, each read and checked as the log of ``vehicle``
+    (``pipeline.measured.measured_log``): the shipped crazyflie21 with kf from the data's
+    thrust stand, a vehicle file with its mixer, fault thresholds and kf. Raises
+    LogFormatError / ValueError / FileNotFoundError."""
     shipped = vehicle == "crazyflie21"
     flights = flights_dir(data) if shipped or data is None else data
     if not flights.is_dir() and not all(Path(name).exists() for name in logs):
         raise FileNotFoundError(f"{flights}: no such directory; expected the Crazyflie flight "
                                 f"logs: {missing_data_hint()}")
-    spec = measured_vehicle_spec(vehicle)
-    options = RealDataOptions() if shipped else options_for_vehicle(spec)
-    kf = thrust_coefficient(stand_dir(data)) if shipped else vehicle_thrust_coefficient(spec)
+    kf = thrust_coefficient(stand_dir(data)) if shipped else None
     for name in tqdm(logs, unit="log", file=sys.stderr):
         path = Path(name) if Path(name).exists() else flights / name
-        yield path.name, load_real(path, options, kf)
+        yield path.name, measured_log(path, vehicle, kf)
 
 
 def positive_factors(values: list[float]) -> str | None:

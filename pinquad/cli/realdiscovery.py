@@ -1,6 +1,7 @@
 """``python -m pinquad.realdiscovery``: effect discovery on the measured Crazyflie flights,
-trained on some logs and tested on others (``pinquad.experiments.realdiscovery``; table
-by ``pinquad.report.realdiscovery``)."""
+trained on some logs and tested on others: each log read, checked and fitted by the
+pipeline (``pinquad.pipeline.measured.flight_fit``), the splits by
+``pinquad.experiments.realdiscovery``, the table by ``pinquad.report.realdiscovery``."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from pinquad.experiments.realdiscovery import POOLED, SPLITS, FlightFit, run_spl
 from pinquad.io.datadir import default_data_dir, missing_data_hint
 from pinquad.io.logs import LogFormatError, vehicle_file_named
 from pinquad.io.runs import atomic_write_json
+from pinquad.pipeline.measured import flight_fit
 from pinquad.report.realdiscovery import realdiscovery_markdown
 
 
@@ -76,7 +78,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"split {s}: train {', '.join(split[0])}; test {', '.join(split[1])}; "
                   f"effect {split[2]}",
                   flush=True)
-            results[s] = run_split(s, data, cache, split, vehicle)
+            for n in (*split[0], *split[1]):
+                if n not in cache:
+                    cache[n] = flight_fit(data / n, vehicle)
+            results[s] = run_split(s, cache, split)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

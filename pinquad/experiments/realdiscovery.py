@@ -3,10 +3,12 @@
 ``python -m pinquad.realdiscovery [--data DIR]`` (command line ``pinquad.cli.realdiscovery``,
 table ``pinquad.report.realdiscovery``):
 
-1. every flight of the split is identified as ``offline --log`` does (``realdata``:
-   100 Hz observations, band-limited inertia M-step with the nuisance air-speed moment)
-   and discovery (``pinquad.discovery.discover.discover``, effects fitted on the base
-   posterior) is run on it alone: what each flight names by itself;
+1. every flight of the split is read and checked by the pipeline
+   (``pinquad.pipeline.measured.flight_fit``) and identified as ``offline --log`` does
+   (``realdata``: 100 Hz observations, band-limited inertia M-step with the nuisance
+   air-speed moment; :func:`fit_flight`), and discovery
+   (``pinquad.discovery.discover.discover``, effects fitted on the base posterior) is
+   run on it alone: what each flight names by itself;
 2. the effects named by at least half of the training flights are fitted on all training
    flights together (profiled ML of ``pinquad.discovery.selection``: summed expected Gram
    matrices, mass and inertia re-fitted with the effects' coefficients, the wrench row
@@ -25,13 +27,12 @@ four random flights, which spend little time there (jana28 0.5 s).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.vehicle_file import load_vehicle
 from pinquad.discovery.discover import discover
 from pinquad.discovery.library import SPECS
 from pinquad.discovery.residuals import (
@@ -42,18 +43,10 @@ from pinquad.discovery.residuals import (
 )
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import ProfiledFit, profiled_fit
-from pinquad.io.read import read_log
-from pinquad.io.sdlog import read_sdflight
 from pinquad.models.ssm import corrected
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real
-from pinquad.realdata.observations import (
-    RealDataOptions,
-    build_observations,
-    options_for_vehicle,
-)
-from pinquad.realdata.raw import raw_flight, raw_from_sdflight
-from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
+from pinquad.realdata.observations import RealObservations
 
 Array = NDArray[np.float64]
 
@@ -85,18 +78,11 @@ class FlightFit:
     max_speed: float
 
 
-def fit_flight(path: Path, max_iterations: int = 60, vehicle: str = "crazyflie21",
-               kf: ThrustCoefficient | None = None) -> FlightFit:
-    """Base identification (``realdata.identify_real``) and discovery of one log of
-    ``vehicle`` (the shipped crazyflie21: kf from the data directory's thrust stand unless
-    given; a vehicle file: its mixer, fault thresholds, kf and [guess])."""
-    if vehicle == "crazyflie21":
-        raw, options = raw_from_sdflight(read_sdflight(path)), RealDataOptions()
-    else:
-        spec = load_vehicle(vehicle)
-        raw, options = raw_flight(read_log(path)), options_for_vehicle(spec)
-        kf = kf or vehicle_thrust_coefficient(spec)
-    real = build_observations(raw, options, kf)
+def fit_flight(name: str, real: RealObservations, max_iterations: int = 60,
+               vehicle: str = "crazyflie21") -> FlightFit:
+    """Base identification (``realdata.identify_real``, from ``vehicle``'s [guess]) and
+    discovery of the measured flight ``name`` with observations ``real`` (read, checked
+    and observed with its vehicle's mixer and kf by ``pinquad.pipeline.measured``)."""
     mass0, inertia0, _ = default_guess(vehicle)
     run = identify_real(real, mass0, inertia0, max_iterations, False)
     theta, post = run.theta, run.posterior
@@ -107,7 +93,7 @@ def fit_flight(path: Path, max_iterations: int = 60, vehicle: str = "crazyflie21
     speed = np.linalg.norm(post.mean[:, 3:6], axis=1)
     flying = post.mean[:, 2] > 0.03
     lowest = float(np.min(post.mean[flying, 2])) if flying.any() else 0.0
-    return FlightFit(path.name, obs, plain, post, out.selected, out.to_report(), run.mass,
+    return FlightFit(name, obs, plain, post, out.selected, out.to_report(), run.mass,
                      np.diag(run.inertia).copy(), lowest, float(np.max(speed)))
 
 
@@ -160,21 +146,14 @@ def evaluate(fit: FlightFit, pi: Array, coeffs: dict[str, Array],
     return heldout_rms(res, pi, coeffs, np.ones(res.n_blocks, dtype=bool), window, steps_mask)
 
 
-def run_split(name: str, data: Path, cache: dict[str, FlightFit],
-              split: tuple[tuple[str, ...], tuple[str, ...], str] | None = None,
-              vehicle: str = "crazyflie21") -> dict:
+def run_split(name: str, fits: Mapping[str, FlightFit],
+              split: tuple[tuple[str, ...], tuple[str, ...], str] | None = None) -> dict:
     """Train / test one split (``SPLITS[name]``, or ``split`` = (training logs, test logs,
-    effect) when given) of ``vehicle``'s logs in ``data``; returns its table entries."""
+    effect) when given) on the fitted flights ``fits`` (by log name: every log of the
+    split); returns its table entries."""
     train_names, test_names, target = split if split is not None else SPLITS[name]
-    for n in (*train_names, *test_names):
-        if n not in cache:
-            path = data / n
-            if not path.is_file():
-                raise FileNotFoundError(f"{path}: flight log not found (expected the shared "
-                                        "Crazyflie data, imrc_brushed/, or --data DIR)")
-            cache[n] = fit_flight(path, vehicle=vehicle)
-    train = [cache[n] for n in train_names]
-    test = [cache[n] for n in test_names]
+    train = [fits[n] for n in train_names]
+    test = [fits[n] for n in test_names]
     votes = {e: sum(e in f.selected for f in train) for e in POOLED}
     effects = tuple(e for e in POOLED if 2 * votes[e] >= len(train) and votes[e] > 0)
     base = pooled_fit(train, ())

@@ -13,7 +13,7 @@ import numpy as np
 from pinquad.core.params import VehicleRange
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.identification.verdict import vehicle_range
-from pinquad.io.logs import FlightLog
+from pinquad.io.logs import FlightLog, LogFormatError
 from pinquad.realdata.observations import (
     RealDataOptions,
     RealObservations,
@@ -81,16 +81,24 @@ def over_max_thrust(log: FlightLog, max_thrust: float, kf: float, where: object,
                          "vehicle's")
 
 
-def measured_observations(log: FlightLog, sensor: str | None = None) -> RealObservations:
+def measured_observations(log: FlightLog, sensor: str | None = None,
+                          kf: ThrustCoefficient | None = None) -> RealObservations:
     """The EM observations of a measured rotor-speed log on the 100 Hz grid
     (``realdata.observations.build_observations``), its rotor speeds read with its
-    vehicle's mixer and kf (:func:`measured_vehicle`) and the channels of the paper's
-    source ``sensor`` (None: every channel the log has; a log without any position
-    sample, a velocity-only export, is observed through its velocity, attitude and rates:
-    the smoother carries the unobserved position as the velocity's integral, its
-    variance growing but finite, and the translational dynamics rest on the velocity).
-    Raises ValueError when the vehicle contradicts the log or nothing usable remains."""
-    options, kf = measured_vehicle(log)
+    vehicle's mixer and kf (:func:`measured_vehicle`; ``kf`` given: that thrust
+    coefficient instead, e.g. the shipped crazyflie21's from another data directory's
+    thrust stand) and the channels of the paper's source ``sensor`` (None: every channel
+    the log has; a log without any position sample, a velocity-only export, is observed
+    through its velocity, attitude and rates: the smoother carries the unobserved
+    position as the velocity's integral, its variance growing but finite, and the
+    translational dynamics rest on the velocity). Raises LogFormatError for a log
+    without rotor speeds, ValueError when the vehicle contradicts the log or nothing
+    usable remains."""
+    if log.rpm is None:
+        raise LogFormatError(f"{log.meta.source}: no rpm_1..rpm_4 columns; expected rotor "
+                             "speeds for the actuator model")
+    options, vehicle_kf = measured_vehicle(log)
+    kf = vehicle_kf if kf is None else kf
     raw = raw_flight(log)
     options = options_for_sensor(sensor, options)
     pose = raw.pose.position if raw.pose is not None else log.position
