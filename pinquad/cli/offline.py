@@ -102,10 +102,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "band-limited M-step is not accelerated: a 40 s yaw sweep needs "
                         "about 130)")
     add_backend_arguments(p, os.cpu_count() or 1,
-                          "Monte Carlo cycles or a batch's logs; with one --log, --jobs also "
-                          "runs the log's EM runs beside the reported one, the null "
-                          "calibration's shadow-flight scoring and the refit beside them, the "
-                          "same answer")
+                          "Monte Carlo cycles, a batch's logs, or one log's EM runs beside "
+                          "the reported one, its shadow-flight scoring and refit (the same "
+                          "answer)")
     p.add_argument("--no-information", action="store_true",
                    help="skip standard errors and the Cramer-Rao bound (faster)")
     p.add_argument("--out", type=Path, help="output run directory (default: a fresh "
