@@ -163,23 +163,24 @@ def _start_inertia(mass: float, positions: Array) -> Array:
 
 
 def _run(flight: CommandLog, curve: Array, tau: float, mass: float, positions: Array,
-         spin: Array, yaw_ratio: float, start: tuple[float, Array] | Theta,
+         spin: Array, yaw_ratio: float, warm: Theta | None,
          band: tuple[float, float]) -> tuple[EMResult, Observations, BandMStep]:
     """One EM run on the nominal wrench of ``curve`` and ``tau`` with the band M-step on
-    ``band`` [Hz], from ``start``: a guess (mass0 [kg], inertia0 (3, 3) [kg m^2]), which
-    begins with the paper's noise and a force-free E-step (``em_from_guess``), or an
-    earlier fit's parameters (a rerun with one assumption moved: its noise is already
-    close, so EM starts there and converges in a few steps)."""
+    ``band`` [Hz]: from an earlier fit's parameters ``warm`` (a rerun with one assumption
+    moved: its noise is already close, so EM starts there and converges in a few steps),
+    or, with ``warm`` None, from the guess (mass [kg], ``_start_inertia`` (3, 3) [kg m^2]),
+    which begins with the paper's noise and a force-free E-step (``em_from_guess``)."""
     dt = float(np.median(np.diff(flight.log.t)))
     obs = command_observations(flight, nominal_wrench(flight.command, curve, tau, dt,
                                                       positions, spin, yaw_ratio))
     mstep = BandMStep(band)
-    if isinstance(start, Theta):
-        res = run_em(obs, start.without_nuisance(), smooth_quad, mstep,
+    if warm is not None:
+        res = run_em(obs, warm.without_nuisance(), smooth_quad, mstep,
                      max_iterations=EM_MAX_ITERATIONS, tol=EM_TOL, tol_loglik=0.1 * EM_TOL,
                      accelerate=False)
     else:
-        res = em_from_guess(obs, start[0], start[1], flight.log.meta.gravity, "rts", mstep,
+        res = em_from_guess(obs, mass, _start_inertia(mass, positions),
+                            flight.log.meta.gravity, "rts", mstep,
                             EMSettings(EM_MAX_ITERATIONS, tol=EM_TOL, tol_loglik=0.1 * EM_TOL,
                                        accelerate=False))
     return res, obs, mstep
@@ -187,7 +188,7 @@ def _run(flight: CommandLog, curve: Array, tau: float, mass: float, positions: A
 
 def band_halves(flight: CommandLog, curve: Array, tau: float, mass: float,
                 positions: Array, spin: Array, yaw_ratio: float,
-                start: tuple[float, Array] | Theta, band: tuple[float, float]
+                warm: Theta, band: tuple[float, float]
                 ) -> tuple[list[tuple[float, float]], list[tuple[float, float]], float]:
     """The adequacy check of the torque model: EM on the band's lower and upper halves
     (split at the geometric mean f_m = sqrt(lo hi) [Hz]); per half and axis the rescaled
@@ -197,7 +198,7 @@ def band_halves(flight: CommandLog, curve: Array, tau: float, mass: float,
     mid = math.sqrt(band[0] * band[1])
     out = []
     for half in ((band[0], mid), (mid, band[1])):
-        res, obs, mstep = _run(flight, curve, tau, mass, positions, spin, yaw_ratio, start,
+        res, obs, mstep = _run(flight, curve, tau, mass, positions, spin, yaw_ratio, warm,
                                half)
         scale = mass / res.theta.mass
         jack = mstep.jackknife(res.posterior, obs, res.theta)
@@ -238,8 +239,7 @@ def identify_known_mass_em(flight: CommandLog, mass: float, positions: Array, sp
     # then not reported; its effect on I_xx, I_yy is an error part)
     yaw = curve.yaw_ratio if curve.yaw_ratio is not None else NOMINAL_YAW_RATIO
     band = settings.band
-    start = (mass, _start_inertia(mass, positions))
-    main, obs, mstep = _run(flight, nominal, tau, mass, positions, spin, yaw, start, band)
+    main, obs, mstep = _run(flight, nominal, tau, mass, positions, spin, yaw, None, band)
     theta = main.theta
     m_hat, i_hat = theta.mass, np.diag(theta.inertia).copy()
 
