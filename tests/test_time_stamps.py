@@ -142,14 +142,19 @@ def test_a_real_flights_yaw_inertia_ignores_2_ms_jitter(real_export):
     assert _changes(moved, base)[3] <= 0.1
 
 
-def test_a_real_2_s_gap_is_found_and_named(real_export):
-    log, _ = real_export
+def _with_2_s_hole(log):
+    """The rotor-speed log without its rows of 3-5 s (a logger's 2 s pause)."""
     cut = log.slice(0, log.n)
     keep = with_hole(cut.t, 3.0, 2.0)
-    holed = replace(cut, t=cut.t[keep], position=cut.position[keep],
-                    velocity=cut.velocity[keep], euler=cut.euler[keep], gyro=cut.gyro[keep],
-                    accel=cut.accel[keep], rpm=cut.rpm[keep],
-                    vbat=None if cut.vbat is None else cut.vbat[keep])
+    return replace(cut, t=cut.t[keep], position=cut.position[keep],
+                   velocity=cut.velocity[keep], euler=cut.euler[keep], gyro=cut.gyro[keep],
+                   accel=cut.accel[keep], rpm=cut.rpm[keep],
+                   vbat=None if cut.vbat is None else cut.vbat[keep])
+
+
+def test_a_real_2_s_gap_is_found_and_named(real_export):
+    log, _ = real_export
+    holed = _with_2_s_hole(log)
     real = build_observations(raw_flight(holed))
     gap = [e for e in real.exclusions if e.reason.startswith("log gaps")]
     assert gap and gap[0].transitions >= 200 and "2.00" in gap[0].reason
@@ -226,12 +231,7 @@ def test_a_real_rotor_speed_logs_2_s_gap_converges_near_the_clean_estimate(real_
     and without 2 s of the ~9 s flight the estimate stays within a standard error of the
     whole log's (measured: at most 0.3 of one, I_yy)."""
     log, base = real_export
-    cut = log.slice(0, log.n)
-    keep = with_hole(cut.t, 3.0, 2.0)
-    holed = replace(cut, t=cut.t[keep], position=cut.position[keep],
-                    velocity=cut.velocity[keep], euler=cut.euler[keep], gyro=cut.gyro[keep],
-                    accel=cut.accel[keep], rpm=cut.rpm[keep],
-                    vbat=None if cut.vbat is None else cut.vbat[keep])
+    holed = _with_2_s_hole(log)
     run = identify(holed, information=False)
     assert run.failure is None and run.converged
     change = (np.abs(np.r_[run.mass, np.diag(run.inertia)]
