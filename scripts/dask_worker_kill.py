@@ -27,23 +27,17 @@ import sys
 import time
 from pathlib import Path
 
+from pinquad.io.runs import without_wall_times
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _without_seconds(value: object) -> object:
-    if isinstance(value, dict):
-        return {k: _without_seconds(v) for k, v in value.items() if k != "seconds"}
-    if isinstance(value, list):
-        return [_without_seconds(v) for v in value]
-    return value
-
-
 def _rows(batch_dir: Path) -> list[dict]:
-    return [_without_seconds(r) for r in json.loads((batch_dir / "batch.json").read_text())["logs"]]
+    return [without_wall_times(r) for r in json.loads((batch_dir / "batch.json").read_text())["logs"]]
 
 
 def _reports(batch_dir: Path) -> dict:
-    return {p.parent.name: _without_seconds(json.loads(p.read_text()))
+    return {p.parent.name: without_wall_times(json.loads(p.read_text()))
             for p in sorted((batch_dir / "logs").glob("*/report.json"))}
 
 

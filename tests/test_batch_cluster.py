@@ -19,6 +19,7 @@ import numpy as np
 from conftest import write_with_paper_guess
 
 from pinquad.experiments.recorded import LogOptions
+from pinquad.io.runs import without_wall_times
 from pinquad.pipeline import PipelineOptions, identify_many
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
@@ -47,18 +48,9 @@ def _comparable(row) -> str:
     return json.dumps(d)
 
 
-def _without_seconds(value: object) -> object:
-    """A report with every wall time (keys ``seconds``) left out."""
-    if isinstance(value, dict):
-        return {k: _without_seconds(v) for k, v in value.items() if k != "seconds"}
-    if isinstance(value, list):
-        return [_without_seconds(v) for v in value]
-    return value
-
-
 def _reports(logs_dir: Path) -> dict[str, object]:
     """Every report.json under ``logs_dir``, without its wall times."""
-    return {path.parent.name: _without_seconds(json.loads(path.read_text()))
+    return {path.parent.name: without_wall_times(json.loads(path.read_text()))
             for path in sorted(logs_dir.glob("*/report.json"))}
 
 

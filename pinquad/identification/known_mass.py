@@ -247,6 +247,15 @@ def _judge(name: str, value: float, total: float, settings: KnownMassSettings,
     return worst, tuple(r for _, r in reasons)
 
 
+def yaw_inertia_without_ratio() -> Estimate:
+    """I_zz when the vehicle file gives no yaw torque coefficient: not identifiable, since
+    motor commands fix the yaw torque only up to that factor (I_zz / k is all a log
+    carries)."""
+    return Estimate("I_zz", float("nan"), "kg m^2", float("nan"), (), NOT_IDENTIFIABLE, (
+        "I_zz needs the yaw torque coefficient (actuator_curve.yaw_ratio [m] in the "
+        "vehicle file): motor commands give yaw torque only up to that factor",))
+
+
 def estimate_with_verdict(name: str, value: float, unit: str, parts: dict[str, float],
                           settings: KnownMassSettings, extra: list[tuple[str, str]]
                           ) -> Estimate:
@@ -381,11 +390,7 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
         else curve.yaw_ratio_se / curve.yaw_ratio
     for a, name in enumerate(("I_xx", "I_yy", "I_zz")):
         if a == 2 and curve.yaw_ratio is None:
-            estimates.append(Estimate(name, float("nan"), "kg m^2", float("nan"), (),
-                                      NOT_IDENTIFIABLE, (
-                "I_zz needs the yaw torque coefficient (actuator_curve.yaw_ratio [m] in "
-                "the vehicle file): motor commands give yaw torque only up to that "
-                "factor",)))
+            estimates.append(yaw_inertia_without_ratio())
             continue
         checks: list[tuple[str, str]] = []
         if share[a] < settings.min_fit_share:

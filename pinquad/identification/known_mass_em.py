@@ -61,6 +61,7 @@ from pinquad.identification.known_mass import (
     KnownMassSettings,
     estimate_with_verdict,
     motor_lag,
+    yaw_inertia_without_ratio,
 )
 from pinquad.identification.search_range import generic_range
 from pinquad.identification.verdict import (
@@ -302,11 +303,7 @@ def identify_known_mass_em(flight: CommandLog, mass: float, positions: Array, sp
                                        em_checks)]
     for a, name in enumerate(("I_xx", "I_yy", "I_zz")):
         if a == 2 and curve.yaw_ratio is None:
-            estimates.append(Estimate(name, float("nan"), "kg m^2", float("nan"), (),
-                                      NOT_IDENTIFIABLE, (
-                "I_zz needs the yaw torque coefficient (actuator_curve.yaw_ratio [m] in "
-                "the vehicle file): motor commands give yaw torque only up to that "
-                "factor",)))
+            estimates.append(yaw_inertia_without_ratio())
             continue
         lever = ({"arm_length": inertia[a] * settings.arm_rel_se} if a < 2 else
                  {"yaw_torque_coefficient": inertia[a] * yaw_rel})

@@ -113,6 +113,16 @@ def _clean(obj: Any) -> Any:
     return obj
 
 
+def without_wall_times(value: Any) -> Any:
+    """A report's JSON value (report.json, batch.json) with every wall time (the keys
+    ``seconds``, at any depth) left out: what two runs of the same task must agree on."""
+    if isinstance(value, dict):
+        return {k: without_wall_times(v) for k, v in value.items() if k != "seconds"}
+    if isinstance(value, list):
+        return [without_wall_times(v) for v in value]
+    return value
+
+
 def new_run_dir(kind: str, root: str | Path = "runs") -> Path:
     """A fresh directory name ``runs/<kind>-YYYYmmdd-HHMMSS[-n]`` (not yet created)."""
     stamp = time.strftime("%Y%m%d-%H%M%S")
