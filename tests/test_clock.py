@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pinquad.io.timebase import clock_times, grid_times
+from pinquad.io.timebase import clock_times, frame_clock, frame_numbers, grid_times
 from pinquad.realdata.resample import at_grid_time, held_average, sample_average
 
 FAST = settings(max_examples=40, deadline=None, derandomize=True, database=None)
@@ -95,3 +95,46 @@ def test_a_pose_is_read_at_its_grid_steps_time_and_angles_wrap():
     # from -3.1 at 12 ms back towards 3.1 at 0 ms, the short way round through pi
     expected = -3.1 - (2 * np.pi - 6.2) * (0.002 / 0.012)
     np.testing.assert_allclose(got[0, 0], expected, atol=1e-12)
+
+
+def _lossy_stream(rate: float, keep: float, seconds: float, rng: np.random.Generator
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(frame numbers kept, their true times [s]): a stream taken at ``rate`` Hz whose
+    frames each arrive with probability ``keep`` (the first always)."""
+    frames = np.arange(int(seconds * rate))
+    kept = frames[(rng.random(frames.size) < keep) | (frames == 0)]
+    return kept, kept / rate
+
+
+@FAST
+@given(rate=st.sampled_from([50.0, 101.1, 120.0, 240.0]), keep=st.floats(0.4, 1.0),
+       jitter=st.floats(0.0, 0.3), offset=st.sampled_from([0.0, 1.7e9]),
+       seed=st.integers(0, 2**16))
+def test_a_lossy_stream_is_numbered_by_its_frames_and_its_jitter_taken_out(
+        rate, keep, jitter, offset, seed):
+    """Stamps of a fixed-rate stream with frames lost (a motion-capture stream over
+    radio), jittered by uniform(-a, a) with a up to 0.3 frame periods and put in Unix
+    time: every frame number is found (up to a constant) and the clock is back within a
+    fraction of the jitter."""
+    rng = np.random.default_rng(seed)
+    frames, true = _lossy_stream(rate, keep, 12.0, rng)
+    amplitude = jitter / rate
+    stamps = np.sort(true + rng.uniform(-amplitude, amplitude, true.size)) + offset
+    numbers = frame_numbers(stamps)
+    assert numbers is not None
+    np.testing.assert_array_equal(numbers - numbers[0], frames - frames[0])
+    clock = frame_clock(stamps)
+    assert clock is not None
+    error = clock - offset - true
+    assert np.sqrt(np.mean(error**2)) <= 0.15 * amplitude + 1e-7
+
+
+@FAST
+@given(seed=st.integers(0, 2**16))
+def test_stamps_on_no_frame_lattice_have_no_frame_clock(seed):
+    """Stamps at random times (a Poisson stream) are no lossy fixed-rate stream: no frame
+    clock, so their own stamps are kept."""
+    rng = np.random.default_rng(seed)
+    stamps = np.cumsum(rng.exponential(0.01, 1000))
+    assert frame_numbers(stamps) is None
+    assert frame_clock(stamps) is None

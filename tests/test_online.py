@@ -156,7 +156,7 @@ def test_replay_of_a_measured_flight_converges_to_the_offline_answer():
     from pinquad.experiments.online_replay import stream_em
     from pinquad.realdata.dataset import SCALE_MASS, default_guess
     from pinquad.realdata.identify import identify_real
-    from pinquad.realdata.observations import load_real
+    from pinquad.realdata.load import load_real
 
     flight = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushed" / "jana02"
     assert flight.is_file(), f"the Crazyflie data are missing: expected {flight}"

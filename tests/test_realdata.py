@@ -21,8 +21,9 @@ from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS, default_guess
 from pinquad.realdata.identify import identify_real, measured_fit
+from pinquad.realdata.load import load_real
 from pinquad.realdata.mass_balance import quasi_static_mass
-from pinquad.realdata.observations import RealDataOptions, build_observations, load_real
+from pinquad.realdata.observations import RealDataOptions, build_observations
 from pinquad.realdata.raw import RawFlight
 from pinquad.realdata.thrust import thrust_coefficient
 from pinquad.vehicle.actuators import ActuatorModel

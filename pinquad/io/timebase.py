@@ -304,3 +304,136 @@ def grid_times(t: Array, dt: float) -> Array:
     anchor = float(t[t.size // 2])
     start = anchor - dt * math.ceil((anchor - t[0]) / dt - 1e-6)
     return start + dt * np.arange(int(math.floor((t[-1] - start) / dt + 1e-6)) + 1)
+
+
+FRAME_MIN_SAMPLES = 50
+"""A stream of fewer samples is not fitted to a frame clock (:func:`frame_clock`)."""
+
+FRAME_HALF_WINDOW = 100
+"""Samples on either side of a sample in the straight-line fit of stamps against frame
+number (:func:`frame_clock`)."""
+
+FRAME_EVIDENCE = 4.5
+"""A stream lies on a frame lattice when the lattice's periodogram peak, |sum_k
+exp(-2 pi i f t_k)| / P, is this many times its level for stamps at random (1 / sqrt P)."""
+
+
+def _lattice_frequency(t: Array) -> tuple[float, float]:
+    """(f [Hz], evidence): the frame rate of stamps t (P,) [s, from 0] taken at a fixed
+    rate with frames lost, and how far its periodogram peak |S(f)| / P, S(f) = sum_k
+    exp(-2 pi i f t_k), stands above the 1 / sqrt(P) of stamps at random. The peak is
+    sought between 0.5 / q and 1.5 / q, q the lower quartile of the steps (a quarter of
+    the frames arrive one after the other), on the FFT of the stamps binned at q / 40,
+    then refined on a fine grid of frequencies around it."""
+    steps = np.diff(t)
+    q = float(np.percentile(steps, 25.0))
+    span = float(t[-1] - t[0])
+    if q <= 0.0 or span <= 0.0:
+        return float("nan"), 0.0
+    width = q / 40.0
+    counts = np.bincount(np.floor((t - t[0]) / width).astype(np.int64))
+    size = 1 << int(math.ceil(math.log2(max(counts.size, 2) * 2)))
+    power = np.abs(np.fft.rfft(counts, size))
+    freq = np.fft.rfftfreq(size, width)
+    band = (freq >= 0.5 / q) & (freq <= 1.5 / q)
+    if not band.any():
+        return float("nan"), 0.0
+    coarse = float(freq[band][np.argmax(power[band])])
+    fine = coarse + np.linspace(-2.0, 2.0, 161) / (size * width)
+    spectrum = np.abs(np.exp(-2j * np.pi * np.outer(fine, t - t[0])).sum(axis=1))
+    best = int(np.argmax(spectrum))
+    return float(fine[best]), float(spectrum[best] / math.sqrt(t.size))
+
+
+def frame_numbers(t: Array) -> NDArray[np.int64] | None:
+    """(P,) the frame number of each stamp t (P,) [s] of a stream sampled at a fixed rate
+    whose frames are lost on the way (a motion-capture stream over radio), or None when
+    the stamps lie on no such lattice (:data:`FRAME_EVIDENCE`) or are too few.
+
+    With f the frame rate (:func:`_lattice_frequency`) and phi the phase of S(f), a stamp
+    is frame n_k = round(f (t_k - d_k) + phi / (2 pi)), d_k the running median over 51
+    stamps of the departure from the global lattice (a slow drift of the two clocks);
+    numbers strictly increase, the collisions resolved at least squared departure
+    (:func:`_increasing_frames`). Jitter of less than half a frame period leaves every number right."""
+    t = np.asarray(t, dtype=np.float64)
+    if t.size < FRAME_MIN_SAMPLES or not np.all(np.diff(t) > 0):
+        return None
+    rel = t - t[0]
+    f, evidence = _lattice_frequency(rel)
+    if not math.isfinite(f) or evidence < FRAME_EVIDENCE:
+        return None
+    phase = float(np.angle(np.exp(-2j * np.pi * f * rel).sum()))
+    cycles = f * rel + phase / (2.0 * np.pi)
+    departure = cycles - np.round(cycles)
+    # the running median of the departure (a wrapped quantity: taken about its own
+    # circular mean per window would be exact; within +-0.5 frame it is the median)
+    pad = 25
+    padded = np.pad(departure, pad, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * pad + 1)
+    drift = np.median(windows, axis=1)
+    return _increasing_frames(cycles - drift)
+
+
+def _increasing_frames(cycles: Array) -> NDArray[np.int64]:
+    """(P,) strictly increasing whole frame numbers n_k nearest the frame coordinates c_k
+    (P,): argmin sum_k (c_k - n_k)^2 over n_k in {round(c_k) - 1, round(c_k),
+    round(c_k) + 1} with n_k > n_(k-1), by dynamic programming. Two stamps that round to
+    one frame (a late arrival beside an early one) are told apart by whichever move
+    costs least, not always by pushing the later one on."""
+    shifts = np.array([-1, 0, 1])
+    options = np.round(cycles).astype(np.int64)[:, None] + shifts[None, :]
+    cost = (cycles[:, None] - options) ** 2
+    total = cost[0].copy()
+    back = np.zeros((cycles.size, shifts.size), dtype=np.int64)
+    for k in range(1, cycles.size):
+        allowed = options[k - 1][None, :] < options[k][:, None]  # (now, before)
+        step = np.where(allowed, total[None, :], np.inf)
+        back[k] = np.argmin(step, axis=1)
+        total = cost[k] + step[np.arange(shifts.size), back[k]]
+    choice = np.empty(cycles.size, dtype=np.int64)
+    choice[-1] = int(np.argmin(total))
+    for k in range(cycles.size - 1, 0, -1):
+        choice[k - 1] = back[k, choice[k]]
+    return options[np.arange(cycles.size), choice]
+
+
+def frame_clock(t: Array, half_window: int = FRAME_HALF_WINDOW) -> Array | None:
+    """(P,) each stamp's time [s] on a clock fitted to frame numbers, or None for stamps
+    on no frame lattice (:func:`frame_numbers`): the stamps t (P,)
+    of a stream taken at a fixed rate and stamped on arrival (radio latency, logger
+    jitter) lie on t_k = a + T n_k + e_k, n_k the frame number (:func:`frame_numbers`);
+    each is placed at the straight-line fit of the stamps against frame number over the
+    2 W + 1 samples around it (W = ``half_window``),
+
+        t_clock[k] = a_k + T_k n_k,   (a_k, T_k) = argmin sum_{|j - k| <= W} (t_j - a - T n_j)^2,
+
+    which leaves of a jitter of standard deviation s about s / sqrt(2 W + 1)."""
+    t = np.asarray(t, dtype=np.float64)
+    numbers = frame_numbers(t)
+    if numbers is None:
+        return None
+    x = (numbers - numbers[0]).astype(np.float64)
+    slope, icpt = np.polyfit(x, t - t[0], 1)
+    residual = t - (t[0] + icpt + slope * x)
+    return t - residual + _local_line_at(residual, x, half_window)
+
+
+def _local_line_at(r: Array, x: Array, half: int) -> Array:
+    """(N,) the least-squares straight line of r (N,) against abscissae x (N,), over the
+    2 half + 1 samples around each sample (the window shifted to stay inside), evaluated
+    at that sample's x."""
+    n = r.size
+    width = min(2 * half + 1, n)
+    lo = np.clip(np.arange(n) - half, 0, n - width)
+
+    def window_sum(v: Array) -> Array:
+        c = np.concatenate([[0.0], np.cumsum(v)])
+        return c[lo + width] - c[lo]
+
+    s_x, s_xx = window_sum(x), window_sum(x * x)
+    s_r, s_xr = window_sum(r), window_sum(x * r)
+    mean_x, mean_r = s_x / width, s_r / width
+    spread = s_xx - width * mean_x**2
+    slope = np.where(spread > 0, (s_xr - width * mean_x * mean_r) / np.where(
+        spread > 0, spread, 1.0), 0.0)
+    return mean_r + slope * (x - mean_x)

@@ -36,9 +36,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from pinquad.io.logs import FlightLog
+from pinquad.io.timebase import uniform_step
 from pinquad.vehicle.actuators import CRAZYFLIE_SPEC
 
 Array = NDArray[np.float64]
@@ -351,7 +353,8 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
     Replaced: every reading of an unreliable motor, and each flagged reading of the
     others; ``replace_motors`` (0-based) forces whole motors to be replaced instead
     (used to validate the map on clean logs against the measured speeds). tau is chosen
-    from ``taus`` by the smallest residual on the training data. With ``rescue``, a
+    by the smallest residual on the training data: the best of ``taus``, refined by a bounded
+    search between its neighbours. With ``rescue``, a
     replaced channel whose readings are pulse-divided keeps them, multiplied back
     (:func:`pulse_divided_readings`).
     """
@@ -374,21 +377,30 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
                          if not whole[i] and np.isfinite(pwm[:, i]).all())
     if not train_motors:
         raise ValueError(f"{log.meta.source}: no trusted motor with a PWM command to learn from")
-    dt = log.dt
+    dt = uniform_step(log.t)  # the clock's step, not moved by the stamps' jitter
     train = (~replaced & report.airborne[:, None] & np.isfinite(rpm))[:, train_motors]
 
-    best: tuple[float, float, Array] | None = None
-    for tau in taus:
+    def map_fit(tau: float) -> tuple[float, Array]:
         q = np.column_stack([_first_order_lag(pwm[:, i], tau, dt) for i in train_motors]) / 1e4
         qq = q[train]
         x = np.column_stack([np.ones(qq.size), qq, qq * qq])
         y = rpm[:, train_motors][train]
         coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-        rms = float(np.sqrt(np.mean((y - x @ coef) ** 2)))
-        if best is None or rms < best[0]:
-            best = (rms, tau, coef)
-    assert best is not None
-    rms, tau, coef = best
+        return float(np.sqrt(np.mean((y - x @ coef) ** 2))), coef
+
+    # the coarse grid finds the basin, a bounded search between its neighbours the lag:
+    # a lag taken from the grid would jump from one grid value to the next on a flat
+    # residual when the stamps move by a few ms
+    grid_rms = [map_fit(tau)[0] for tau in taus]
+    place = int(np.argmin(grid_rms))
+    lo, hi = taus[max(place - 1, 0)], taus[min(place + 1, len(taus) - 1)]
+    tau = taus[place]
+    if hi > lo:
+        found = minimize_scalar(lambda v: map_fit(v)[0], bounds=(lo, hi), method="bounded",
+                                options={"xatol": 1e-4})
+        if found.fun < grid_rms[place]:
+            tau = float(found.x)
+    rms, coef = map_fit(tau)
     out = rpm.copy()
     divisions: list[PulseDivision | None] = [None] * n_rotors
     notes: list[str] = []

@@ -18,22 +18,23 @@ times (``realdata.resample``), so no row jumps from one bin to the next:
   ``"actuation": "held"``) give the bin's exact time average of the wrench
   (``resample.held_average``). The forward bin is what the explicit-Euler transition
   x_{k+1} = x_k + dt f(x_k, u_k) integrates: v_{k+1} - v_k = int_{t_k}^{t_k+dt} a dt;
-* motion-capture position [m] and Euler angles [rad] (from the ``locSrv`` quaternion):
-  a grid step with a pose sample within dt/2 reads that pose at t_k, along the straight
-  line to the next pose on t_k's other side (up to ``resample.POSE_BRIDGE_S`` away), else NaN (a
-  dropout is a missing sample); a pose more than ``outlier_m`` / ``outlier_rad`` away
-  from the median of its neighbours is a tracking glitch and is dropped too.
+* motion-capture position [m] and Euler angles [rad] (``locSrv`` quaternion), each pose
+  on the stream's frame clock (``resample.pose_stream_times``): a grid step with a pose
+  within dt/2 reads it at t_k, along the straight line to the next pose on t_k's other
+  side (up to ``resample.POSE_BRIDGE_S`` away), else NaN (a dropout is a missing sample);
+  a pose more than ``outlier_m`` / ``outlier_rad`` from the median of its neighbours is
+  a tracking glitch and is dropped too.
 
 Transitions k -> k+1 the M-step must skip (``Observations.exclude``): ground contact and
 the take-off / landing around it (height below ``contact_height`` at low speed, or rotors
 below flight speed, or found resting on / striking the floor by the detector shared with
 logs that carry thrust and torques, ``models.contact``; widened by ``contact_margin``
-seconds), implausible rotor readings
-(``faults.detect_actuation_faults``) unless repaired from the PWM commands, log gaps and
-bins without a finite actuation value (``realdata.input_holes``; a gap, or a bin whose
-every sample was flagged implausible and not rebuilt, is also a reset,
-``Observations.resets``: the smoother does not carry the flight dynamics across it); a
-bin without a row outside a gap (jitter, a slow log) gets an interpolated input.
+seconds), implausible rotor readings (``faults.detect_actuation_faults``) unless
+repaired from the PWM commands, log gaps and bins without a finite actuation value
+(``realdata.input_holes``; a gap, or a bin whose every sample was flagged implausible
+and not rebuilt, is also a reset, ``Observations.resets``: the smoother does not carry
+the flight dynamics across it); a bin without a row outside a gap (jitter, a slow log)
+gets an interpolated input.
 """
 
 from __future__ import annotations
@@ -41,15 +42,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import GRAVITY, rotation_from_euler
 from pinquad.core.vehicle_file import VehicleSpec
-from pinquad.io.logs import FlightLog, LogFormatError, LogMeta, read_log
-from pinquad.io.sdlog import is_sdlog, read_sdflight
+from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.timebase import clock_times, grid_times, sampling_interval
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.contact import ContactSettings, detect_floor_contact
@@ -62,13 +61,14 @@ from pinquad.realdata.faults import (
     reconstruct_rpm,
 )
 from pinquad.realdata.input_holes import input_holes
-from pinquad.realdata.raw import PoseSamples, RawFlight, raw_from_sdflight, raw_from_simulated
+from pinquad.realdata.raw import PoseSamples, RawFlight, raw_from_simulated
 from pinquad.realdata.resample import (
     bin_mean,
     fill_rows,
     held_average,
     interp_nan,
     pose_glitches,
+    pose_stream_times,
     poses_on_grid,
     sample_average,
 )
@@ -428,8 +428,10 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         onboard_pos = centred_mean(raw.onboard_pos)
 
     # Motion capture: the grid steps with a sample within half a bin.
-    if raw.pose is not None:  # its own stamps, read on the same clock
-        pose = replace(raw.pose, t=raw.pose.t + np.interp(raw.pose.t, log.t, t_src - log.t))
+    if raw.pose is not None:  # its own stamps: on its frame clock, else the rows' clock
+        pose_t, pose_note = pose_stream_times(raw.pose.t, log.t, t_src)
+        pose = replace(raw.pose, t=pose_t)
+        notes += [pose_note] if pose_note else []
     else:
         pose = PoseSamples(t=t_src, position=log.position, euler=log.euler)
     has_pose = np.isfinite(pose.position).all(axis=1) | np.isfinite(pose.euler).all(axis=1)
@@ -574,23 +576,6 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
                             options=options, repaired=repaired,
                             rotor_acc=np.nan_to_num(rotor_acc_g),
                             rebuilt_fraction=np.nan_to_num(rebuilt_g, nan=1.0))
-
-
-
-def load_real(path: str | Path, options: RealDataOptions | None = None,
-              kf: ThrustCoefficient | None = None) -> RealObservations:
-    """Observations of a measured log: a Crazyflie micro-SD file, or a CSV / Parquet log
-    with ``rpm_1..4`` columns. Raises LogFormatError / ValueError with the file named."""
-    path = Path(path)
-    if is_sdlog(path):
-        raw = raw_from_sdflight(read_sdflight(path))
-    else:
-        log = read_log(path)
-        if log.rpm is None:
-            raise LogFormatError(f"{path}: no rpm_1..rpm_4 columns; expected rotor speeds for "
-                                 "the actuator model")
-        raw = RawFlight(log=log)
-    return build_observations(raw, options, kf)
 
 
 def simulated_observations(flight: Flight) -> RealObservations:

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.io.timebase import frame_clock
+
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
@@ -154,6 +156,23 @@ POSE_BRIDGE_S = 0.1
 """Two pose samples at most this far apart [s] are joined by a straight line to read a
 pose at its grid step's time; further apart, the nearer sample is taken as it is.
 Motion capture over radio arrives in bursts (IMRC: 5 % of its steps over 40 ms)."""
+
+
+def pose_stream_times(pose_t: Array, row_t: Array, row_clock: Array
+                      ) -> tuple[Array, str | None]:
+    """((P,) times [s] on the log's clock of a pose stream stamped on its own, a note or
+    None): on the stream's frame clock (``io.timebase.frame_clock``: motion capture is
+    taken at a fixed rate and frames are lost on the radio, so each pose is placed by its
+    frame number, not by its stamp's arrival jitter), else each stamp moved as the rows
+    around it are by the rows' clock (row_t (N,) stamps, row_clock (N,) their clock
+    times [s])."""
+    on_frames = frame_clock(pose_t)
+    if on_frames is None:
+        return pose_t + np.interp(pose_t, row_t, row_clock - row_t), None
+    moved = on_frames - pose_t
+    return on_frames, (f"motion capture: poses placed on their frame clock (a fixed-rate "
+                       f"stream with frames lost), {np.sqrt(np.mean(moved**2)) * 1e3:.2f} "
+                       "ms rms from their stamps")
 
 
 def poses_on_grid(grid_t: Array, times: Array, position: Array, euler: Array,
