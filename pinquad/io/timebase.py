@@ -441,8 +441,11 @@ def frame_numbers(t: Array) -> NDArray[np.int64] | None:
     phase = float(np.angle(np.exp(-2j * np.pi * f * rel).sum()))
     cycles = f * rel + phase / (2.0 * np.pi)
     departure = cycles - np.round(cycles)
-    # the running median of the departure (a wrapped quantity: taken about its own
-    # circular mean per window would be exact; within +-0.5 frame it is the median)
+    # the running median of the departure, which wraps at +-half a frame: a drift of the
+    # two clocks is followed while it stays inside that (the global rate takes out their
+    # mean difference); taking the median about each window's circular mean would follow
+    # any drift but, measured on the shared logs at 4 ms of jitter, numbers twice as many
+    # stamps wrong
     pad = 25
     padded = np.pad(departure, pad, mode="edge")
     windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * pad + 1)
