@@ -352,10 +352,11 @@ def reconstruct_rpm(log: FlightLog, pwm: Array, report: ActuationFaultReport,
     column per rotor-speed column of the log (any n).
     Replaced: every reading of an unreliable motor, and each flagged reading of the
     others; ``replace_motors`` (0-based) forces whole motors to be replaced instead
-    (used to validate the map on clean logs against the measured speeds). tau is chosen
-    by the smallest residual on the training data: the best of ``taus``, refined by a bounded
-    search between its neighbours. With ``rescue``, a
-    replaced channel whose readings are pulse-divided keeps them, multiplied back
+    (used to validate the map on clean logs against the measured speeds). tau [s] is
+    argmin_tau rms(rpm - c0 - c1 q - c2 q^2) on the training data: the best of ``taus``,
+    refined by a bounded search between its neighbours on the grid; the lag filter steps
+    at the clock's step (``io.timebase.uniform_step``). With ``rescue``, a replaced
+    channel whose readings are pulse-divided keeps them, multiplied back
     (:func:`pulse_divided_readings`).
     """
     if log.rpm is None:
