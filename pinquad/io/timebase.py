@@ -207,22 +207,26 @@ def _line_residual(t: Array) -> Array:
     return t - (t[0] + icpt + slope * j)
 
 
-def _local_line(r: Array, half: int) -> Array:
-    """(N,) the straight-line fit of r (N,) against row number over the 2 half + 1 rows
-    around each row (the window shifted to stay inside), evaluated at that row."""
+def _local_line(r: Array, half: int, x: Array | None = None) -> Array:
+    """(N,) the least-squares straight line of r (N,) against x (N,) (row number when
+    None) over the 2 half + 1 samples around each sample (the window shifted to stay
+    inside), evaluated at that sample's x."""
     n = r.size
     width = min(2 * half + 1, n)
     if width < 3:
         return r.copy()
-    j = np.arange(n, dtype=np.float64)
+    x = np.arange(n, dtype=np.float64) if x is None else x - np.mean(x)
     lo = np.clip(np.arange(n) - half, 0, n - width)
-    c0 = np.concatenate([[0.0], np.cumsum(r)])
-    c1 = np.concatenate([[0.0], np.cumsum(j * r)])
-    sum_r = c0[lo + width] - c0[lo]
-    sum_jr = c1[lo + width] - c1[lo]
-    centre = lo + 0.5 * (width - 1)
-    spread = width * (width * width - 1) / 12.0  # sum of (j - centre)^2 over the window
-    return sum_r / width + (sum_jr - centre * sum_r) / spread * (j - centre)
+
+    def window_sum(v: Array) -> Array:
+        c = np.concatenate([[0.0], np.cumsum(v)])
+        return c[lo + width] - c[lo]
+
+    mean_x, mean_r = window_sum(x) / width, window_sum(r) / width
+    spread = window_sum(x * x) - width * mean_x**2  # sum of (x - mean_x)^2 over the window
+    slope = np.where(spread > 0, (window_sum(x * r) - width * mean_x * mean_r)
+                     / np.where(spread > 0, spread, 1.0), 0.0)
+    return mean_r + slope * (x - mean_x)
 
 
 def _jitter_sd(t: Array, cuts: NDArray[np.int64], half: int) -> float:
@@ -416,7 +420,9 @@ def _lattice_frequency(t: Array) -> tuple[float, float]:
         return float("nan"), 0.0
     coarse = float(freq[band][np.argmax(power[band])])
     fine = coarse + np.linspace(-2.0, 2.0, 161) / (size * width)
-    spectrum = np.abs(np.exp(-2j * np.pi * np.outer(fine, t - t[0])).sum(axis=1))
+    # one frequency at a time: the (frequencies x stamps) table of a long log would
+    # hold 160 complex numbers per stamp
+    spectrum = np.array([abs(np.exp(-2j * np.pi * f * (t - t[0])).sum()) for f in fine])
     best = int(np.argmax(spectrum))
     return float(fine[best]), float(spectrum[best] / math.sqrt(t.size))
 
@@ -494,25 +500,4 @@ def frame_clock(t: Array, half_window: int = FRAME_HALF_WINDOW) -> Array | None:
     x = (numbers - numbers[0]).astype(np.float64)
     slope, icpt = np.polyfit(x, t - t[0], 1)
     residual = t - (t[0] + icpt + slope * x)
-    return t - residual + _local_line_at(residual, x, half_window)
-
-
-def _local_line_at(r: Array, x: Array, half: int) -> Array:
-    """(N,) the least-squares straight line of r (N,) against abscissae x (N,), over the
-    2 half + 1 samples around each sample (the window shifted to stay inside), evaluated
-    at that sample's x."""
-    n = r.size
-    width = min(2 * half + 1, n)
-    lo = np.clip(np.arange(n) - half, 0, n - width)
-
-    def window_sum(v: Array) -> Array:
-        c = np.concatenate([[0.0], np.cumsum(v)])
-        return c[lo + width] - c[lo]
-
-    s_x, s_xx = window_sum(x), window_sum(x * x)
-    s_r, s_xr = window_sum(r), window_sum(x * r)
-    mean_x, mean_r = s_x / width, s_r / width
-    spread = s_xx - width * mean_x**2
-    slope = np.where(spread > 0, (s_xr - width * mean_x * mean_r) / np.where(
-        spread > 0, spread, 1.0), 0.0)
-    return mean_r + slope * (x - mean_x)
+    return t - residual + _local_line(residual, half_window, x)
