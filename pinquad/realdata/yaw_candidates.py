@@ -371,9 +371,56 @@ def evaluate(cand: Candidate, fit: Sequence[BandPassed], judged: Sequence[BandPa
         responses={b.name: response(b.raw, params) for b in judged})
 
 
-GEOMETRY_ROTOR_INERTIA = (3.2e-8, 1.3e-8)
-"""(J_r, its standard uncertainty) [kg m^2] of one rotor from its geometry and masses
-(:func:`geometric_rotor_inertia`)."""
+@dataclass(frozen=True)
+class RotorPart:
+    """One turning part of a rotor: J = shape m r^2 [kg m^2].
+
+    name; mass [kg] and mass_se; radius [m]; shape [-] and shape_se: the factor of m r^2
+    (1 for a thin cylindrical shell, 1/3 for a uniform blade from the axis); source: where
+    the numbers come from."""
+
+    name: str
+    mass: float
+    mass_se: float
+    radius: float
+    shape: float
+    shape_se: float
+    source: str
+
+    @property
+    def inertia(self) -> float:
+        return self.shape * self.mass * self.radius**2
+
+    @property
+    def inertia_se(self) -> float:
+        """Relative errors of mass and shape added in quadrature (the radius is known)."""
+        return self.inertia * math.hypot(self.mass_se / self.mass, self.shape_se / self.shape)
+
+
+ROTOR_PARTS = (
+    RotorPart("propeller", 0.30e-3, 0.10e-3, 0.0235, 0.15, 0.05,
+              "radius: the vehicle file's rotor_radius (47 mm stock propeller); mass "
+              "0.2-0.4 g, not weighed (the data set does not give it); shape: a uniform "
+              "blade from the axis gives 1/3, a chord narrowing to the tip and the hub's "
+              "mass near the axis lower it to 0.1-0.2"),
+    RotorPart("motor rotor", 0.8e-3, 0.3e-3, 0.0030, 1.0, 0.0,
+              "7 x 16 mm coreless motor: the winding cup, shaft and commutator turn, the "
+              "magnet inside stands; cup radius about 3 mm, its mass 0.5-1.1 g of the "
+              "motor's (not weighed); a thin shell"),
+)
+"""The rotor's turning parts, with assumed masses (no weighing of these parts exists in
+the data set): the geometry fixes J_r only to about 40 %."""
+
+
+def geometric_rotor_inertia(parts: Sequence[RotorPart] = ROTOR_PARTS) -> tuple[float, float]:
+    """(J_r, its standard uncertainty) [kg m^2]: the parts' inertias summed, their
+    uncertainties added in quadrature."""
+    return (float(sum(p.inertia for p in parts)),
+            float(math.sqrt(sum(p.inertia_se**2 for p in parts))))
+
+
+GEOMETRY_ROTOR_INERTIA = geometric_rotor_inertia()
+"""(J_r, its standard uncertainty) [kg m^2] of one rotor from its geometry and masses."""
 
 
 def candidates(tilt_delta: float, geometry_jr: float = GEOMETRY_ROTOR_INERTIA[0]
@@ -430,3 +477,39 @@ def tilt_offset(flights: Sequence[YawSignals]) -> tuple[float, Array]:
     res = minimize_scalar(lambda d: float(np.mean(shares(d))), bounds=DOMAIN[1],
                           method="bounded", options={"xatol": 1e-5})
     return float(res.x), shares(float(res.x)).reshape(len(flights), 2)
+
+
+@dataclass(frozen=True)
+class YawStudy:
+    """The candidate table.
+
+    fit, held_out: the flights of each role; tilt_delta [s] and tilt_shares (L, 2): the
+    roll / pitch time offset fitted on the fit flights and each fit flight's roll and
+    pitch unexplained share at it; tilt_held_out [s]: the same offset fitted on the
+    held-out flights alone (a check, used nowhere); results: one per candidate."""
+
+    fit: tuple[str, ...]
+    held_out: tuple[str, ...]
+    tilt_delta: float
+    tilt_shares: Array
+    tilt_held_out: float
+    results: tuple[CandidateResult, ...]
+
+
+def yaw_study(signals: dict[str, YawSignals], fit: Sequence[str] = FIT_FLIGHTS,
+              held_out: Sequence[str] = HELD_OUT_FLIGHTS) -> YawStudy:
+    """Fit every candidate on the ``fit`` flights of ``signals`` and judge it on all of
+    them (the held-out ones are those the table reads). Raises ValueError if a flight is
+    in both roles or missing."""
+    if set(fit) & set(held_out):
+        raise ValueError(f"flights both fitted on and held out: {sorted(set(fit) & set(held_out))}")
+    missing = [n for n in (*fit, *held_out) if n not in signals]
+    if missing:
+        raise ValueError(f"no signals for {', '.join(missing)}")
+    bps = {n: band_passed(signals[n]) for n in (*fit, *held_out)}
+    delta, shares = tilt_offset([signals[n] for n in fit])
+    check, _ = tilt_offset([signals[n] for n in held_out])
+    judged = [bps[n] for n in (*held_out, *fit)]
+    results = tuple(evaluate(c, [bps[n] for n in fit], judged) for c in candidates(delta))
+    return YawStudy(fit=tuple(fit), held_out=tuple(held_out), tilt_delta=delta,
+                    tilt_shares=shares, tilt_held_out=check, results=results)
