@@ -54,13 +54,13 @@ def _synthetic(seed: int, jr: float, delta: float, inertia: float = 29e-6,
 def test_fit_recovers_rotor_inertia_and_time_offset():
     fit = [band_passed(_synthetic(s, 3e-8, -0.004)) for s in (1, 2)]
     held = band_passed(_synthetic(3, 3e-8, -0.004))
-    cand = Candidate("J_r + offset", (0, 1), (2e-8, 0.0, 0.0, 0.0, 0.0), "")
+    cand = Candidate("J_r + offset", (0, 1), (2e-8,) + (0.0,) * 6, "")
     params, share = fit_candidate(cand, fit)
     assert abs(params[0] - 3e-8) < 0.15e-8, params
     assert abs(params[1] + 0.004) < 0.0005, params
     assert share < 0.01
     assert held_out_unexplained(held, params) < 0.01
-    drag_only = np.zeros(5)
+    drag_only = np.zeros(7)
     assert held_out_unexplained(held, drag_only) > 0.2
 
 
@@ -75,8 +75,8 @@ def test_geometry_rotor_inertia_explains_a_held_out_yaw_sweep():
     sig = band_passed(yaw_signals(DATA / "imrc_brushed" / "jana05", 2.0043e-8, 0.006,
                                   [-1, 1, -1, 1]))
     jr = GEOMETRY_ROTOR_INERTIA[0]
-    without = held_out_unexplained(sig, np.zeros(5))
-    with_jr = held_out_unexplained(sig, np.array([jr, 0.0, 0.0, 0.0, 0.0]))
+    without = held_out_unexplained(sig, np.zeros(7))
+    with_jr = held_out_unexplained(sig, np.array([jr] + [0.0] * 6))
     assert without > 0.8 and with_jr < 0.3, (without, with_jr)
 
 

@@ -37,10 +37,11 @@ def format_study(study: YawStudy, reference_izz: float) -> list[str]:
     bands = " / ".join(f"{lo:g}-{hi:g}" for lo, hi in GAIN_BANDS)
     lines = [
         f"| candidate | J_r [e-9 kg m^2] | offset [ms] | D [e-7 N m s] | kappa | nu [1/V] | "
+        f"leak x / y | "
         f"fit share | held-out share {' / '.join(held)} | |H| spread (max/min) "
         f"{' / '.join(held)} | I_zz {INERTIA_BAND[0]:g}-{INERTIA_BAND[1]:g} Hz "
         f"{' / '.join(held)} [e-6] |",
-        "|---|---|---|---|---|---|---|---|---|---|"]
+        "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in study.results:
         p = r.params
         free = set(r.candidate.free)
@@ -51,7 +52,8 @@ def format_study(study: YawStudy, reference_izz: float) -> list[str]:
         lines.append(
             f"| {r.candidate.name} | {mark(0, f'{1e9 * p[0]:.1f}')} | "
             f"{mark(1, f'{1e3 * p[1]:+.2f}')} | {mark(2, f'{1e7 * p[2]:.2f}')} | "
-            f"{mark(3, f'{p[3]:+.2f}')} | {mark(4, f'{p[4]:+.2f}')} | {r.fit_share:.3f} | "
+            f"{mark(3, f'{p[3]:+.2f}')} | {mark(4, f'{p[4]:+.2f}')} | "
+            f"{mark(5, f'{p[5]:+.3f}')} / {mark(6, f'{p[6]:+.3f}')} | {r.fit_share:.3f} | "
             + " / ".join(f"{r.held_out[n]:.3f}" for n in held) + " | "
             + " / ".join(f"{r.responses[n].spread:.2f}" for n in held) + " | "
             + " / ".join(f"{1e6 * r.responses[n].inertia:.1f}" for n in held) + " |")

@@ -13,7 +13,9 @@ and the modelled torque [N m]
 (:data:`CANDIDATES`) frees some of J_r [kg m^2], delta [s] (a time offset between the
 logged rotor speeds and the gyro: delta > 0 when the logged speed lags the rotor), D [N m
 s] (rotor yaw damping), kappa [-] (a torque ratio rising with speed) and nu [1/V] (one
-changing with the battery), the others held at 0, and is judged by two numbers on each
+changing with the battery), lambda_x, lambda_y [-] (roll and pitch rotor torques tau_x,
+tau_y leaking into yaw, as rotors with unequal torque ratios make them), the others held
+at 0, and is judged by two numbers on each
 held-out flight, both on the signals band-passed to :data:`BAND` (zero-phase Butterworth,
 order 2):
 
@@ -159,17 +161,19 @@ def yaw_signals(path: Path, kf: float, yaw_ratio: float, spin: Sequence[float],
                       tilt_acc=np.gradient(tilt_rate, DT, axis=0), tilt_torque=tilt_torque)
 
 
-PARAMS = ("J_r", "delta", "D", "kappa", "nu")
+PARAMS = ("J_r", "delta", "D", "kappa", "nu", "lambda_x", "lambda_y")
 """The torque model's parameters (module docstring), in this order."""
-SCALE = np.array([1e-8, 1e-3, 1e-7, 1.0, 1.0])
-"""The optimiser's unit of each parameter (kg m^2, s, N m s, -, 1/V)."""
-DOMAIN = ((0.0, 2e-7), (-0.02, 0.02), (0.0, 1e-5), (-1.0, 1.0), (-1.0, 1.0))
+SCALE = np.array([1e-8, 1e-3, 1e-7, 1.0, 1.0, 0.01, 0.01])
+"""The optimiser's unit of each parameter (kg m^2, s, N m s, -, 1/V, -, -)."""
+DOMAIN = ((0.0, 2e-7), (-0.02, 0.02), (0.0, 1e-5), (-1.0, 1.0), (-1.0, 1.0), (-0.2, 0.2),
+          (-0.2, 0.2))
 """Physical domain of each parameter: J_r >= 0 and at most ten times any rotor of this
 size; a time offset within +-20 ms (five log rows either way is already far beyond the
 rpm deck's one-revolution average and the gyro's filters); damping D >= 0 (a torque
 against the yaw rate) up to 1e-5 N m s (r = 1 rad/s then costs a third of the hover yaw
 torque of one rotor); the torque ratio changing by at most its own value over
-OMEGA_REF or per volt. Without these bounds the scale-free objective (each flight's own
+OMEGA_REF or per volt; the roll / pitch leak at most a fifth of those torques (rotors
+whose torque ratios differ by tens of percent). Without these bounds the scale-free objective (each flight's own
 gain) lets a term replace the drag torque altogether."""
 
 
@@ -178,12 +182,12 @@ class Candidate:
     """One hypothesis about the yaw torque.
 
     name: short label; free: indices into :data:`PARAMS` fitted on the fit flights;
-    fixed (5,): the values of the others (and the start of the free ones); predicts:
+    fixed (7,): the values of the others (and the start of the free ones); predicts:
     what it does to the frequency response, in words."""
 
     name: str
     free: tuple[int, ...]
-    fixed: tuple[float, float, float, float, float]
+    fixed: tuple[float, ...]
     predicts: str
 
 
@@ -221,10 +225,11 @@ class BandPassed:
     raw: YawSignals
     drag_spec: Array
     rotor_acc_spec: Array
+    tilt: Array
 
     def torque(self, p: Array) -> Array:
-        """(K,) [N m] the band-passed modelled yaw torque at parameters p (5,)."""
-        jr, delta, damp, kappa, nu = p
+        """(K,) [N m] the band-passed modelled yaw torque at parameters p (7,)."""
+        jr, delta, damp, kappa, nu, lx, ly = p
         drag, racc = self.drag, self.rotor_acc
         if delta:
             drag = _shift(drag, delta, self.drag_spec)
@@ -236,6 +241,8 @@ class BandPassed:
             tau = tau + kappa * self.speed
         if nu:
             tau = tau + nu * self.volt
+        if lx or ly:
+            tau = tau + lx * self.tilt[:, 0] + ly * self.tilt[:, 1]
         return tau
 
 
@@ -254,7 +261,8 @@ def band_passed(sig: YawSignals) -> BandPassed:
     drag, racc = bp(sig.drag), bp(sig.rotor_acc)
     return BandPassed(name=sig.name, acc=bp(sig.acc), drag=drag, rotor_acc=racc,
                       rate=bp(sig.rate), speed=bp(sig.speed), volt=bp(sig.volt), block=block,
-                      raw=sig, drag_spec=_spectrum(drag), rotor_acc_spec=_spectrum(racc))
+                      raw=sig, drag_spec=_spectrum(drag), rotor_acc_spec=_spectrum(racc),
+                      tilt=np.column_stack([bp(sig.tilt_torque[:, j]) for j in range(2)]))
 
 
 def unexplained(acc: Array, tau: Array) -> float:
@@ -294,7 +302,7 @@ class Response:
 
 
 def response(sig: YawSignals, p: Array, segment_s: float = 2.56) -> Response:
-    """:class:`Response` of the modelled torque at p (5,) against the yaw acceleration,
+    """:class:`Response` of the modelled torque at p (7,) against the yaw acceleration,
     from the unfiltered grid signals (Welch spectra)."""
     bp = band_passed_full(sig, p)
     nper = int(round(segment_s / DT))
@@ -310,17 +318,18 @@ def response(sig: YawSignals, p: Array, segment_s: float = 2.56) -> Response:
 
 
 def band_passed_full(sig: YawSignals, p: Array) -> Array:
-    """(K,) [N m] the modelled yaw torque at p (5,) on the unfiltered grid."""
-    jr, delta, damp, kappa, nu = p
+    """(K,) [N m] the modelled yaw torque at p (7,) on the unfiltered grid."""
+    jr, delta, damp, kappa, nu, lx, ly = p
     drag, racc = _shift(sig.drag, delta), _shift(sig.rotor_acc, delta)
-    return drag + jr * racc - damp * sig.rate + kappa * sig.speed + nu * sig.volt
+    return (drag + jr * racc - damp * sig.rate + kappa * sig.speed + nu * sig.volt
+            + lx * sig.tilt_torque[:, 0] + ly * sig.tilt_torque[:, 1])
 
 
 @dataclass(frozen=True)
 class CandidateResult:
     """A candidate fitted on the fit flights and judged on every flight.
 
-    candidate; params (5,): fitted (free) and fixed values; fit_share: the summed
+    candidate; params (7,): fitted (free) and fixed values; fit_share: the summed
     objective's mean unexplained share over the fit flights; held_out (name -> share on
     held-out blocks); responses (name -> :class:`Response`)."""
 
@@ -428,9 +437,9 @@ def candidates(tilt_delta: float, geometry_jr: float = GEOMETRY_ROTOR_INERTIA[0]
     """The hypotheses judged by :func:`evaluate` (module docstring), each with what it
     predicts for the frequency response; tilt_delta [s]: the time offset measured on the
     roll and pitch axes of the fit flights (:func:`tilt_offset`)."""
-    zero = (0.0, 0.0, 0.0, 0.0, 0.0)
-    geo = (geometry_jr, 0.0, 0.0, 0.0, 0.0)
-    geo_tilt = (geometry_jr, tilt_delta, 0.0, 0.0, 0.0)
+    zero = (0.0,) * 7
+    geo = (geometry_jr,) + (0.0,) * 6
+    geo_tilt = (geometry_jr, tilt_delta) + (0.0,) * 5
     return (
         Candidate("drag torque only", (), zero,
                   "|H| falls with f and the torque lags: a derivative term is missing"),
@@ -452,6 +461,9 @@ def candidates(tilt_delta: float, geometry_jr: float = GEOMETRY_ROTOR_INERTIA[0]
                   "rescales the drag torque with the battery voltage: slow, nearly "
                   "frequency-flat"),
         Candidate("J_r + offset + damping", (0, 1, 2), geo, "the two above together"),
+        Candidate("J_r + roll/pitch leak", (0, 5, 6), geo,
+                  "rotors whose torque ratios differ: roll and pitch commands leak into "
+                  "yaw, with the roll / pitch torques' own frequency content"),
     )
 
 
