@@ -173,8 +173,8 @@ rpm deck's one-revolution average and the gyro's filters); damping D >= 0 (a tor
 against the yaw rate) up to 1e-5 N m s (r = 1 rad/s then costs a third of the hover yaw
 torque of one rotor); the torque ratio changing by at most its own value over
 OMEGA_REF or per volt; the roll / pitch leak at most a fifth of those torques (rotors
-whose torque ratios differ by tens of percent). Without these bounds the scale-free objective (each flight's own
-gain) lets a term replace the drag torque altogether."""
+whose torque ratios differ by tens of percent). Without these bounds the scale-free
+objective (each flight's own gain) lets a term replace the drag torque altogether."""
 
 
 @dataclass(frozen=True)
