@@ -70,7 +70,8 @@ def format_study(study: YawStudy, reference_izz: float) -> list[str]:
             lines.append(
                 f"  - {n} ({role}): |H| " + " / ".join(f"{1e6 * g:.1f}" for g in resp.gain)
                 + ", phase " + " / ".join(f"{x:+.0f}" for x in resp.phase)
-                + f", I_zz {1e6 * resp.inertia:.1f}, held-out share {r.held_out[n]:.3f}")
+                + f", I_zz {1e6 * resp.inertia:.1f} (reverse regression "
+                f"{1e6 * resp.inertia_reverse:.1f}), held-out share {r.held_out[n]:.3f}")
     return lines
 
 

@@ -288,12 +288,17 @@ class Response:
     """Apparent yaw inertia of one flight under one candidate.
 
     gain (B,) [kg m^2] and phase (B,) [deg]: band medians of |H| and arg H over
-    :data:`GAIN_BANDS`; inertia [kg m^2]: Re S_{r' tau} / S_{r' r'} averaged over
-    :data:`INERTIA_BAND`."""
+    :data:`GAIN_BANDS`; inertia [kg m^2]: sum Re S_{r' tau} / sum S_{r' r'} over
+    :data:`INERTIA_BAND` (the torque regressed on the acceleration: what the torque
+    model does not have, if it moves the vehicle, pulls it low); inertia_reverse
+    [kg m^2]: sum S_{tau tau} / sum Re S_{r' tau} there (the acceleration regressed on
+    the torque: pulled high by the same). The two bracket I_zz when the leftover torque
+    is uncorrelated with the modelled one."""
 
     gain: Array
     phase: Array
     inertia: float
+    inertia_reverse: float
 
     @property
     def spread(self) -> float:
@@ -313,8 +318,10 @@ def response(sig: YawSignals, p: Array, segment_s: float = 2.56) -> Response:
     phase = np.array([np.degrees(np.median(np.angle(h[(f >= lo) & (f <= hi)])))
                       for lo, hi in GAIN_BANDS])
     sel = (f >= INERTIA_BAND[0]) & (f <= INERTIA_BAND[1])
+    _, s_tt = welch(bp, fs=1.0 / DT, nperseg=nper)
     inertia = float(np.sum(s_at[sel].real) / np.sum(s_aa[sel]))
-    return Response(gain=gain, phase=phase, inertia=inertia)
+    reverse = float(np.sum(s_tt[sel]) / np.sum(s_at[sel].real))
+    return Response(gain=gain, phase=phase, inertia=inertia, inertia_reverse=reverse)
 
 
 def band_passed_full(sig: YawSignals, p: Array) -> Array:
@@ -446,6 +453,11 @@ def candidates(tilt_delta: float, geometry_jr: float = GEOMETRY_ROTOR_INERTIA[0]
         Candidate("J_r from geometry (not fitted)", (), geo,
                   "adds a torque 90 deg ahead of the drag torque, growing with f"),
         Candidate("J_r fitted", (0,), geo, "as above, J_r chosen by the fit flights"),
+        Candidate("J_r 22.4e-9 (realdata's pool, sensitivity)", (), (22.4e-9,) + (0.0,) * 6,
+                  "the J_r python -m pinquad.realdata pools over all seven flights, the "
+                  "held-out ones included: a sensitivity, not a held-out result"),
+        Candidate("J_r 5e-8 (picked by eye, sensitivity)", (), (5e-8,) + (0.0,) * 6,
+                  "the J_r chosen by looking at the yaw flights: a sensitivity"),
         Candidate("J_r + rpm time offset", (0, 1), geo,
                   "a pure delay: phase changes by 360 f delta deg, |H| barely"),
         Candidate("geometry J_r + roll/pitch offset", (), geo_tilt,
