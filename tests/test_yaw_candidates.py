@@ -86,3 +86,11 @@ def test_command_refuses_a_flight_in_both_roles_and_a_missing_log(capsys):
     assert "both fitted on and held out: jana00" in capsys.readouterr().err
     assert main(["--data", str(DATA), "--fit", "nosuchlog", "--held-out", "jana01"]) == 2
     assert "nosuchlog" in capsys.readouterr().err
+
+
+def test_tilt_offset_of_a_brushless_log(capsys):
+    log = DATA / "imrc_brushless" / "eckart00"
+    assert log.exists(), f"the Crazyflie data are missing: {log}"
+    assert main(["--tilt-offset", str(log)]) == 0
+    row = capsys.readouterr().out.splitlines()[1].split("|")
+    assert row[0].strip() == "eckart00" and -9.0 < float(row[2]) < -3.0, row

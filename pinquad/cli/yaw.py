@@ -26,6 +26,7 @@ from pinquad.realdata.yaw_candidates import (
     ROTOR_PARTS,
     YawStudy,
     geometric_rotor_inertia,
+    tilt_offset,
     yaw_signals,
     yaw_study,
 )
@@ -75,6 +76,23 @@ def format_study(study: YawStudy, reference_izz: float) -> list[str]:
     return lines
 
 
+def _tilt_offsets(paths: Sequence[Path]) -> int:
+    """Print :func:`tilt_offset` of each log alone; exit code 2 on a log it cannot read."""
+    spec = load_vehicle("crazyflie21")
+    print("log | seconds | roll / pitch time offset [ms] | unexplained roll / pitch share")
+    for path in paths:
+        try:
+            sig = yaw_signals(path, spec.actuators.kf, spec.actuators.yaw_ratio, spec.spin,
+                              spec.faults.flight_rpm or 10000.0, spec.arm)
+        except (LogFormatError, ValueError, FileNotFoundError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        delta, shares = tilt_offset([sig])
+        print(f"{path.name} | {sig.seconds:.1f} | {1e3 * delta:+.2f} | "
+              f"{shares[0, 0]:.3f} / {shares[0, 1]:.3f}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m pinquad.yaw",
@@ -92,7 +110,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--held-out", nargs="+", default=list(HELD_OUT_FLIGHTS), metavar="LOG",
                    help="flights they are judged on (default: "
                         f"{' '.join(HELD_OUT_FLIGHTS)})")
+    p.add_argument("--tilt-offset", nargs="+", type=Path, default=None, metavar="LOG",
+                   help="instead, print the roll / pitch time offset between rotor speeds and "
+                        "gyro of each micro-SD log given by its path (any X-layout vehicle "
+                        "logging rpm.m1-m4; the offset does not depend on kf)")
     args = p.parse_args(argv)
+    if args.tilt_offset is not None:
+        return _tilt_offsets(args.tilt_offset)
     both = sorted(set(args.fit) & set(args.held_out))
     if both:
         print(f"error: --fit and --held-out: flights both fitted on and held out: "
