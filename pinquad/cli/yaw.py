@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pinquad.cli.common import check_band
 from pinquad.core.vehicle_file import load_vehicle
 from pinquad.io.datadir import missing_data_hint
 from pinquad.io.logs import LogFormatError
@@ -19,6 +20,7 @@ from pinquad.realdata.dataset import flights_dir, stand_dir
 from pinquad.realdata.thrust import thrust_coefficient
 from pinquad.realdata.yaw_candidates import (
     BAND,
+    DT,
     FIT_FLIGHTS,
     GAIN_BANDS,
     HELD_OUT_FLIGHTS,
@@ -110,11 +112,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--held-out", nargs="+", default=list(HELD_OUT_FLIGHTS), metavar="LOG",
                    help="flights they are judged on (default: "
                         f"{' '.join(HELD_OUT_FLIGHTS)})")
+    p.add_argument("--band", type=float, nargs=2, default=list(BAND), metavar=("LO", "HI"),
+                   help=f"band [Hz] of the fit and the held-out share (default {BAND[0]:g} "
+                        f"{BAND[1]:g})")
     p.add_argument("--tilt-offset", nargs="+", type=Path, default=None, metavar="LOG",
                    help="instead, print the roll / pitch time offset between rotor speeds and "
                         "gyro of each micro-SD log given by its path (any X-layout vehicle "
                         "logging rpm.m1-m4; the offset does not depend on kf)")
     args = p.parse_args(argv)
+    check_band(p, args.band)
+    if not 0.0 < args.band[0] < args.band[1] < 0.45 / DT:
+        p.error(f"--band LO HI: expected 0 < LO < HI < {0.45 / DT:g} Hz (a band-pass on the "
+                f"{1 / DT:g} Hz grid); got {args.band[0]:g} {args.band[1]:g}")
     if args.tilt_offset is not None:
         return _tilt_offsets(args.tilt_offset)
     both = sorted(set(args.fit) & set(args.held_out))
@@ -135,13 +144,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         signals = {n: yaw_signals(flights / n, kf.kf, act.yaw_ratio, spec.spin,
                                   spec.faults.flight_rpm or 10000.0, spec.arm)
                    for n in dict.fromkeys([*args.fit, *args.held_out])}
-        study = yaw_study(signals, args.fit, args.held_out)
+        study = yaw_study(signals, args.fit, args.held_out, tuple(args.band))
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     jr, jr_se = geometric_rotor_inertia()
     print(f"yaw torque candidates: fitted on {', '.join(study.fit)}; judged on "
-          f"{', '.join(study.held_out)}; band {BAND[0]:g}-{BAND[1]:g} Hz; kf {kf.kf:.4g} "
+          f"{', '.join(study.held_out)}; band {study.band[0]:g}-{study.band[1]:g} Hz; kf "
+          f"{kf.kf:.4g} "
           f"N/(rad/s)^2, yaw ratio {act.yaw_ratio:g} m\n")
     print(f"rotor inertia from geometry: J_r = {1e9 * jr:.1f} ± {1e9 * jr_se:.1f} e-9 kg m^2 "
           "(one standard uncertainty), the sum of")

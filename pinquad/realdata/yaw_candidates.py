@@ -246,11 +246,12 @@ class BandPassed:
         return tau
 
 
-def band_passed(sig: YawSignals) -> BandPassed:
-    """:class:`BandPassed` of a flight (filtering commutes with the time shift and the
-    linear combinations of :meth:`BandPassed.torque`, so it is done once)."""
-    sos = band_sos(BAND, 1.0 / DT)
-    edge = int(round(1.0 / BAND[0] / DT))
+def band_passed(sig: YawSignals, band: tuple[float, float] = BAND) -> BandPassed:
+    """:class:`BandPassed` of a flight, filtered to ``band`` [Hz] (filtering commutes with
+    the time shift and the linear combinations of :meth:`BandPassed.torque`, so it is
+    done once)."""
+    sos = band_sos(band, 1.0 / DT)
+    edge = int(round(1.0 / band[0] / DT))
     cut = slice(edge, sig.acc.size - edge)
 
     def bp(x: Array) -> Array:
@@ -479,14 +480,15 @@ def candidates(tilt_delta: float, geometry_jr: float = GEOMETRY_ROTOR_INERTIA[0]
     )
 
 
-def tilt_offset(flights: Sequence[YawSignals]) -> tuple[float, Array]:
+def tilt_offset(flights: Sequence[YawSignals], band: tuple[float, float] = BAND
+                ) -> tuple[float, Array]:
     """(delta [s], per-flight-and-axis unexplained share (L, 2) at it): the one time offset
     between the rotor speeds and the gyro that best explains the band-passed roll and
     pitch accelerations of ``flights`` by their rotor torques shifted by delta (each
     flight and axis with its own gain). Roll and pitch carry no rotor-inertia term, so
     this offset is measured without the yaw axis at all."""
-    sos = band_sos(BAND, 1.0 / DT)
-    edge = int(round(1.0 / BAND[0] / DT))
+    sos = band_sos(band, 1.0 / DT)
+    edge = int(round(1.0 / band[0] / DT))
     parts = []
     for sig in flights:
         cut = slice(edge, sig.acc.size - edge)
@@ -507,13 +509,14 @@ def tilt_offset(flights: Sequence[YawSignals]) -> tuple[float, Array]:
 class YawStudy:
     """The candidate table.
 
-    fit, held_out: the flights of each role; tilt_delta [s] and tilt_shares (L, 2): the
+    fit, held_out: the flights of each role; band [Hz]; tilt_delta [s] and tilt_shares (L, 2): the
     roll / pitch time offset fitted on the fit flights and each fit flight's roll and
     pitch unexplained share at it; tilt_held_out [s]: the same offset fitted on the
     held-out flights alone (a check, used nowhere); results: one per candidate."""
 
     fit: tuple[str, ...]
     held_out: tuple[str, ...]
+    band: tuple[float, float]
     tilt_delta: float
     tilt_shares: Array
     tilt_held_out: float
@@ -521,19 +524,20 @@ class YawStudy:
 
 
 def yaw_study(signals: dict[str, YawSignals], fit: Sequence[str] = FIT_FLIGHTS,
-              held_out: Sequence[str] = HELD_OUT_FLIGHTS) -> YawStudy:
+              held_out: Sequence[str] = HELD_OUT_FLIGHTS, band: tuple[float, float] = BAND
+              ) -> YawStudy:
     """Fit every candidate on the ``fit`` flights of ``signals`` and judge it on all of
-    them (the held-out ones are those the table reads). Raises ValueError if a flight is
-    in both roles or missing."""
+    them (the held-out ones are those the table reads), everything band-passed to
+    ``band`` [Hz]. Raises ValueError if a flight is in both roles or missing."""
     if set(fit) & set(held_out):
         raise ValueError(f"flights both fitted on and held out: {sorted(set(fit) & set(held_out))}")
     missing = [n for n in (*fit, *held_out) if n not in signals]
     if missing:
         raise ValueError(f"no signals for {', '.join(missing)}")
-    bps = {n: band_passed(signals[n]) for n in (*fit, *held_out)}
-    delta, shares = tilt_offset([signals[n] for n in fit])
-    check, _ = tilt_offset([signals[n] for n in held_out])
+    bps = {n: band_passed(signals[n], band) for n in (*fit, *held_out)}
+    delta, shares = tilt_offset([signals[n] for n in fit], band)
+    check, _ = tilt_offset([signals[n] for n in held_out], band)
     judged = [bps[n] for n in (*held_out, *fit)]
     results = tuple(evaluate(c, [bps[n] for n in fit], judged) for c in candidates(delta))
-    return YawStudy(fit=tuple(fit), held_out=tuple(held_out), tilt_delta=delta,
+    return YawStudy(fit=tuple(fit), held_out=tuple(held_out), band=band, tilt_delta=delta,
                     tilt_shares=shares, tilt_held_out=check, results=results)
