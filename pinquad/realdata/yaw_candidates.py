@@ -15,9 +15,8 @@ logged rotor speeds and the gyro: delta > 0 when the logged speed lags the rotor
 s] (rotor yaw damping), kappa [-] (a torque ratio rising with speed) and nu [1/V] (one
 changing with the battery), lambda_x, lambda_y [-] (roll and pitch rotor torques tau_x,
 tau_y leaking into yaw, as rotors with unequal torque ratios make them), the others held
-at 0, and is judged by two numbers on each
-held-out flight, both on the signals band-passed to :data:`BAND` (zero-phase Butterworth,
-order 2):
+fixed, and is judged by two numbers on each held-out flight, both on the signals
+band-passed to :data:`BAND` or a band given (zero-phase Butterworth, order 2):
 
 - the unexplained share of the yaw acceleration on held-out blocks: the flight cut into
   2 s blocks, the flight's own gain g (1 / I_zz) fitted by least squares of r' on tau_z
@@ -29,8 +28,8 @@ order 2):
   (> 0: the modelled torque leads the acceleration).
 
 The candidate's own parameters are fitted on the fit flights only (each flight with its
-own gain): argmin of the summed unexplained share over whole flights (Nelder-Mead from
-zero). A number chosen by looking at the held-out flights would be a sensitivity, not a
+own gain): argmin of the mean unexplained share over whole flights (bounded
+Nelder-Mead from the candidate's fixed values, inside :data:`DOMAIN`). A number chosen by looking at the held-out flights would be a sensitivity, not a
 result; the split is fixed in advance (:data:`FIT_FLIGHTS`, :data:`HELD_OUT_FLIGHTS`).
 
 Signals come from the micro-SD log at its own rate (about 500 Hz), resampled to a 2 ms
@@ -310,7 +309,7 @@ class Response:
 def response(sig: YawSignals, p: Array, segment_s: float = 2.56) -> Response:
     """:class:`Response` of the modelled torque at p (7,) against the yaw acceleration,
     from the unfiltered grid signals (Welch spectra)."""
-    bp = band_passed_full(sig, p)
+    bp = modelled_torque(sig, p)
     nper = int(round(segment_s / DT))
     f, s_at = csd(sig.acc, bp, fs=1.0 / DT, nperseg=nper)
     _, s_aa = welch(sig.acc, fs=1.0 / DT, nperseg=nper)
@@ -325,7 +324,7 @@ def response(sig: YawSignals, p: Array, segment_s: float = 2.56) -> Response:
     return Response(gain=gain, phase=phase, inertia=inertia, inertia_reverse=reverse)
 
 
-def band_passed_full(sig: YawSignals, p: Array) -> Array:
+def modelled_torque(sig: YawSignals, p: Array) -> Array:
     """(K,) [N m] the modelled yaw torque at p (7,) on the unfiltered grid."""
     jr, delta, damp, kappa, nu, lx, ly = p
     drag, racc = _shift(sig.drag, delta), _shift(sig.rotor_acc, delta)
