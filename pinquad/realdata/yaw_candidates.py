@@ -30,7 +30,8 @@ band-passed to :data:`BAND` or a band given (zero-phase Butterworth, order 2):
 The candidate's own parameters are fitted on the fit flights only (each flight with its
 own gain): argmin of the mean unexplained share over whole flights (bounded
 Nelder-Mead from the candidate's fixed values, inside :data:`DOMAIN`). A number chosen
-by looking at the held-out flights would be a sensitivity, not a result; the split is fixed in advance (:data:`FIT_FLIGHTS`, :data:`HELD_OUT_FLIGHTS`).
+by looking at the held-out flights would be a sensitivity, not a result; the split is
+fixed in advance (:data:`FIT_FLIGHTS`, :data:`HELD_OUT_FLIGHTS`).
 
 Signals come from the micro-SD log at its own rate (about 500 Hz), resampled to a 2 ms
 grid by linear interpolation, over the longest stretch with every rotor above the
