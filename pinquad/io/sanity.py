@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.params import VEHICLES
-from pinquad.io.conventions_check import convention_problems
+from pinquad.io.declaration_check import convention_problems
 from pinquad.io.logs import FlightLog, LogFormatError
 
 Array = NDArray[np.float64]
