@@ -20,8 +20,9 @@ the reading that fits, never another key:
    attitude that turns the body over; with rotor speeds or thrust, the model-free mass
    m_bal = sum(F c33) / sum(g + z'') [kg] (F the thrust or the rotor model's sum kf
    omega^2, c33 the body z axis' vertical component, z'' the vertical acceleration of
-   the positions on a ``BALANCE_S`` grid, over rows with every rotor at flight speed)
-   must be positive.
+   the positions on a ``BALANCE_S`` grid, over rows with every rotor at flight speed;
+   undecided unless sum(g + z'') is within a factor 2 of the weight, as the accelerations
+   of a flight telescope to its end and start velocities) must be positive.
 3. **rotor-speed unit** (sidecar ``"rotor_speed"``): the hover-thrust ratio of
    ``conventions_check.check_rotor_speed`` on the speeds as declared, within a factor
    ``THRUST_FACTOR``; the other unit is named when it fits.
@@ -186,9 +187,13 @@ def model_free_mass(log: FlightLog, rot: Array | None = None) -> float | None:
     lift = np.interp(grid, log.t, force * c33[:, 0])[1:-1]
     zdd = np.diff(np.interp(grid, log.t, pos[:, 2]), n=2) / BALANCE_S ** 2
     use = np.ones(lift.size, bool) if spec is None else _airborne(log, spec, grid)[1:-1]
-    if use.sum() * BALANCE_S < MIN_BALANCE_S:
+    support = float(np.sum(zdd[use] + log.meta.gravity))
+    weight = float(use.sum() * log.meta.gravity)
+    # over a flight the accelerations telescope to (end - start) velocity: far from the
+    # weight they are positions in other units, whose own test speaks
+    if use.sum() * BALANCE_S < MIN_BALANCE_S or not 0.5 * weight <= support <= 2.0 * weight:
         return None
-    return float(np.sum(lift[use]) / np.sum(zdd[use] + log.meta.gravity))
+    return float(np.sum(lift[use]) / support)
 
 
 def _mass_words(mass: float | None) -> str:
@@ -281,8 +286,8 @@ def check_declared_frame(log: FlightLog) -> Problem | None:
                 f"flying vehicle points along {expected}{_mass_words(model_free_mass(log))}: "
                 f"{fix}")
     mass = model_free_mass(log)
-    if mass is None or mass > 0:
-        return None
+    if mass is None or mass > 0 or (log.thrust is not None and not np.mean(log.thrust) > 0):
+        return None  # a negative thrust is the thrust's sign, whose own test speaks
     said = conv.sidecar()
     keys = {k: v for k, v in said.items() if k in ("frame", "quaternion", "euler")}
     words = (f"the sidecar's {json.dumps(keys)[1:-1]}" if keys else
