@@ -194,8 +194,11 @@ def attitude_readings(euler: Array, conv: Conventions, every: bool = False
             out[words] = (new, json.dumps({"quaternion": {"order": order, "rotation": turn}}))
     else:
         order0, unit0 = conv.euler_order or "ZYX", conv.euler_unit or "rad"
-        cols = euler_of_rotation(rot[ok], order0, unit0) if conv.frame == "NED/FRD" or \
-            conv.euler_order is not None or conv.euler_unit is not None else euler[ok]
+        if conv.frame != "NED/FRD" and order0 == "ZYX":
+            # the reader scaled a unit alone exactly (unwrapped): undo it the same way
+            cols = euler[ok] * (180.0 / math.pi if unit0 == "deg" else 1.0)
+        else:
+            cols = euler_of_rotation(rot[ok], order0, unit0)
         orders = [o for o in EULER_ORDERS if o.isupper()] \
             if every or conv.euler_order is None else [order0]
         units = EULER_UNITS if every or conv.euler_unit is None else (unit0,)

@@ -197,8 +197,9 @@ def model_free_mass(log: FlightLog, rot: Array | None = None) -> float | None:
 
 
 def _mass_words(mass: float | None) -> str:
-    return "" if mass is None else f"; the model-free mass (mean vertical force over g) is " \
-        f"{mass * 1e3:.4g} g"
+    """The model-free mass as evidence of an attitude upside down (said when not positive)."""
+    return "" if mass is None or mass > 0 else f"; the model-free mass (mean vertical " \
+        f"force over g) is {mass * 1e3:.4g} g, where a vehicle's is positive"
 
 
 # ------------------------------------------------------------------ 1. attitude
@@ -235,7 +236,8 @@ def check_declared_attitude(log: FlightLog) -> Problem | None:
             good[name] = (alt_fit, alt_up, side)
     column = QUAT_COLUMNS if conv.attitude_columns == "quat" else "roll, pitch, yaw"
     said = json.dumps(declared)[1:-1]
-    flipped = up is not None and up.world is not None and up.world < up.down < -up.body
+    flipped = up is not None and up.world is not None and up.world < up.down \
+        and up.body > -up.down
     if not good and not flipped:
         return None  # no reading fits: the gyro's units or frame, whose tests speak
     how = ("its turn does not follow the gyro's" if fit is None else
