@@ -37,7 +37,9 @@ the same data, and names only what it tried:
 
 Each test returns ``(check, column, message)`` or None (passed, not applicable, or too
 little motion to decide: nothing is said then). The motor test runs only when the
-others pass (it leans on the gyro's frame and the rotor speeds' unit).
+others pass (it leans on the gyro's frame and the rotor speeds' unit); the order, with
+the tests of what the sidecar and vehicle file do declare, is
+``pinquad.io.declaration_check.convention_problems``'s.
 """
 
 from __future__ import annotations
