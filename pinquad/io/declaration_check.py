@@ -160,14 +160,16 @@ def _airborne(log: FlightLog, spec: VehicleSpec, t: Array) -> Array:
     return np.all(speeds >= flight_speed(spec), axis=1)
 
 
-def model_free_mass(log: FlightLog, rot: Array | None = None) -> float | None:
-    """m_bal [kg] of test 2 with the attitude as read (or ``rot`` (N, 3, 3)); None without
-    thrust or rotor speeds and their model, positions or ``MIN_BALANCE_S`` s to use."""
-    spec = None
-    if log.thrust is not None:
+def model_free_mass(log: FlightLog, rot: Array | None = None,
+                    spec: VehicleSpec | None = None) -> float | None:
+    """m_bal [kg] of test 2 with the attitude as read (or ``rot`` (N, 3, 3)), the force
+    from the rotor speeds through ``spec``'s rotor model when given, else the thrust
+    column, else the rotor speeds through the log's rotor model (``rotor_model``); None
+    without them, positions or ``MIN_BALANCE_S`` s to use."""
+    if spec is None and log.thrust is not None:
         force = np.asarray(log.thrust, float)
-    elif log.rpm is not None and (spec := rotor_model(log)) is not None \
-            and spec.positions.shape[0] == log.rpm.shape[1]:
+    elif log.rpm is not None and (spec := spec or rotor_model(log)) is not None \
+            and spec.actuators is not None and spec.positions.shape[0] == log.rpm.shape[1]:
         omega = filled(log.rpm, log.t)
         if omega is None:
             return None
@@ -443,7 +445,7 @@ def check_vehicle_geometry(log: FlightLog) -> Problem | None:
 def check_vehicle_mass(log: FlightLog) -> Problem | None:
     """Test 5's hover balance against the file's reference mass."""
     spec = _file_spec(log)
-    mass = None if spec is None else model_free_mass(log)
+    mass = None if spec is None else model_free_mass(log, spec=spec)
     if mass is None or mass <= 0:
         return None
     ref = spec.reference.mass if spec.reference.mass is not None else spec.mass  # type: ignore[union-attr]
