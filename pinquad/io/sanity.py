@@ -22,8 +22,11 @@ Checks, in order (the first failure is reported):
    (e.g. gyro beyond 1e4 rad/s): a located error (column, rows, value);
    then the conventions the sidecar does not declare (``pinquad.io.conventions_check``:
    attitude vs gyro under each quaternion or Euler reading, gravity along -z, rotor
-   speeds vs a hover's thrust, motor order vs angular acceleration); when one fails,
-   it is reported and the checks below are not run;
+   speeds vs a hover's thrust, motor order vs angular acceleration) and what the
+   sidecar and vehicle file declare (``pinquad.io.declaration_check``: each declared
+   convention against the same physics, a positive model-free mass, the vehicle file's
+   reference mass and torque-axis signs); when one fails, it is reported and the checks
+   below are not run;
 5. gyro vs attitude: over windows of ``ATTITUDE_WINDOW_S`` (or ``ATTITUDE_WINDOW_RAD``),
    the body rotation vector of R_a^T R_b from the pose against the integrated gyro,
    fitted as rotvec = beta * integral(omega dt); 1 / beta within [1 / ``RATIO_TOLERANCE``,
@@ -56,7 +59,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.params import VEHICLES
-from pinquad.io.conventions_check import convention_problems
+from pinquad.io.declaration_check import convention_problems
 from pinquad.io.logs import FlightLog, LogFormatError
 
 Array = NDArray[np.float64]
