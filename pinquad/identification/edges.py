@@ -1,0 +1,103 @@
+"""Where a fit is held by a constraint or its error estimate has failed: no trusted number.
+
+EM maximises the likelihood over the physically possible set of diagonal inertias
+(``mstep.updates.inertia_newton``, ``mstep.band.profiled_inertia``,
+``mstep.compiled.physical``): positive, inside the search box
+(``identification.search_range``, judged by ``search_range.at_bound``) and obeying the
+triangle inequalities
+
+    I_k <= I_i + I_j   for every (i, j, k) a permutation of (x, y, z),
+
+which any rigid body's principal moments obey (I_i + I_j - I_k = 2 sum over the mass of
+the squared distance along axis k >= 0). A likelihood that pulls past a face of that set
+(a yaw torque of the wrong sign, a torque scaled wrongly) ends on it: the number is the
+face, not a fit, and every parameter the face ties (all three moments: moving any of them
+moves off the face) is "not identifiable" with that reason. A principal moment within
+``TRIANGLE_RTOL`` of the sum of the other two is on the face (:func:`triangle_face`).
+
+On a face the error estimates fail too: each block of the jackknife starts on the face
+and stays there, so every block returns the same number and the jackknife's error is
+exactly 0; the observed information is the curvature of a likelihood whose maximum lies
+beyond the face. An error estimate that collapses, 0 or more than ``COLLAPSE_RATIO``
+times smaller than the other one of the same fit (the jackknife against the observed
+information), is a failure of the error, never a small error
+(:func:`collapsed_errors`): the parameter is not trusted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+NAMES = ("mass", "I_xx", "I_yy", "I_zz")
+TRIANGLE_RTOL = 1e-3
+"""A principal moment I_k with I_i + I_j - I_k <= TRIANGLE_RTOL I_k is on the triangle
+face [-]. 0.1 % is far below any inertia's standard error on a flight (the smallest
+statistical error on the shared IMRC logs is 1.5 % of I_xx), so an estimate that close
+cannot be told from one on the face; the band M-step stops on the face itself (relative
+gap 0 to rounding), the rigid-body M-step within its backtracking's 1e-12, and EM's
+iterates creep towards it at its stopping tolerance 1e-4. The closest a shared IMRC log
+ends without touching it is 5 % (jana00: 16.6 + 17.5 - 31.4 = 2.7, 8.6 %)."""
+COLLAPSE_RATIO = 0.01
+"""An error estimate more than 100 x smaller than the other estimate of the same
+parameter has collapsed [-]. On the shared IMRC logs the block jackknife and the
+observed information agree within a factor of 2.5 for the mass and the roll and pitch
+inertia, within 5 for I_zz (jana00: jackknife / information 1.85, 0.78, 0.63, 2.44)."""
+
+
+def triangle_face(inertia: Array) -> str | None:
+    """The triangle face (module docstring) the inertia (3, 3) [kg m^2] lies on, in words
+    with its numbers, or None. The principal moments are the symmetric part's
+    eigenvalues, sorted; only the largest can reach the sum of the other two."""
+    sym = 0.5 * (np.asarray(inertia, dtype=float) + np.asarray(inertia, dtype=float).T)
+    p = np.linalg.eigvalsh(sym)
+    if not p[0] > 0:
+        return None  # not positive definite: implausible, judged as such
+    gap = p[0] + p[1] - p[2]
+    if gap > TRIANGLE_RTOL * p[2]:
+        return None
+    diagonal = np.allclose(sym, np.diag(np.diag(sym)), rtol=0, atol=1e-12 * p[2])
+    if diagonal:
+        order = np.argsort(np.diag(sym), kind="stable")
+        i, j, k = (NAMES[1 + int(n)] for n in order)
+        face = f"{k} = {i} + {j}"
+    else:
+        face = "largest principal moment = sum of the other two"
+    return (f"ended on a face of the physically possible set, the triangle inequality "
+            f"({face}: {p[0] * 1e6:.4g} + {p[1] * 1e6:.4g} - {p[2] * 1e6:.4g} = "
+            f"{gap * 1e6:.2g} e-6 kg m^2, within {100 * TRIANGLE_RTOL:g} % of it): the face "
+            "holds the three moments, not the log; a yaw torque of the wrong sign (the "
+            "vehicle file's spin) or a wrongly scaled torque pushes an inertia there")
+
+
+def collapsed_errors(values: Array, judged: dict[str, Array | None],
+                     against: dict[str, Array | None] | None = None
+                     ) -> tuple[tuple[str, str], ...]:
+    """(name, reason) for each of [m, I_xx, I_yy, I_zz] (``values`` (4,)) whose error
+    estimate collapsed (module docstring). judged: what each (4,) standard error is (e.g.
+    ``"observed information"``, ``"block jackknife"``) -> its values (None: not computed;
+    NaN entries: not available); each is compared with the same parameter's other
+    estimates, in ``judged`` and in ``against`` (compared with, not judged)."""
+    def arrays(d: dict[str, Array | None] | None) -> dict[str, Array]:
+        return {k: np.asarray(v, dtype=float) for k, v in (d or {}).items() if v is not None}
+
+    mine, every = arrays(judged), {**arrays(against), **arrays(judged)}
+    out = []
+    for n, name in enumerate(NAMES):
+        for what, se in ((k, float(v[n])) for k, v in mine.items()):
+            if not np.isfinite(se) or not values[n]:
+                continue
+            worse = [(k, float(v[n])) for k, v in every.items()
+                     if k != what and np.isfinite(v[n]) and se < COLLAPSE_RATIO * v[n]]
+            if se > 0 and not worse:
+                continue
+            against_text = "".join(f", {o / se:.3g} x less than the {k}'s {o:.3g}"
+                                   for k, o in worse[:1] if se > 0)
+            out.append((name, f"the {what}'s standard error collapsed to {se:.3g}"
+                              f"{against_text}: a failure of the error estimate (a fit held "
+                              "by a constraint or a degenerate information), not a small "
+                              "error"))
+            break
+    return tuple(out)
