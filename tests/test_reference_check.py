@@ -5,15 +5,18 @@ from __future__ import annotations
 
 import json
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from pinquad.cli.offline import build_parser, pipeline_options
 from pinquad.core.vehicle_file import VehicleFileError, load_vehicle
 from pinquad.identification.reference import log_reference, reference_values
 from pinquad.identification.verdict import NOT_ADEQUATE, TRUSTED, VerdictEvidence, judge
 from pinquad.io.logs import LogFormatError, read_log, write_log
+from pinquad.pipeline import read
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 
@@ -175,3 +178,20 @@ def test_a_declared_payload_moves_the_reference_mass(tmp_path: Path):
     side.write_text(json.dumps(raw))
     with pytest.raises(LogFormatError, match=r"flight\.csv\.json.*payload_mass"):
         read_log(path)
+
+
+def test_the_command_line_declares_a_payload_over_the_sidecar(tmp_path: Path, capsys):
+    """--payload-mass reaches the log the pipeline judges, over the sidecar's value; a
+    negative mass is refused by the parser (exit code 2, the option named)."""
+    log = flight_log(simulate(SimConfig(sensor="B"), np.random.default_rng(3))).slice(0, 50)
+    path = write_log(replace(log, meta=replace(log.meta, payload_mass=0.002)),
+                     tmp_path / "flight.csv")
+    args = build_parser().parse_args(["--log", str(path), "--payload-mass", "0.0074"])
+    options = pipeline_options(args)
+    assert options.payload_mass == 0.0074
+    assert read(path, options.vehicle, options.payload_mass).meta.payload_mass == 0.0074
+    assert read(path).meta.payload_mass == 0.002  # the sidecar's, when no option is given
+    with pytest.raises(SystemExit) as stop:
+        build_parser().parse_args(["--log", str(path), "--payload-mass", "-0.01"])
+    assert stop.value.code == 2
+    assert "--payload-mass" in capsys.readouterr().err

@@ -60,9 +60,9 @@ def triangle_face(inertia: Array) -> str | None:
         return None
     diagonal = np.allclose(sym, np.diag(np.diag(sym)), rtol=0, atol=1e-12 * p[2])
     if diagonal:
-        order = np.argsort(np.diag(sym), kind="stable")
-        i, j, k = (NAMES[1 + int(n)] for n in order)
-        face = f"{k} = {i} + {j}"
+        k = int(np.argmax(np.diag(sym)))
+        i, j = (NAMES[1 + n] for n in range(3) if n != k)
+        face = f"{NAMES[1 + k]} = {i} + {j}"
     else:
         face = "largest principal moment = sum of the other two"
     return (f"ended on a face of the physically possible set, the triangle inequality "
