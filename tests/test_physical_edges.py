@@ -37,11 +37,11 @@ def test_an_inertia_on_the_triangle_face_is_not_trusted():
 
 
 @pytest.mark.parametrize("gap, on_face", [(0.0, True), (0.9e-3, True), (1.1e-3, False),
-                                          (0.05, False)])
+                                          (0.05, False), (-0.9e-3, True), (-0.05, False)])
 def test_the_face_tolerance_is_a_tenth_of_a_percent_of_the_largest_moment(gap, on_face):
     """I_xx = I_yy + I_zz - gap I_xx, the face on another axis: within 0.1 % of I_xx
-    it is on the face, beyond not (the product of inertia does not matter for a
-    diagonal tensor's naming)."""
+    it is on the face, inside not, and beyond (a broken triangle) not either: that is
+    implausible, a check of its own."""
     i_yy, i_zz = 20e-6, 30e-6
     i_xx = (i_yy + i_zz) / (1.0 + gap)  # I_yy + I_zz - I_xx = gap I_xx
     face = triangle_face(np.diag([i_xx, i_yy, i_zz]))

@@ -56,8 +56,8 @@ def triangle_face(inertia: Array) -> str | None:
     if not p[0] > 0:
         return None  # not positive definite: implausible, judged as such
     gap = p[0] + p[1] - p[2]
-    if gap > TRIANGLE_RTOL * p[2]:
-        return None
+    if abs(gap) > TRIANGLE_RTOL * p[2]:
+        return None  # inside, or beyond: a broken triangle is implausible, judged so
     diagonal = np.allclose(sym, np.diag(np.diag(sym)), rtol=0, atol=1e-12 * p[2])
     if diagonal:
         k = int(np.argmax(np.diag(sym)))
