@@ -10,8 +10,9 @@ triangle inequalities
 
 which any rigid body's principal moments obey (I_i + I_j - I_k = 2 sum over the mass of
 the squared distance along axis k >= 0). A likelihood that pulls past a face of that set
-(a yaw torque of the wrong sign, a torque scaled wrongly) ends on it: the number is the
-face, not a fit, and every parameter the face ties (all three moments: moving any of them
+(a yaw torque of the wrong sign, a torque scaled wrongly, or noise on a nearly flat
+vehicle: a quadrotor's I_zz lies within 10-15 % of I_xx + I_yy) ends on it: the number
+is the face, not a fit, and every parameter the face ties (all three moments: moving any of them
 moves off the face) is "not identifiable" with that reason. A principal moment within
 ``TRIANGLE_RTOL`` of the sum of the other two is on the face (:func:`triangle_face`).
 
@@ -33,18 +34,20 @@ Array = NDArray[np.float64]
 
 NAMES = ("mass", "I_xx", "I_yy", "I_zz")
 TRIANGLE_RTOL = 1e-3
-"""A principal moment I_k with I_i + I_j - I_k <= TRIANGLE_RTOL I_k is on the triangle
-face [-]. 0.1 % is far below any inertia's standard error on a flight (the smallest
-statistical error on the shared IMRC logs is 1.5 % of I_xx), so an estimate that close
-cannot be told from one on the face; the band M-step stops on the face itself (relative
-gap 0 to rounding), the rigid-body M-step within its backtracking's 1e-12, and EM's
-iterates creep towards it at its stopping tolerance 1e-4. The closest a shared IMRC log
-ends without touching it is 5 % (jana00: 16.6 + 17.5 - 31.4 = 2.7, 8.6 %)."""
+"""A principal moment I_k with |I_i + I_j - I_k| <= TRIANGLE_RTOL I_k is on the triangle
+face [-]. 0.1 % is far below an inertia's statistical error on a flight (I_xx: 1.7-2 %
+on jana00, jana25 and eckart00), so an estimate that close cannot be told from one on
+the face; the band M-step stops on the face to rounding (a relative gap of 1e-11 on
+jana25, jana29 and the brushless eckart flights), the rigid-body M-step within its
+backtracking's 1e-12. A fit inside the set stays well clear of it (jana00: 8.7 %,
+jana23: 57 %)."""
 COLLAPSE_RATIO = 0.01
-"""An error estimate more than 100 x smaller than the other estimate of the same
-parameter has collapsed [-]. On the shared IMRC logs the block jackknife and the
-observed information agree within a factor of 2.5 for the mass and the roll and pitch
-inertia, within 5 for I_zz (jana00: jackknife / information 1.85, 0.78, 0.63, 2.44)."""
+"""An error estimate more than 100 x smaller than another estimate of the same
+parameter's error has collapsed [-]. Where the fit is not held by the set, the block
+jackknife and the observed information of the shared IMRC logs agree within a factor
+of 4.1 either way (jackknife / information of [m, I_xx, I_yy, I_zz]: jana00 1.85, 0.78,
+0.63, 2.44; jana23 2.04, 1.44, 1.16, 4.01); on the face the jackknife is 0 to rounding
+(1e-20 kg m^2)."""
 
 
 def triangle_face(inertia: Array) -> str | None:
@@ -68,8 +71,8 @@ def triangle_face(inertia: Array) -> str | None:
     return (f"ended on a face of the physically possible set, the triangle inequality "
             f"({face}: {p[0] * 1e6:.4g} + {p[1] * 1e6:.4g} - {p[2] * 1e6:.4g} = "
             f"{gap * 1e6:.2g} e-6 kg m^2, within {100 * TRIANGLE_RTOL:g} % of it): the face "
-            "holds the three moments, not the log; a yaw torque of the wrong sign (the "
-            "vehicle file's spin) or a wrongly scaled torque pushes an inertia there")
+            "holds the three moments, not the log (a yaw torque of the wrong sign, the "
+            "vehicle file's spin, or a wrongly scaled torque pushes an inertia there)")
 
 
 def collapsed_errors(values: Array, judged: dict[str, Array | None],
