@@ -11,7 +11,7 @@ triangle inequalities
 which any rigid body's principal moments obey (I_i + I_j - I_k = 2 sum over the mass of
 the squared distance along axis k >= 0). A likelihood that pulls past a face of that set
 (a yaw torque of the wrong sign, a torque scaled wrongly, or noise on a nearly flat
-vehicle: a quadrotor's I_zz lies within 10-15 % of I_xx + I_yy) ends on it: the number
+vehicle: a quadrotor's I_zz is typically 5-15 % below I_xx + I_yy) ends on it: the number
 is the face, not a fit, and every parameter the face ties (all three moments: moving any of them
 moves off the face) is "not identifiable" with that reason. A principal moment within
 ``TRIANGLE_RTOL`` of the sum of the other two is on the face (:func:`triangle_face`).
