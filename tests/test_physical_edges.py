@@ -135,8 +135,8 @@ def test_an_error_estimate_that_collapsed_is_a_failure_not_a_small_error():
     failed = dict(collapsed_errors(values, {"observed information": info,
                                             "block jackknife": np.r_[3e-5, 0.0, 0.5e-9, 0.018e-6]}))
     assert set(failed) == {"I_xx", "I_yy"}
-    assert "collapsed to 0" in failed["I_xx"] and "block jackknife" in failed["I_xx"]
-    assert "1e+03 x less than the observed information's" in failed["I_yy"]
+    assert "collapsed to 0 e-6 kg m^2" in failed["I_xx"] and "block jackknife" in failed["I_xx"]
+    assert "1e+03 x less than the observed information's 0.5" in failed["I_yy"]
     assert collapsed_errors(values, {"observed information": info,
                                      "block jackknife": 0.6 * info}) == ()
     # an information whose error is 0 with nothing to compare it with

@@ -96,10 +96,11 @@ def collapsed_errors(values: Array, judged: dict[str, Array | None],
                      if k != what and np.isfinite(v[n]) and se < COLLAPSE_RATIO * v[n]]
             if se > 0 and not worse:
                 continue
-            against_text = "".join(f", {o / se:.3g} x less than the {k}'s {o:.3g}"
+            scale, unit = (1e3, "g") if n == 0 else (1e6, "e-6 kg m^2")
+            against_text = "".join(f", {o / se:.3g} x less than the {k}'s {o * scale:.3g}"
                                    for k, o in worse[:1] if se > 0)
-            out.append((name, f"the {what}'s standard error collapsed to {se:.3g}"
-                              f"{against_text}: a failure of the error estimate (a fit held "
+            out.append((name, f"the {what}'s standard error collapsed to {se * scale:.3g} "
+                              f"{unit}{against_text}: a failure of the error estimate (a fit held "
                               "by a constraint or a degenerate information), not a small "
                               "error"))
             break
