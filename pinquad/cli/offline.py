@@ -35,7 +35,7 @@ from pinquad.cli.common import (
     failure_message,
 )
 from pinquad.cli.file_vehicle import run_file_vehicle
-from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
+from pinquad.cli.help import HelpFormatter, non_negative_float, non_negative_int, positive_int
 from pinquad.cli.known_mass import run_known_mass
 from pinquad.core.execution import open_executor
 from pinquad.core.params import PAPER_SCENARIO
@@ -92,6 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "that log, --cycles seeds one after the other); with --log: the "
                         "log's vehicle, a shipped name or a vehicle file, overriding the "
                         "log's sidecar")
+    p.add_argument("--payload-mass", type=non_negative_float, default=None, metavar="KG",
+                   help="with --log: the mass [kg] of a load the vehicle carried that its "
+                        "vehicle file does not hold (overrides the sidecar's "
+                        "'payload_mass'); added to the file's [reference] mass that the "
+                        "verdict compares the estimate with (its inertia is taken as a "
+                        "point mass at the centre of mass: the inertia reference stays)")
     p.add_argument("--band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                    help="torque band [Hz] of the inertia M-step on a rotor-speed log "
                         "(default 3-8 Hz, the measured Crazyflie flights'; a simulated "
@@ -190,7 +196,8 @@ def pipeline_options(args: argparse.Namespace) -> PipelineOptions:
         information=not args.no_information,
         **({} if args.band is None else {"band": tuple(args.band)}))
     return PipelineOptions(identification, NullSettings(args.null_replicates, args.null_seed),
-                           discover=not args.no_discover, vehicle=args.vehicle)
+                           discover=not args.no_discover, vehicle=args.vehicle,
+                           payload_mass=args.payload_mass)
 
 
 def run_log(args: argparse.Namespace) -> int:
@@ -206,7 +213,7 @@ def run_log(args: argparse.Namespace) -> int:
     print(f"pinquad offline --log {args.log}: E-step {args.estep}, "
           f"M-step(s) {', '.join(options.identification.msteps)}")
     writer = RunWriter(args.out or new_run_dir("log"))  # --out checked before any work
-    log = read(args.log, args.vehicle)
+    log = read(args.log, args.vehicle, args.payload_mass)
     if args.vehicle is not None:
         print(f"vehicle: {log.meta.vehicle}")
     with worker_pool(args.jobs) as pool:

@@ -74,7 +74,9 @@ class LogMeta:
     ``identification.budget``); wrench_from_rpm: the thrust and torque columns were
     computed from the rotor speeds (pinquad's export of a measured flight; sidecar
     ``"wrench": "from rpm"``): the log is identified from its rotor speeds, as the
-    flight it was exported from.
+    flight it was exported from. payload_mass [kg] >= 0: a load the vehicle carried
+    that its vehicle file does not hold (sidecar ``payload_mass``), added to the file's
+    reference mass (``identification.reference``).
     """
 
     vehicle: str = "paper"
@@ -90,6 +92,7 @@ class LogMeta:
     wrench_from_rpm: bool = False
     t_origin: float = 0.0
     conventions: Conventions = field(default_factory=Conventions)
+    payload_mass: float = 0.0
 
 
 ACTUATION = ("held", "sampled")
@@ -246,6 +249,7 @@ def sidecar(meta: LogMeta) -> dict:
         "mass_guess": meta.mass_guess,
         "inertia_guess": None if meta.inertia_guess is None else np.asarray(meta.inertia_guess).tolist(),
         "gravity": meta.gravity,
+        **({"payload_mass": meta.payload_mass} if meta.payload_mass else {}),
         "actuation": meta.actuation,
         **({} if meta.calibration is None else {"calibration": dict(zip(
             CALIBRATION_KEYS, meta.calibration, strict=True))}),
@@ -440,6 +444,10 @@ def _read_sidecar(path: Path) -> LogMeta:
             f"{side}: key 'vehicle' is {vehicle!r}; expected one of {', '.join(VEHICLES)}, "
             "or give 'mass_guess' and 'inertia_guess' for another vehicle")
     gravity = _sidecar_number(side, raw, "gravity")
+    payload = _sidecar_number(side, raw, "payload_mass")
+    if payload is not None and payload < 0:
+        raise LogFormatError(f"{side}: key 'payload_mass' is {payload!r}; expected the mass "
+                             "[kg] of a load the vehicle carried, 0 or more")
     notes = () if vehicle in VEHICLES or is_vehicle_file(vehicle) else (
         f"vehicle {vehicle!r} is not one pinquad knows ({', '.join(VEHICLES)}): EM starts "
         "from the sidecar's guesses and the thrust is not compared with a nominal mass",)
@@ -466,6 +474,7 @@ def _read_sidecar(path: Path) -> LogMeta:
         calibration=calibration(side, raw.get("calibration")),
         wrench_from_rpm=wrench_from_rpm(side, raw.get("wrench")),
         conventions=read_conventions(side, raw),
+        payload_mass=payload or 0.0,
     )
 
 
