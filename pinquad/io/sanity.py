@@ -56,8 +56,10 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.params import VEHICLES
+from pinquad.io.actuation_check import actuation_problems
 from pinquad.io.conventions_check import convention_problems
 from pinquad.io.logs import FlightLog, LogFormatError
+from pinquad.io.units_check import unit_problems
 
 Array = NDArray[np.float64]
 
@@ -442,6 +444,10 @@ def findings(log: FlightLog) -> tuple[Finding, ...]:
     impossible = _check_impossible(log)
     if impossible is not None:
         return (*out, impossible)
+    # a dead, stuck or falsely declared rotor channel makes the rotor tests below misread
+    channels = actuation_problems(log)
+    if channels:
+        return (*out, *(Finding(*found) for found in channels))
     # an undeclared convention read wrong makes the unit checks below meaningless
     conventions = convention_problems(log)
     if conventions:
@@ -451,6 +457,8 @@ def findings(log: FlightLog) -> tuple[Finding, ...]:
         found = check(log)
         if found is not None:
             out.append(found)
+    # single columns the whole-sensor checks above cannot see (pinquad.io.units_check)
+    out.extend(Finding(*found) for found in unit_problems(log, implied_mass(log)))
     return tuple(out)
 
 
