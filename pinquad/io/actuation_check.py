@@ -64,24 +64,25 @@ def _spans(rows: Array, t: Array, limit: int = 3) -> str:
     return ", ".join(text) + more
 
 
-def zero_channels(log: FlightLog) -> list[tuple[int, Array, int]]:
-    """[(channel i (0-based), rows reading zero, turning rows)] of test 1 (not skipped
-    for PWM: the caller decides)."""
+def zero_channels(log: FlightLog, max_share: float = MAX_SHARE) -> list[tuple[int, Array, int]]:
+    """[(channel i (0-based), rows reading zero, turning rows)] of the channels at zero
+    in more than ``max_share`` of the turning rows (test 1; not skipped for PWM: the
+    caller decides; max_share -1 lists every channel)."""
     rpm = np.asarray(log.rpm, dtype=float)
     out = []
     for i in range(rpm.shape[1]):
         turning, med = _turning(rpm, i)
         with np.errstate(invalid="ignore"):
             zero = turning & np.isfinite(rpm[:, i]) & (rpm[:, i] < ZERO_SHARE * med)
-        if turning.sum() and zero.sum() > MAX_SHARE * turning.sum():
+        if turning.sum() and zero.sum() > max_share * turning.sum():
             out.append((i, np.flatnonzero(zero), int(turning.sum())))
     return out
 
 
-def stuck_runs(log: FlightLog) -> list[tuple[int, int, int, float]]:
+def stuck_runs(log: FlightLog, min_s: float = STUCK_S) -> list[tuple[int, int, int, float]]:
     """[(channel i, first row, last row (0-based), value)] of each channel's longest run
     of one repeated non-zero reading while the others turn, where it lasts more than
-    STUCK_S (test 2)."""
+    ``min_s`` [s] (test 2; min_s -1 lists every channel's longest)."""
     rpm = np.asarray(log.rpm, dtype=float)
     out = []
     for i in range(rpm.shape[1]):
@@ -95,10 +96,11 @@ def stuck_runs(log: FlightLog) -> list[tuple[int, int, int, float]]:
         starts = np.flatnonzero(new)
         ends = np.r_[starts[1:] - 1, rows.size - 1]
         length = log.t[rows[ends]] - log.t[rows[starts]]
+        # a run at zero is test 1's (a rotor read as stopped), not a held reading
+        length[v[starts] < ZERO_SHARE * med[rows[starts]]] = -np.inf
         k = int(np.argmax(length))
-        value = float(v[starts[k]])
-        if length[k] > STUCK_S and value >= ZERO_SHARE * float(np.nanmedian(med[rows])):
-            out.append((i, int(rows[starts[k]]), int(rows[ends[k]]), value))
+        if length[k] > min_s:
+            out.append((i, int(rows[starts[k]]), int(rows[ends[k]]), float(v[starts[k]])))
     return out
 
 

@@ -8,12 +8,14 @@ column, what it measured and the fix:
 
 1. **each gyro axis against the attitude**: over windows of ``WINDOW_S`` (0.2 s) the
    body rotation vector of R_a^T R_b from the pose against the integral of the gyro,
-   fitted per axis a as rotvec_a = beta_a integral(omega_a dt); an axis whose motion
-   fixes beta_a to ``MIN_T_RATIO`` standard errors must turn 1 / beta_a within
-   [1 / ``RATIO_TOLERANCE``, ``RATIO_TOLERANCE``] as far as the pose (one axis in
-   deg/s gives 57.3 there and about 1 on the others; over 0.2 s windows the rotation
-   vector differs from the integrated rate by a second-order term, a few per cent at
-   the Crazyflie's 6 rad/s yaw sweeps);
+   fitted as rotvec = M integral(omega dt) with a full 3 x 3 M (least squares over the
+   windows); the length beta_k of M's column k is how far the pose turns per radian of
+   gyro axis k, in whatever direction (a motion-capture body frame turned against the
+   IMU's makes M a rotation, columns of length 1: on the shared IMRC logs a per-axis
+   fit read 0.66 on jana05's roll for that reason). An axis whose motion fixes beta_k to
+   ``MIN_T_RATIO`` standard errors must turn 1 / beta_k within [1 /
+   ``RATIO_TOLERANCE``, ``RATIO_TOLERANCE``] as far as the pose (one axis in deg/s gives
+   57.3 there and about 1 on the others; the sign is that of M's diagonal entry);
 2. **the torques against the angular acceleration** (logs with thrust and torque
    columns whose vehicle is named, so its inertia J is the vehicle's, not a guess): per
    axis, the rms of d omega / dt against the rms of J^-1 (tau - omega x J omega), both
@@ -97,16 +99,19 @@ def gyro_axis_ratios(log: FlightLog) -> tuple[float | None, float | None, float 
     steps = np.diff(log.t)[:, None] * 0.5 * (gyro[1:] + gyro[:-1])
     cum = np.vstack([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
     x = cum[b] - cum[a]
+    gram = x.T @ x
+    if a.size < MIN_WINDOWS + 3 or not np.linalg.cond(gram) < 1e12:
+        return none
+    inv = np.linalg.inv(gram)
+    fit = np.linalg.solve(gram, x.T @ y).T  # rotvec(pose) = fit @ integral(gyro)
+    resid = y - x @ fit.T
+    var = np.sum(resid ** 2, axis=0) / max(a.size - 3, 1)  # per pose axis
     out: list[float | None] = []
     for k in range(3):
-        sxx = float(x[:, k] @ x[:, k])
-        if not sxx > 0:
-            out.append(None)
-            continue
-        beta = float(x[:, k] @ y[:, k]) / sxx
-        resid = float(np.sum((y[:, k] - beta * x[:, k]) ** 2))
-        se = math.sqrt(resid / max(a.size - 1, 1) / sxx)
-        out.append(1.0 / beta if abs(beta) >= MIN_T_RATIO * se and beta != 0 else None)
+        norm = float(np.linalg.norm(fit[:, k]))
+        se = math.sqrt(float(np.sum(var)) * inv[k, k])
+        sign = 1.0 if fit[k, k] >= 0 else -1.0
+        out.append(sign / norm if norm > 0 and norm >= MIN_T_RATIO * se else None)
     return out[0], out[1], out[2]
 
 
@@ -229,13 +234,15 @@ def check_torque_scale(log: FlightLog) -> Problem | None:
             words = f"; looks like {unit}"
             break
     diag = ", ".join(f"{v * 1e6:.3g}" for v in np.diag(inertia))
+    axes = ", ".join("xyz"[k] for k in bad)
     return ("torque-scale", cols,
-            f"{cols} {'turn' if len(bad) > 1 else 'turns'} the vehicle "
-            f"{', '.join(f'{scales[k][0]:.3g}' for k in bad)} times as hard as they say: the "
-            f"angular acceleration from the gyro has {ratio:.3g} times the rms of J^-1 tau "
-            f"through vehicle {log.meta.vehicle!r}'s inertia ({diag} e-6 kg m^2; correlation "
-            f"{', '.join(f'{scales[k][1]:.2f}' for k in bad)}){words}; expected within a factor "
-            f"{TORQUE_FACTOR:g} (or name the vehicle these torques move: sidecar \"vehicle\")")
+            f"{cols} say{'' if len(bad) > 1 else 's'} {factor:.3g} times the torque the gyro's "
+            f"angular acceleration about body {axes} needs through vehicle "
+            f"{log.meta.vehicle!r}'s inertia ({diag} e-6 kg m^2): rms of d omega/dt over "
+            f"rms of J^-1 tau {', '.join(f'{scales[k][0]:.3g}' for k in bad)}, correlation "
+            f"{', '.join(f'{scales[k][1]:.2f}' for k in bad)}{words}; expected within a "
+            f"factor {TORQUE_FACTOR:g} (or name the vehicle these torques move: sidecar "
+            "\"vehicle\")")
 
 
 # ------------------------------------------------------------------ 3. normalised thrust
