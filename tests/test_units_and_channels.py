@@ -78,6 +78,12 @@ def test_one_gyro_axis_in_deg_per_s_is_named(wrench_log, axis):
     assert ratio is not None and 50 < ratio < 65
 
 
+def test_every_gyro_axis_in_deg_per_s_is_left_to_the_whole_sensor_test(wrench_log):
+    log = replace(wrench_log, gyro=wrench_log.gyro * 180.0 / np.pi)
+    assert check_gyro_axes(log) is None
+    assert findings(log)[0].check == "gyro-vs-attitude"
+
+
 @pytest.mark.parametrize("factor,words,columns", [
     (10.0, "10 times N m", "torque_x, torque_y"),  # yaw correlates 0.46: judged on x50 only
     (1000.0, "N mm", "torque_x, torque_y, torque_z")])

@@ -59,7 +59,7 @@ from pinquad.core.params import VEHICLES
 from pinquad.io.actuation_check import actuation_problems
 from pinquad.io.conventions_check import convention_problems
 from pinquad.io.logs import FlightLog, LogFormatError
-from pinquad.io.units_check import unit_problems
+from pinquad.io.units_check import check_gyro_axes, unit_problems
 
 Array = NDArray[np.float64]
 
@@ -452,6 +452,9 @@ def findings(log: FlightLog) -> tuple[Finding, ...]:
     conventions = convention_problems(log)
     if conventions:
         return (*out, *(Finding(*found) for found in conventions))
+    axis = check_gyro_axes(log)  # one gyro column wrong: named before the whole sensor
+    if axis is not None:
+        out.append(Finding(*axis))
     for check in (_check_gyro, _check_position_velocity, _check_kinematics,
                   _check_accelerometer, _check_thrust):
         found = check(log)

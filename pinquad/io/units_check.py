@@ -15,7 +15,9 @@ column, what it measured and the fix:
    fit read 0.66 on jana05's roll for that reason). An axis whose motion fixes beta_k to
    ``MIN_T_RATIO`` standard errors must turn 1 / beta_k within [1 /
    ``RATIO_TOLERANCE``, ``RATIO_TOLERANCE``] as far as the pose (one axis in deg/s gives
-   57.3 there and about 1 on the others; the sign is that of M's diagonal entry);
+   57.3 there and about 1 on the others; the sign is that of M's diagonal entry). It
+   speaks only when another axis agrees: every axis off is the whole sensor's unit,
+   which ``sanity``'s gyro-vs-attitude test names;
 2. **the torques against the angular acceleration** (logs with thrust and torque
    columns whose vehicle is named, so its inertia J is the vehicle's, not a guess): per
    axis, the rms of d omega / dt against the rms of J^-1 (tau - omega x J omega), both
@@ -131,7 +133,9 @@ def check_gyro_axes(log: FlightLog) -> Problem | None:
     names = ("gyro_x", "gyro_y", "gyro_z")
     bad = [k for k, r in enumerate(ratios)
            if r is not None and not 1 / RATIO_TOLERANCE <= r <= RATIO_TOLERANCE]
-    if not bad:
+    # one column wrong shows against an axis that agrees; all of them wrong is the
+    # whole sensor's unit, which sanity's gyro-vs-attitude test names
+    if not bad or len(bad) == sum(r is not None for r in ratios):
         return None
     k = bad[0]
     ratio = ratios[k]
@@ -242,12 +246,16 @@ def check_torque_scale(log: FlightLog) -> Problem | None:
     ratio = scales[bad[0]][0]
     factor = 1.0 / ratio
     words = ""
+    strong = scales[bad[0]][1] >= STRONG_CORRELATION
     for unit, scale in (("N mm (expected N m): divide by 1000", 1000.0),
                         ("N cm (expected N m): divide by 100", 100.0),
                         ("10 times N m: divide by 10", 10.0)):
-        if scale / 2.0 < factor < scale * 2.0:
+        if strong and scale / 2.0 < factor < scale * 2.0:
             words = f"; looks like {unit}"
             break
+    if not strong:  # loosely tied torques: the factor is not a unit's to the digit
+        words = ("; the torques explain the motion too loosely to name the unit: check "
+                 "that they are in N m")
     diag = ", ".join(f"{v * 1e6:.3g}" for v in np.diag(inertia))
     axes = ", ".join("xyz"[k] for k in bad)
     return ("torque-scale", cols,
@@ -282,7 +290,7 @@ def check_normalised_thrust(log: FlightLog, implied: float | None) -> Problem | 
 
 
 def unit_problems(log: FlightLog, implied: float | None) -> tuple[Problem, ...]:
-    """Every failed test of the module docstring, in its order."""
-    found = (check_gyro_axes(log), check_torque_scale(log),
-             check_normalised_thrust(log, implied))
+    """Every failed test of the module docstring but the first (``sanity`` runs
+    :func:`check_gyro_axes` before its whole-gyro test), in its order."""
+    found = (check_torque_scale(log), check_normalised_thrust(log, implied))
     return tuple(p for p in found if p is not None)
