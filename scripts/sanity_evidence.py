@@ -155,7 +155,7 @@ def unit_table(real: list[Path], cycles: int) -> int:
             continue
         worst, where = max(values)
         print(f"  {key}: {worst:.3g}{unit} ({where}) against {limit:g}{unit}: margin "
-              f"{limit / worst:.3g} (decided on {len(values)} logs)")
+              f"{limit / worst:.3g} (decided on {len({n for _, n in values})} logs)")
     return fired
 
 
