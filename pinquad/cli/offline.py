@@ -45,6 +45,7 @@ from pinquad.experiments.offline_mc import CycleJob, run_cycles
 from pinquad.experiments.recorded import LogOptions, worker_pool
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.pipeline import LOG_MAX_ITERATIONS, PipelineOptions, read, run
+from pinquad.realdata.observations import FAULT_MODES
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
 
 UNTRUSTED = 3
@@ -102,6 +103,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="torque band [Hz] of the inertia M-step on a rotor-speed log "
                         "(default 3-8 Hz, the measured Crazyflie flights'; a simulated "
                         "vehicle file's cycles: 0-45 Hz; LO = 0 filters low-pass only)")
+    p.add_argument("--faults", choices=FAULT_MODES, default=None,
+                   help="implausible rotor readings of a rotor-speed log: repair (rebuild "
+                        "them from the micro-SD log's PWM commands through the diagonal "
+                        "partner's map), repair-all (through the map of all trusted motors) "
+                        "or exclude (skip their rows); default: the vehicle's (repair for "
+                        "crazyflie21, exclude for a vehicle file without [faults] "
+                        "repair_rel_se)")
     p.add_argument("--max-iterations", type=positive_int, default=None,
                    help="E-steps at most per EM run (default: 100 for the simulated cycles, "
                         f"{LOG_MAX_ITERATIONS} for a --log, whose measured flights' "
@@ -193,7 +201,7 @@ def pipeline_options(args: argparse.Namespace) -> PipelineOptions:
     identification = LogOptions(
         sensors=tuple(args.sensor or ()), msteps=_msteps(args.mstep), estep=args.estep,
         max_iterations=args.max_iterations or LOG_MAX_ITERATIONS,
-        information=not args.no_information,
+        information=not args.no_information, faults=args.faults,
         **({} if args.band is None else {"band": tuple(args.band)}))
     return PipelineOptions(identification, NullSettings(args.null_replicates, args.null_seed),
                            discover=not args.no_discover, vehicle=args.vehicle,

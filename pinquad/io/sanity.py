@@ -59,8 +59,10 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.params import VEHICLES
+from pinquad.io.actuation_check import actuation_problems
 from pinquad.io.declaration_check import convention_problems
 from pinquad.io.logs import FlightLog, LogFormatError
+from pinquad.io.units_check import check_gyro_axes, unit_problems
 
 Array = NDArray[np.float64]
 
@@ -445,15 +447,24 @@ def findings(log: FlightLog) -> tuple[Finding, ...]:
     impossible = _check_impossible(log)
     if impossible is not None:
         return (*out, impossible)
+    # a dead, stuck or falsely declared rotor channel makes the rotor tests below misread
+    channels = actuation_problems(log)
+    if channels:
+        return (*out, *(Finding(*found) for found in channels))
     # an undeclared convention read wrong makes the unit checks below meaningless
     conventions = convention_problems(log)
     if conventions:
         return (*out, *(Finding(*found) for found in conventions))
+    axis = check_gyro_axes(log)  # one gyro column wrong: named before the whole sensor
+    if axis is not None:
+        out.append(Finding(*axis))
     for check in (_check_gyro, _check_position_velocity, _check_kinematics,
                   _check_accelerometer, _check_thrust):
         found = check(log)
         if found is not None:
             out.append(found)
+    # single columns the whole-sensor checks above cannot see (pinquad.io.units_check)
+    out.extend(Finding(*found) for found in unit_problems(log, implied_mass(log)))
     return tuple(out)
 
 
