@@ -15,14 +15,13 @@ import time
 from pathlib import Path
 
 from pinquad.core.actuator_curve import read_curve_vehicle
-from pinquad.identification.excitation import Excitation, excitation_ranges, flight_segments
+from pinquad.identification.excitation import segments_of
 from pinquad.identification.known_mass import (
     KnownMassResult,
     KnownMassSettings,
     identify_known_mass,
 )
 from pinquad.identification.known_mass_em import identify_known_mass_em
-from pinquad.io.command_log import CommandLog, between, slice_rows
 from pinquad.io.read import read_command_log
 from pinquad.io.runs import RunWriter, atomic_write_bytes, atomic_write_json, new_run_dir
 from pinquad.report.known_mass import (
@@ -75,25 +74,6 @@ def parse_ranges(ranges: list[list[str]] | None, n_logs: int
                              "[s on the log's clock]")
         out.append(list(zip(values[::2], values[1::2], strict=True)))
     return out
-
-
-def segments_of(flight: CommandLog, ranges: list[tuple[float, float]] | None,
-                band: tuple[float, float]) -> tuple[list[CommandLog], Excitation | None]:
-    """The segments to fit of one log: the --range rows, else (an IMU-only log) its
-    flight segments, else the whole log; and, for an IMU-only log, its flight segments'
-    excitation report. Raises ValueError when an IMU-only log has no flight segment."""
-    excitation = None
-    if flight.imu_only:
-        found = flight_segments(flight)
-        if not found:
-            raise ValueError(f"{flight.log.meta.source}: no flight segment (motor commands "
-                             "above 5 % of full for 2 s or more); expected a log of a flight")
-        excitation = excitation_ranges(flight, found, band)
-    if ranges is not None:
-        return [between(flight, lo, hi) for lo, hi in ranges], excitation
-    if excitation is not None:
-        return [slice_rows(flight, a, b) for a, b in excitation.segments], excitation
-    return [flight], excitation
 
 
 def run_known_mass(args: argparse.Namespace) -> int:

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import butter, sosfiltfilt
 
-from pinquad.io.command_log import CommandLog
+from pinquad.io.command_log import CommandLog, between, slice_rows
 
 Array = NDArray[np.float64]
 
@@ -134,3 +134,22 @@ def excitation_ranges(flight: CommandLog, segments: tuple[tuple[int, int], ...],
         ranges[axis] = tuple(out)
     times = tuple((float(clock[a]), float(clock[b - 1])) for a, b in segments)
     return Excitation(segments, times, ranges, window, band)
+
+
+def segments_of(flight: CommandLog, ranges: list[tuple[float, float]] | None,
+                band: tuple[float, float]) -> tuple[list[CommandLog], Excitation | None]:
+    """The segments to fit of one log: the --range rows, else (an IMU-only log) its
+    flight segments, else the whole log; and, for an IMU-only log, its flight segments'
+    excitation report. Raises ValueError when an IMU-only log has no flight segment."""
+    excitation = None
+    if flight.imu_only:
+        found = flight_segments(flight)
+        if not found:
+            raise ValueError(f"{flight.log.meta.source}: no flight segment (motor commands "
+                             "above 5 % of full for 2 s or more); expected a log of a flight")
+        excitation = excitation_ranges(flight, found, band)
+    if ranges is not None:
+        return [between(flight, lo, hi) for lo, hi in ranges], excitation
+    if excitation is not None:
+        return [slice_rows(flight, a, b) for a, b in excitation.segments], excitation
+    return [flight], excitation
