@@ -93,14 +93,22 @@ def run_known_mass(args: argparse.Namespace) -> int:
     flights = [read_command_log(p) for p in paths]
     cut = [segments_of(f, r, settings.band) for f, r in zip(flights, ranges, strict=True)]
     pos, spin = vehicle.spec.positions, vehicle.spec.spin
-    separate: list[KnownMassResult] = []
+    separate: list[KnownMassResult | str] = []
     for path, flight, (segs, excitation) in zip(paths, flights, cut, strict=True):
         print(f"pinquad offline --log {path} --mass {mass:g}: known-mass regression"
-              f"{'' if flight.imu_only else ' and EM'}, {sum(s.log.n for s in segs)} rows of "
-              f"{flight.log.dt * 1e3:.0f} ms in {len(segs)} segment(s), {flight.n_motors} motors")
+              f"{'' if flight.imu_only or len(paths) > 1 else ' and EM'}, "
+              f"{sum(s.log.n for s in segs)} rows of {flight.log.dt * 1e3:.0f} ms in "
+              f"{len(segs)} segment(s), {flight.n_motors} motors")
         if excitation is not None:
             print(excitation.text())
-        separate.append(identify_known_mass(segs, mass, pos, spin, vehicle.curve, settings))
+        try:
+            separate.append(identify_known_mass(segs, mass, pos, spin, vehicle.curve,
+                                                settings))
+        except ValueError as exc:
+            if len(paths) == 1:
+                raise
+            # a log too short for its own fit still takes part in the joint one
+            separate.append(f"{path}: no fit of its own ({exc})")
     joint = None
     if len(paths) > 1:
         groups = [g for g, (segs, _) in enumerate(cut) for _ in segs]
@@ -109,14 +117,17 @@ def run_known_mass(args: argparse.Namespace) -> int:
     em = None
     single = joint is None and len(cut[0][0]) == 1 and not flights[0].imu_only
     if single:
-        em = identify_known_mass_em(cut[0][0][0], mass, pos, spin, separate[0], vehicle.curve,
+        assert isinstance(headline_first := separate[0], KnownMassResult)
+        em = identify_known_mass_em(cut[0][0][0], mass, pos, spin, headline_first, vehicle.curve,
                                     settings)
     seconds = time.perf_counter() - t0
     headline = joint if joint is not None else separate[0]
+    assert isinstance(headline, KnownMassResult)
     blocks = []
     for path, result in zip(paths, separate, strict=True):
         head = f"--- {path} ---\n" if joint is not None else ""
-        blocks.append(head + known_mass_table(result, vehicle, em if single else None))
+        blocks.append(head + (result if isinstance(result, str) else
+                              known_mass_table(result, vehicle, em if single else None)))
     if joint is not None:
         blocks.append(f"--- joint fit of {len(paths)} logs ---\n"
                       + known_mass_table(joint, vehicle)

@@ -410,7 +410,7 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
            for s in (-1.0, 1.0)]
     tau_part = np.abs(alt[1].coef - alt[0].coef) / 2.0
 
-    notes = [n for seg in segments for n in seg.notes]
+    notes = list(dict.fromkeys(n for seg in segments for n in seg.notes))  # once each
     if curve.thrust is not None:
         notes.append(f"the vehicle file's thrust curve {curve.thrust.tolist()} N is not used: "
                      "the curve is identified from this flight")

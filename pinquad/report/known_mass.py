@@ -100,24 +100,26 @@ def _estimates_json(estimates: tuple[Estimate, ...]) -> list[dict]:
             for e in estimates]
 
 
-SHARED = ("thrust c_1", "thrust c_2", "thrust at mean u", "dT/du at mean u",
-          "time constant", "I_xx", "I_yy", "I_zz")
-"""The vehicle's estimates a joint fit of several logs shares."""
+SHARED = ("thrust c_1", "thrust c_2", "time constant", "I_xx", "I_yy", "I_zz")
+"""The vehicle's estimates a joint fit of several logs shares (the curve's thrust and
+slope at the mean command are left out: each fit's mean command is its own)."""
 
 
-def joint_comparison(names: list[str], separate: list[KnownMassResult],
+def joint_comparison(names: list[str], separate: list[KnownMassResult | str],
                      joint: KnownMassResult) -> str:
     """Each shared estimate of every log's own fit beside the joint fit's: value +- total
     se (verdict), and the largest distance of a log's value from the joint one in
     combined total errors (sqrt(se_log^2 + se_joint^2); the joint fit uses the same rows,
-    so this understates the distance: a value over 2 is a log that disagrees)."""
+    so this understates the distance: a value over 2 is a log that disagrees). A log
+without a fit of its own (``separate`` holds why, a string) shows '-'."""
     lines = ["joint fit against each log's own (value +- total se, verdict; max |log - "
              "joint| in combined total errors):"]
     for name in SHARED:
         cells, worst = [], 0.0
         j = next((e for e in joint.estimates if e.name == name), None)
         for log_name, res in zip(names, separate, strict=True):
-            e = next((e for e in res.estimates if e.name == name), None)
+            e = None if isinstance(res, str) else next(
+                (e for e in res.estimates if e.name == name), None)
             if e is None or not math.isfinite(e.value):
                 cells.append(f"{Path(log_name).name} -")
                 continue
@@ -133,7 +135,7 @@ def joint_comparison(names: list[str], separate: list[KnownMassResult],
 
 def known_mass_report(result: KnownMassResult, log_path: str, vehicle: CurveVehicle,
                       seconds: float, em: KnownMassEM | None = None,
-                      separate: list[KnownMassResult] | None = None,
+                      separate: list[KnownMassResult | str] | None = None,
                       segments: list[list[tuple[float, float]]] | None = None,
                       excitation: list[Excitation | None] | None = None) -> dict:
     """report.json (the house's keys, the headline the regression's; the known-mass
@@ -160,8 +162,9 @@ def known_mass_report(result: KnownMassResult, log_path: str, vehicle: CurveVehi
         "notes": list(result.notes), "seconds": seconds,
     }
     if separate is not None:
-        known["separate"] = [{"estimates": _estimates_json(r.estimates),
-                              "vertical_force_share": r.force_share} for r in separate]
+        known["separate"] = [{"not_fitted": r} if isinstance(r, str) else {
+            "estimates": _estimates_json(r.estimates), "vertical_force_share": r.force_share}
+            for r in separate]
     if segments is not None:
         known["segments"] = [[list(s) for s in log] for log in segments]
     if excitation is not None:
