@@ -159,7 +159,7 @@ def effective_rows(resid: Array, lag: int) -> float:
     """N / (1 + 2 sum_{l=1..L} rho_l): rows of independent information in residuals."""
     n = resid.shape[0]
     r = resid - resid.mean()
-    rho = [(r[k:] @ r[:-k]) / (r @ r) for k in range(1, lag + 1)]
+    rho = _cross_covariances(r[:, None], r[:, None], lag)[1:, 0, 0] / (r @ r)
     return n / max(1.0 + 2.0 * float(np.sum(rho)), 1.0)
 
 
@@ -200,16 +200,20 @@ class _Curve:
 
 
 def _curve_fit(m: float, a_z: Array, v_bz: Array | None, u: Array, linear: bool | None,
-               stack: Stack) -> _Curve:
+               stack: Stack, rss_only: bool = False) -> _Curve:
     """The vertical-force regression (module docstring), a drag d_z per log; without the
     body-z velocity (``v_bz`` None: an IMU-only log) no drag columns, each d_z reported
-    as 0 with no variance."""
+    as 0 with no variance. ``rss_only``: the fit and its residual sum of squares only
+    (the time constant's profile), no covariance (zeros)."""
     y = m * a_z
     drag = [] if v_bz is None else list(stack.per_group(-v_bz).T)
     cols = [u.sum(axis=1), (u * u).sum(axis=1), *drag]
     x = np.column_stack(cols if linear is not False else cols[1:])
     coef, *_ = np.linalg.lstsq(x, y, rcond=None)
     resid = y - x @ coef
+    if rss_only:
+        return _Curve(coef, np.zeros((x.shape[1], x.shape[1])), True, float(resid @ resid),
+                      1.0 - float(resid.var() / y.var()), resid)
     cov, _ = newey_west(x, resid)
     if linear is None and abs(coef[0]) < 2.0 * math.sqrt(cov[0, 0]):
         return _curve_fit(m, a_z, v_bz, u, False, stack)
@@ -391,7 +395,8 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
         return stack.each(lambda c: motor_lag(c, tau, dt), u)
 
     # the time constant: profile of the vertical-force regression
-    fits = [_curve_fit(mass, a_z, v_bz, lag(tau), True, stack) for tau in settings.lags]
+    fits = [_curve_fit(mass, a_z, v_bz, lag(tau), True, stack, rss_only=True)
+            for tau in settings.lags]
     rss = np.array([f.rss for f in fits])
     best = int(np.argmin(rss))
     tau = float(settings.lags[best])
