@@ -3,7 +3,7 @@ of a 0.5 kg quad (sines, 30 s at 100 Hz, sensor noise, no process noise), their 
 and torques turned into per-rotor commands through a known curve, identified with the
 mass known.
 
-    python scripts/px4_known_mass_mc.py [FLIGHTS] [MOTOR_LAG_S] [em]
+    python scripts/px4_known_mass_mc.py [FLIGHTS] [MOTOR_LAG_S] [em|imu]
 
 MOTOR_LAG_S = 0 (default): aggressive sines, no effects in the truth. MOTOR_LAG_S > 0:
 gentle sines (flightgen's controller does not hold aggressive ones with a lag) with a
@@ -13,6 +13,10 @@ Prints, per flight, each estimate's error against the truth in its total standar
 errors and its verdict, then the share of |error| < 2 se and of trusted estimates. With
 ``em``: the EM route too (``known_mass_em``), on the flight with its position removed
 (the E-step sees velocity, attitude and rates), its thrust scale s against 1.
+With ``imu``: the regression on the flight read as an ordinary log instead, its
+velocity, attitude and position removed (accelerometer, gyro and motor commands only, as
+``pinquad.io.imu_log`` reads a micro-SD log): no drag term, the same curve, time
+constant and inertia.
 The flight is built in pinquad's frames directly (the NED/FRD conversion is the readers'
 and has its own tests)."""
 
@@ -84,7 +88,14 @@ def _row(result, names, truth, covered, trusted) -> str:
     return "; ".join(row)
 
 
-def main(flights: int = 8, lag: float = 0.0, em: bool = False) -> None:
+def imu_only(log):
+    """The CommandLog with its velocity, attitude and position removed (NaN)."""
+    nan = np.full_like(log.log.velocity, np.nan)
+    return replace(log, log=replace(log.log, velocity=nan, euler=nan.copy(),
+                                    position=nan.copy()))
+
+
+def main(flights: int = 8, lag: float = 0.0, em: bool = False, imu: bool = False) -> None:
     positions, spin = rotors()
     curve = ActuatorCurve(command_range=(0.0, 1.0), yaw_ratio=YAW_RATIO,
                           yaw_ratio_se=0.05 * YAW_RATIO)
@@ -94,9 +105,12 @@ def main(flights: int = 8, lag: float = 0.0, em: bool = False) -> None:
     trusted = {n: 0 for n in names}
     em_covered = {n: 0 for n in em_names}
     em_trusted = {n: 0 for n in em_names}
-    print(f"{flights} flights, motor lag {lag} s; error / total se (verdict)")
+    print(f"{flights} flights, motor lag {lag} s{', IMU only' if imu else ''}; error / total "
+          "se (verdict)")
     for seed in range(flights):
         log, truth = flight_commands(seed, lag)
+        if imu:
+            log = imu_only(log)
         result = identify_known_mass(log, QUAD_250.mass, positions, spin, curve)
         print(f"seed {seed}: " + _row(result, names, truth, covered, trusted))
         if em:
@@ -118,4 +132,5 @@ def main(flights: int = 8, lag: float = 0.0, em: bool = False) -> None:
 if __name__ == "__main__":
     main(*(int(sys.argv[1]),) if len(sys.argv) > 1 else (),
          **({"lag": float(sys.argv[2])} if len(sys.argv) > 2 else {}),
-         em=len(sys.argv) > 3 and sys.argv[3] == "em")
+         em=len(sys.argv) > 3 and sys.argv[3] == "em",
+         imu=len(sys.argv) > 3 and sys.argv[3] == "imu")

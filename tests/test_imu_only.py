@@ -219,3 +219,11 @@ def test_bad_range_and_several_logs_without_joint_are_refused(tmp_path, capsys):
     assert "--joint" in capsys.readouterr().err
     assert offline_main(["--log", log15, "--range", "55", "90"]) == 2
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_imu_only_log_without_mass_points_to_the_known_mass_mode(capsys, tmp_path):
+    code = offline_main(["--log", str(SYSID / "log16"), "--no-discover", "--out",
+                         str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--mass KG --vehicle FILE" in err and "log16" in err
+    assert not (tmp_path / "run").exists()

@@ -7,6 +7,8 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from pinquad.core.vehicle_file import SHIPPED, is_vehicle_file
 from pinquad.io import ddd_csv, fixed_frequency, imu_log, logs, sdlog, ulog
 from pinquad.io.command_log import CommandLog
@@ -25,7 +27,14 @@ def read_log(path: str | Path) -> FlightLog:
     if path.is_dir():
         raise LogFormatError(f"{path}: is a directory; expected a log file")
     if sdlog.is_sdlog(path):
-        return with_sidecar_vehicle(sdlog.read_sdlog(path))
+        log = sdlog.read_sdlog(path)
+        if log.rpm is None and not (np.isfinite(log.position).any()
+                                    or np.isfinite(log.velocity).any()):
+            raise LogFormatError(f"{path}: onboard IMU and motor commands only (no pose, "
+                                 "velocity or rotor speed): identify it with python -m "
+                                 "pinquad.offline --log FILE --mass KG --vehicle FILE "
+                                 "(known-mass mode, docs/imu_only.md)")
+        return with_sidecar_vehicle(log)
     if is_command_log(path):
         read_command_log(path)  # its own errors first (e.g. no armed flight segment)
         raise LogFormatError(f"{path}: a PX4 log: its actuation is motor commands, not thrust "
