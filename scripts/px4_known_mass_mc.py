@@ -10,7 +10,9 @@ gentle sines (flightgen's controller does not hold aggressive ones with a lag) w
 first-order lag of that time constant on the wrench and rotor drag (0.1, 0.1, 0.2) N s/m.
 
 Prints, per flight, each estimate's error against the truth in its total standard
-errors and its verdict, then the share of |error| < 2 se and of trusted estimates. With
+errors and its verdict (the curve's thrust and slope at the flight's mean command u_m
+against the true curve's there), then the share of |error| < 2 se and of trusted
+estimates. With
 ``em``: the EM route too (``known_mass_em``), on the flight with its position removed
 (the E-step sees velocity, attitude and rates), its thrust scale s against 1.
 With ``imu``: the regression on the flight read as an ordinary log instead, its
@@ -99,7 +101,8 @@ def main(flights: int = 8, lag: float = 0.0, em: bool = False, imu: bool = False
     positions, spin = rotors()
     curve = ActuatorCurve(command_range=(0.0, 1.0), yaw_ratio=YAW_RATIO,
                           yaw_ratio_se=0.05 * YAW_RATIO)
-    names = ("thrust c_1", "thrust c_2", "time constant", "I_xx", "I_yy", "I_zz")
+    names = ("thrust c_1", "thrust c_2", "thrust at mean u", "dT/du at mean u",
+             "time constant", "I_xx", "I_yy", "I_zz")
     em_names = ("thrust scale s", "I_xx", "I_yy", "I_zz")
     covered = {n: 0 for n in names}
     trusted = {n: 0 for n in names}
@@ -112,13 +115,18 @@ def main(flights: int = 8, lag: float = 0.0, em: bool = False, imu: bool = False
         if imu:
             log = imu_only(log)
         result = identify_known_mass(log, QUAD_250.mass, positions, spin, curve)
+        # the curve's thrust and slope at the fit's mean command u_m (from its note)
+        u_m = float(next(n for n in result.notes if n.startswith("mean command"))
+                    .split("=")[1].split(":")[0])
+        c1, c2 = CURVE
+        truth = (c1, c2, c1 * u_m + c2 * u_m * u_m, c1 + 2.0 * c2 * u_m, *truth[2:])
         print(f"seed {seed}: " + _row(result, names, truth, covered, trusted))
         if em:
             blind = replace(log, log=replace(log.log, position=np.full_like(log.log.position,
                                                                             np.nan)))
             route = identify_known_mass_em(blind, QUAD_250.mass, positions, spin, result,
                                            curve)
-            print(f"  EM ({route.seconds:.0f} s): " + _row(route, em_names, (1.0, *truth[3:]),
+            print(f"  EM ({route.seconds:.0f} s): " + _row(route, em_names, (1.0, *truth[5:]),
                                                            em_covered, em_trusted))
     print("\nwithin 2 total se: " + ", ".join(f"{n} {covered[n]}/{flights}" for n in names))
     print("trusted:           " + ", ".join(f"{n} {trusted[n]}/{flights}" for n in names))
