@@ -1,5 +1,9 @@
-"""Known-mass identification of a flight logged with motor commands (a PX4 log): the
-thrust curve, the motor time constant and the inertia, by regression (not EM).
+"""Known-mass identification of a flight logged with motor commands (a PX4 log, or an
+IMU-only log: accelerometer, gyro and motor commands): the thrust curve, the motor time
+constant and the inertia, by regression (not EM). Several segments of one log, or of
+several logs of one vehicle, are fitted as one (``Stack``): the curve, time constant and
+inertia shared, each log's drag, damping and gyroscopic coefficient its own; filters,
+lags and derivatives run per segment.
 
 With the mass m [kg] known (a scale), the body z specific force a_z [m/s^2] fixes the
 scale of the actuator curve (``pinquad.core.actuator_curve``):
@@ -8,7 +12,8 @@ scale of the actuator curve (``pinquad.core.actuator_curve``):
 
 u'_i: command u_i through the first-order motor lag of time constant tau (exact
 zero-order-hold discretisation, a = exp(-dt / tau)); v_bz [m/s]: body-z velocity (a
-linear drag d_z [N s/m] that would otherwise be read as thrust). c_1 is kept only when
+linear drag d_z [N s/m] that would otherwise be read as thrust; an IMU-only log has no
+velocity, and no drag column). c_1 is kept only when
 the data carry it (|c_1| > 2 standard errors). tau is chosen by the profile likelihood of
 this regression over a grid (Gaussian residuals: -N_eff/2 log RSS(tau); its standard
 error from where the profile falls by 1/2).
