@@ -134,13 +134,26 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --log: skip the search for unmodelled effects")
     p.add_argument("--view", action="store_true", help="open the browser view of the run")
     p.add_argument("--mass", metavar="KG|file", default=None,
-                   help="with --log: known-mass mode for a PX4 log (ULog or data-driven-"
-                        "dynamics CSV, docs/px4.md): the mass in kg (or 'file': the "
+                   help="with --log: known-mass mode for a log whose actuation is motor "
+                        "commands: a PX4 log (ULog or data-driven-dynamics CSV, docs/px4.md) "
+                        "or a Crazyflie micro-SD log read as IMU-only (accelerometer, gyro, "
+                        "motor commands; docs/imu_only.md): the mass in kg (or 'file': the "
                         "--vehicle file's [reference] mass) fixes the scale; identifies the "
                         "thrust curve, motor time constant and inertia by regression, and "
-                        "the curve's scale and the inertia by EM beside it; --vehicle names "
-                        "the rotor positions (.toml or .yaml), --band the torque band of "
-                        "both (default 0.3-2 Hz)")
+                        "(a PX4 log) the curve's scale and the inertia by EM beside it; "
+                        "--vehicle names the rotor positions (.toml, a shipped name or "
+                        ".yaml), --band the torque band (default 0.3-2 Hz)")
+    p.add_argument("--range", type=str, nargs="+", action="append", default=None,
+                   metavar="LO HI",
+                   help="with --mass: the rows to fit, in seconds on the log's own clock, as "
+                        "pairs LO HI (several pairs: several segments of one log); give "
+                        "--range once per --log, in order ('auto': that log's flight "
+                        "segments). Without it an IMU-only log is fitted on its flight "
+                        "segments (motors on), a PX4 log on its armed segment")
+    p.add_argument("--joint", action="store_true",
+                   help="with --mass and several --log: one fit of the vehicle (curve, time "
+                        "constant, inertia shared; each log's drag and damping its own), "
+                        "printed beside each log's own fit")
     return p
 
 
@@ -246,10 +259,15 @@ def main(argv: list[str] | None = None) -> int:
     check_band(parser, args.band)
     try:
         if args.mass is not None:
-            if args.log is None or len(args.log) != 1:
-                return _fail("--mass identifies one PX4 log: --log FILE --mass KG")
-            args.log = args.log[0]
+            if args.log is None:
+                return _fail("--mass identifies a recorded log: --log FILE --mass KG")
+            if len(args.log) > 1 and not args.joint:
+                return _fail("--mass with several logs: add --joint (one vehicle: the "
+                             "curve, time constant and inertia shared) or run each log on "
+                             "its own")
             return run_known_mass(args)
+        if args.range is not None or args.joint:
+            return _fail("--range and --joint go with --mass (known-mass mode)")
         if args.log is not None and is_batch(args.log):
             return run_batch(args, pipeline_options(args), backend_from_args(args),
                              argv=sys.argv[1:] if argv is None else argv)
