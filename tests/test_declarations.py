@@ -186,6 +186,15 @@ def test_another_vehicles_file_is_refused_on_the_hover_balance(clean):
     assert ratio == pytest.approx(34.7 * 3.8091 / 2.06 / 37.0, rel=0.05)
 
 
+def test_a_declared_payload_moves_the_hover_balance_reference(clean):
+    """The same flight and file with a declared 27 g load: the rotors' 64 g are then 1.0
+    times the 37 g + 27 g the file and the declaration say, so the file is not refused."""
+    log = with_vehicle(clean, str(BRUSHLESS), ROOT, "test")
+    loaded = replace(log, meta=replace(log.meta, payload_mass=0.027))
+    assert dc.check_vehicle_mass(loaded) is None
+    assert dc.check_vehicle_mass(log) is not None
+
+
 def test_the_cli_refuses_a_false_vehicle_file_with_one_paragraph_and_writes_nothing(
         clean, flipped_yaw, folder):
     out = folder / "run"

@@ -450,6 +450,9 @@ def check_vehicle_mass(log: FlightLog) -> Problem | None:
         return None
     ref = spec.reference.mass if spec.reference.mass is not None else spec.mass  # type: ignore[union-attr]
     key = "[reference] mass" if spec.reference.mass is not None else "[body] mass"  # type: ignore[union-attr]
+    if log.meta.payload_mass > 0:  # a declared load flies with the vehicle
+        ref += log.meta.payload_mass
+        key += f" plus the declared payload {log.meta.payload_mass * 1e3:.4g} g"
     ratio = mass / ref
     if 1 / MASS_FILE_FACTOR <= ratio <= MASS_FILE_FACTOR:
         return None
@@ -461,7 +464,8 @@ def check_vehicle_mass(log: FlightLog) -> Problem | None:
             f"{mass * 1e3:.4g} g (model-free mass: mean vertical force over g, rows at flight "
             f"speed), {ratio:.3g} times its {key} {ref * 1e3:.4g} g (expected within a factor "
             f"{MASS_FILE_FACTOR:g}): a file of another vehicle (its kf or its mass), {load}; "
-            "give this vehicle's file (--vehicle FILE), or its flying mass as [reference] mass")
+            "give this vehicle's file (--vehicle FILE), its flying mass as [reference] mass, "
+            "or the load it carries (--payload-mass KG)")
 
 
 def convention_problems(log: FlightLog) -> tuple[Problem, ...]:
