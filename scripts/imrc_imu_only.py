@@ -51,7 +51,8 @@ def main(names: list[str]) -> None:
         if span < 4.0 / settings.band[0]:
             settings = KnownMassSettings(band=SHORT_BAND)
         res = identify_known_mass(segs, MASS, vehicle.spec.positions, vehicle.spec.spin,
-                                  vehicle.curve, settings)
+                                  vehicle.curve, settings,
+                                  drag_z=float(vehicle.spec.aero.drag[2]))
         cells = []
         for axis, full in zip(("I_xx", "I_yy"), FULL_LOG[name], strict=True):
             e = res.get(axis)

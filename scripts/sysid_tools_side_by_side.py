@@ -87,8 +87,9 @@ def fit(data: Path, name: str, vehicle: Path, ranges) -> KnownMassResult:
     cv = read_curve_vehicle(vehicle)
     settings = KnownMassSettings(band=BANDS[name])
     segs, _ = segments_of(read_command_log(data / name), ranges, settings.band)
+    drag = cv.spec.aero.drag
     return identify_known_mass(segs, MASS, cv.spec.positions, cv.spec.spin, cv.curve,
-                               settings)
+                               settings, drag_z=None if drag is None else float(drag[2]))
 
 
 def cell(e: Estimate | None, scale: float = 1.0) -> str:

@@ -93,6 +93,8 @@ def run_known_mass(args: argparse.Namespace) -> int:
     flights = [read_command_log(p) for p in paths]
     cut = [segments_of(f, r, settings.band) for f, r in zip(flights, ranges, strict=True)]
     pos, spin = vehicle.spec.positions, vehicle.spec.spin
+    aero = vehicle.spec.aero.drag  # its body-z drag bounds an IMU-only log's rotor_drag part
+    drag_z = None if aero is None else float(aero[2])
     separate: list[KnownMassResult | str] = []
     for path, flight, (segs, excitation) in zip(paths, flights, cut, strict=True):
         print(f"pinquad offline --log {path} --mass {mass:g}: known-mass regression"
@@ -103,7 +105,7 @@ def run_known_mass(args: argparse.Namespace) -> int:
             print(excitation.text())
         try:
             separate.append(identify_known_mass(segs, mass, pos, spin, vehicle.curve,
-                                                settings))
+                                                settings, drag_z=drag_z))
         except ValueError as exc:
             if len(paths) == 1:
                 raise
@@ -113,7 +115,7 @@ def run_known_mass(args: argparse.Namespace) -> int:
     if len(paths) > 1:
         groups = [g for g, (segs, _) in enumerate(cut) for _ in segs]
         joint = identify_known_mass([s for segs, _ in cut for s in segs], mass, pos, spin,
-                                    vehicle.curve, settings, groups)
+                                    vehicle.curve, settings, groups, drag_z=drag_z)
     em = None
     single = joint is None and len(cut[0][0]) == 1 and not flights[0].imu_only
     if single:

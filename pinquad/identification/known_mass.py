@@ -35,7 +35,13 @@ consistent (Newey-West) covariance, since the residuals of a flight are not whit
 the parts of what was assumed: the mass (``mass_rel_se``), the rotor positions
 (``arm_rel_se``; I_zz: the yaw ratio's ``yaw_ratio_se``, else the house default), the
 time constant (refit at tau +- its se) and, for the inertia, the
-curve's coefficients (their covariance carried through). The naive regression beside it
+curve's coefficients (their covariance carried through). On an IMU-only log, the rotor
+drag the regression cannot see: every estimate is fitted again (time constant profiled,
+curve, inertia) with a body-z drag d_z at its bound (the vehicle file's ``[aero] drag``
+D_z, else ``drag_rate_max`` m), its velocity v_bz reconstructed from the specific force
+(``vertical_velocity``), and the change is the part ``rotor_drag``: drag lowers the
+curve's slope by a factor of about |i w m / (i w m + d_z)| at the flight's frequencies
+w, and nothing else in such a log tells how much. The naive regression beside it
 (no lag, no drag, no filter, raw finite-difference domega/dt) shows what these change.
 """
 
@@ -68,7 +74,10 @@ class KnownMassSettings:
     a trusted estimate; min_fit_share [-]: smallest share of the (band-passed) torque or
     vertical-force variance the model must explain; max_band_shift [-]: largest shift,
     in combined statistical standard errors, between the inertia on the band's lower and
-    upper halves (larger: the model's torque is wrong in a frequency-dependent way).
+    upper halves (larger: the model's torque is wrong in a frequency-dependent way);
+    drag_rate_max [1/s]: on a log without velocity, the largest body-z rotor drag per unit
+    mass d_z / m assumed when the vehicle file declares none (its error part, module
+    docstring).
     """
 
     mass_rel_se: float = 0.01
@@ -78,6 +87,7 @@ class KnownMassSettings:
     max_rel_se: float = 0.10
     min_fit_share: float = 0.5
     max_band_shift: float = 2.0
+    drag_rate_max: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -232,6 +242,19 @@ def _curve_fit(m: float, a_z: Array, v_bz: Array | None, u: Array, linear: bool 
                   1.0 - float(resid.var() / y.var()), resid)
 
 
+def vertical_velocity(a_z: Array, dt: float) -> Array:
+    """The body-z velocity v_bz [m/s] (N,) of one segment of evenly spaced specific force
+    a_z [m/s^2] (N,), row spacing dt [s], without a velocity measurement: near level
+    flight dv_bz/dt = a_z - g, integrated with the segment's mean removed (g, the
+    accelerometer's bias) and high-passed above 0.02 Hz (second-order Butterworth, zero
+    phase: the integral's drift). Tilt and the rotation of horizontal velocity into body
+    z are left out; it serves to size the effect of a drag, not to correct for one."""
+    v = np.cumsum(a_z - a_z.mean()) * dt
+    if v.shape[0] <= 15:  # too short for the filter: the drift is a line
+        return v - np.polyval(np.polyfit(np.arange(v.shape[0]), v, 1), np.arange(v.shape[0]))
+    return sosfiltfilt(butter(2, 0.02, "highpass", fs=1.0 / dt, output="sos"), v)
+
+
 def _thrust(curve: Array, u: Array) -> Array:
     return curve[0] * u + curve[1] * u * u
 
@@ -292,15 +315,20 @@ def _naive(m: float, a_z: Array, u: Array, gyro: Array, dt: float, positions: Ar
 
 
 def _judge(name: str, value: float, total: float, settings: KnownMassSettings,
-           extra: list[tuple[str, str]]) -> tuple[str, tuple[str, ...]]:
+           extra: list[tuple[str, str]], parts: dict[str, float]
+           ) -> tuple[str, tuple[str, ...]]:
     """The verdict: ``extra`` holds (verdict, reason) of the estimate's own checks; a
-    relative total standard error over ``max_rel_se`` is not identifiable."""
+    relative total standard error over ``max_rel_se`` is not identifiable, the reason
+    naming the largest of ``parts`` (name -> se) when there are several."""
     reasons = list(extra)
     if not (math.isfinite(total) and abs(total) <= settings.max_rel_se * abs(value)):
         share = f"{abs(total / value) * 100:.0f} %" if value != 0 else "unbounded share"
+        big = max(parts.items(), key=lambda kv: kv[1] if math.isfinite(kv[1]) else math.inf,
+                  default=None)
+        largest = f"; largest part: {big[0]} {big[1]:.3g}" if big and len(parts) > 1 else ""
         reasons.append((NOT_IDENTIFIABLE, f"{name}: total standard error {total:.3g} is "
                         f"{share} of the value {value:.3g} (trusted at most "
-                        f"{settings.max_rel_se * 100:.0f} %)"))
+                        f"{settings.max_rel_se * 100:.0f} %{largest})"))
     if not reasons:
         return TRUSTED, ()
     order = (NOT_ADEQUATE, NOT_IDENTIFIABLE)
@@ -324,7 +352,7 @@ def estimate_with_verdict(name: str, value: float, unit: str, parts: dict[str, f
     quadrature, judged by its own checks ``extra`` ((verdict, reason)) and the relative
     error limit of ``settings``."""
     total = math.sqrt(sum(v * v for v in parts.values()))
-    verdict, reasons = _judge(name, value, total, settings, extra)
+    verdict, reasons = _judge(name, value, total, settings, extra, parts)
     return Estimate(name, value, unit, total, tuple(parts.items()), verdict, reasons)
 
 
@@ -356,12 +384,15 @@ def stack_segments(segments: Sequence[CommandLog], groups: Sequence[int] | None 
 def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
                         positions: Array, spin: Array, curve: ActuatorCurve | None = None,
                         settings: KnownMassSettings | None = None,
-                        groups: Sequence[int] | None = None) -> KnownMassResult:
+                        groups: Sequence[int] | None = None, drag_z: float | None = None
+                        ) -> KnownMassResult:
     """Known-mass identification of ``flight`` (module docstring): one log, or several
     segments (of one log or of several logs of the same vehicle: ``groups`` (S,) the log
     of each segment; the curve, time constant and inertia shared, each log's drag and
     damping its own); mass [kg], rotor positions (k, 2) [m, body] and spin (k,) in the
-    logs' motor order, the vehicle's actuator curve (its yaw_ratio used when given).
+    logs' motor order, the vehicle's actuator curve (its yaw_ratio used when given),
+    drag_z [N s/m]: the vehicle's body-z rotor drag (``[aero] drag`` D_z), the bound of
+    the ``rotor_drag`` part on an IMU-only log (None: ``drag_rate_max`` times the mass).
     Raises ValueError naming the log when its rows are not evenly spaced, its motors and
     rotors disagree, or a signal is missing."""
     curve = curve or ActuatorCurve()
@@ -419,6 +450,19 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
     alt = [_curve_fit(mass, a_z, v_bz, lag(max(tau + s * tau_se, 0.0)), top.linear, stack)
            for s in (-1.0, 1.0)]
     tau_part = np.abs(alt[1].coef - alt[0].coef) / 2.0
+    # an IMU-only log cannot see rotor drag: everything fitted again with the drag at its
+    # bound, velocity from the specific force; the change is the rotor_drag part
+    drag_bound = (drag_z if drag_z is not None else settings.drag_rate_max * mass) \
+        if imu_only else 0.0
+    tau_d, drag_shift = tau, np.zeros_like(top.coef)
+    if drag_bound > 0.0:
+        a_drag = a_z + drag_bound / mass * stack.each(lambda a: vertical_velocity(a, dt), a_z)
+        if curve.time_constant is None:
+            rss_d = [_curve_fit(mass, a_drag, None, lag(t), True, stack, rss_only=True).rss
+                     for t in settings.lags]
+            tau_d = float(settings.lags[int(np.argmin(rss_d))])
+        drag_shift = _curve_fit(mass, a_drag, None, lag(tau_d), top.linear, stack).coef \
+            - top.coef
 
     notes = list(dict.fromkeys(n for seg in segments for n in seg.notes))  # once each
     if curve.thrust is not None:
@@ -433,8 +477,12 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
     drags = [("drag d_z" if n_groups == 1 else f"drag d_z [log {g + 1}]", "N s/m")
              for g in range(n_groups)]
     if imu_only:
-        notes.append("no velocity in the log: no body-z drag term (d_z not estimated; "
-                     "a drag the flight excites is read as thrust)")
+        bound_src = "the vehicle file's [aero] drag" if drag_z is not None else \
+            f"{settings.drag_rate_max:g} /s times the mass, no [aero] drag in the vehicle file"
+        notes.append("no velocity in the log: no body-z drag term (d_z not estimated; a drag "
+                     "the flight excites is read as thrust, lowering the curve's slope); the "
+                     f"error part rotor_drag is each estimate's change with d_z = "
+                     f"{drag_bound:.3g} N s/m ({bound_src})")
     for i, (name, unit) in enumerate((("thrust c_1", "N"), ("thrust c_2", "N"), *drags)):
         if i == 0 and not top.linear:
             notes.append("thrust c_1 (linear term): not carried by this log (|c_1| < 2 se): "
@@ -444,7 +492,8 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
             continue
         parts = {"statistical": math.sqrt(top.cov[i, i]),
                  "mass": abs(top.coef[i]) * settings.mass_rel_se,
-                 "time_constant": float(tau_part[i])}
+                 "time_constant": float(tau_part[i]),
+                 **({"rotor_drag": abs(float(drag_shift[i]))} if imu_only else {})}
         estimates.append(estimate_with_verdict(name, float(top.coef[i]), unit, parts,
                                                settings, curve_checks if i < 2 else []))
     # the curve's scale where the flight flew: T(u_m) = c_1 u_m + c_2 u_m^2 and its slope
@@ -458,7 +507,8 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
         value = float(grad @ top.coef)
         parts = {"statistical": math.sqrt(float(grad @ top.cov @ grad)),
                  "mass": abs(value) * settings.mass_rel_se,
-                 "time_constant": abs(float(grad @ (alt[1].coef - alt[0].coef))) / 2.0}
+                 "time_constant": abs(float(grad @ (alt[1].coef - alt[0].coef))) / 2.0,
+                 **({"rotor_drag": abs(float(grad @ drag_shift))} if imu_only else {})}
         estimates.append(estimate_with_verdict(name, value, "N", parts, settings, curve_checks))
     tau_checks = curve_checks + ([(NOT_IDENTIFIABLE, (
         f"the profile likelihood's interval reaches the end of the searched "
@@ -469,8 +519,9 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
             f"{settings.lags[inside[-1] + 1]:.3g} s: no motor lag resolvable at "
             f"{dt * 1e3:.0f} ms rows")))
     if curve.time_constant is None:
-        estimates.append(estimate_with_verdict("time constant", tau, "s",
-                                               {"statistical": tau_se}, settings, tau_checks))
+        estimates.append(estimate_with_verdict(
+            "time constant", tau, "s", {"statistical": tau_se, **(
+                {"rotor_drag": abs(tau_d - tau)} if imu_only else {})}, settings, tau_checks))
     else:
         notes.append(f"time constant {tau:.4g} s: given by the vehicle file")
 
@@ -491,6 +542,8 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
     tau_inertia = [inertia_at(f.coef, lag(max(tau + s * tau_se, 0.0)), settings.band)[0]
                    for s, f in zip((-1.0, 1.0), alt, strict=True)]
     tau_inertia_part = np.abs(tau_inertia[1] - tau_inertia[0]) / 2.0
+    drag_inertia_part = np.abs(inertia_at(top.coef + drag_shift, lag(tau_d), settings.band)[0]
+                               - inertia) if imu_only else np.zeros(3)
     lo, hi = settings.band
     mid = math.sqrt(lo * hi)
     low_half = inertia_at(top.coef, lagged, (lo, mid))
@@ -522,7 +575,8 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
         parts = {"statistical": float(inertia_se[a]),
                  "mass": abs(inertia[a]) * settings.mass_rel_se, **lever,
                  "thrust_curve": float(curve_part[a]),
-                 "time_constant": float(tau_inertia_part[a])}
+                 "time_constant": float(tau_inertia_part[a]),
+                 **({"rotor_drag": float(drag_inertia_part[a])} if imu_only else {})}
         estimates.append(estimate_with_verdict(name, float(inertia[a]), "kg m^2", parts,
                                                settings, checks))
     naive, naive_share = _naive(mass, a_z, u, gyro, dt, positions, spin, stack)
