@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from pinquad.cli.offline import build_parser, pipeline_options
+from pinquad.core.vehicle_file import shipped_path
 from pinquad.io.actuation_check import check_stuck_channel, check_zero_channel
 from pinquad.io.declaration_check import check_declared_rotor_speed
 from pinquad.io.logs import FlightLog, LogFormatError, read_log, write_log
@@ -25,6 +26,7 @@ from pinquad.io.units_check import (
     check_normalised_thrust,
     check_torque_scale,
     gyro_axis_ratios,
+    named_inertia,
 )
 from pinquad.realdata.vehicle_check import measured_observations
 
@@ -89,6 +91,17 @@ def test_torques_scaled_by_ten_or_in_n_mm_are_named(wrench_log, factor, words, c
     assert found is not None and found[1] == columns
     assert words in found[2] and "crazyflie21" in found[2]
     assert check_torque_scale(wrench_log) is None
+
+
+def test_the_torque_scale_reads_a_vehicle_files_reference_inertia(wrench_log):
+    """Named by the shipped crazyflie21.toml as a file, whose [reference] inertia is the
+    diagonal (16.57, 16.66, 29.26) e-6 kg m^2: the check reads it as that (3, 3) tensor
+    and passes the true torques, and still names torques x10."""
+    named = replace(wrench_log, meta=replace(wrench_log.meta, vehicle=str(
+        shipped_path("crazyflie21")), vehicle_named=True))
+    assert named_inertia(named) == pytest.approx(np.diag([16.57e-6, 16.66e-6, 29.26e-6]))
+    assert check_torque_scale(named) is None
+    assert check_torque_scale(replace(named, torque=named.torque * 10)) is not None
 
 
 def test_a_normalised_thrust_command_is_named(wrench_log):

@@ -171,7 +171,9 @@ def named_inertia(log: FlightLog) -> Array | None:
     except VehicleFileError:
         return None
     ref = spec.reference.inertia
-    return np.asarray(ref if ref is not None else spec.inertia, dtype=float)
+    if ref is None:
+        return np.asarray(spec.inertia, dtype=float)
+    return np.diag(np.asarray(ref, dtype=float))  # [reference] gives the diagonal
 
 
 def named_mass(log: FlightLog) -> float | None:
@@ -280,13 +282,21 @@ def check_normalised_thrust(log: FlightLog, implied: float | None) -> Problem | 
     ratio = implied / mass
     if top > 1.0 or ratio <= NORMALISED_FACTOR:
         return None
+    words = (f"column 'thrust' never exceeds {top:.3g} and implies a mass of "
+             f"{implied * 1e3:.4g} g by the hover balance F cos(tilt) = m (zdd + g), "
+             f"{ratio:.3g} times the {mass * 1e3:.4g} g of vehicle {log.meta.vehicle!r}")
+    if mass * log.meta.gravity >= 1.0:  # this vehicle's thrust in N exceeds 1 at hover
+        return ("thrust-normalised", "thrust",
+                f"{words}; looks like a normalised thrust command (0..1, as PX4 logs it), not "
+                "newtons: convert it to N through the vehicle's thrust curve, or name the "
+                "vehicle that flew (sidecar \"vehicle\" or --vehicle)")
+    # a vehicle this light never needs 1 N either: the column's range cannot tell the two
     return ("thrust-normalised", "thrust",
-            f"column 'thrust' never exceeds {top:.3g} and implies a mass of "
-            f"{implied * 1e3:.4g} g by the hover balance F cos(tilt) = m (zdd + g), "
-            f"{ratio:.3g} times the {mass * 1e3:.4g} g of vehicle {log.meta.vehicle!r}; looks "
-            "like a normalised thrust command (0..1, as PX4 logs it), not newtons: convert it "
-            "to N through the vehicle's thrust curve, or name the vehicle that flew "
-            "(sidecar \"vehicle\")")
+            f"{words}: either the vehicle named is not the one that flew (a file of another "
+            "vehicle: name the vehicle that flew, sidecar \"vehicle\" or --vehicle), or the "
+            "column is a normalised thrust command (0..1, as PX4 logs it), not newtons "
+            "(convert it to N through the vehicle's thrust curve); a vehicle this light "
+            "needs less than 1 N, so the column's range does not tell which")
 
 
 def unit_problems(log: FlightLog, implied: float | None) -> tuple[Problem, ...]:
