@@ -384,6 +384,7 @@ def run_one(variant: Variant, log: Path, vehicle: Path | None, out: Path) -> Out
                       seconds=time.perf_counter() - t0)
     if "Traceback" in stderr:
         outcome.message = "TRACEBACK: " + " ".join(stderr.split())[-110:]
+    print(f"{variant.name}: exit {code} ({outcome.seconds:.0f} s)", file=sys.stderr, flush=True)
     report = out / "report.json"
     if code in (0, 3) and report.is_file():
         outcome.values, outcome.stderr, outcome.verdicts = read_report(

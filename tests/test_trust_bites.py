@@ -179,7 +179,7 @@ def test_a_rerun_after_a_killed_attempt_holds_only_its_own_files(tmp_path: Path)
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == "written"
     finally:
-        os.kill(proc.pid, signal.SIGKILL)
+        proc.send_signal(signal.SIGKILL)  # no clean-up handler can run
         proc.wait(timeout=30)
     # what the killed attempt left: its staging folder and its lock
     assert (logs / ".jana00.partial" / "figures" / "residuals.png").is_file()
