@@ -12,7 +12,10 @@ written (``pinquad.io.foreign.write_foreign`` for the conventions) and run throu
   converged.
 
 Conventions come twice: undeclared (the sidecar as pinquad writes it) and declared
-(the sidecar's key added). The table goes to stdout (and ``--out``) as markdown.
+(the sidecar's key added); then declared falsely (a key added to the sidecar of a log not
+written that way), and read with a vehicle file that is false in one key or of another
+vehicle (``pinquad.io.declaration_check``). The table goes to stdout (and ``--out``) as
+markdown.
 
     PYTHONPATH=$PWD python scripts/convention_variants.py [--log PATH] [--out table.md]
 """
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import tempfile
 import time
 from dataclasses import replace
@@ -33,8 +37,10 @@ from pinquad.io.declared import Conventions
 from pinquad.io.foreign import write_foreign
 from pinquad.io.logs import FlightLog, LogFormatError, read_log, write_log
 from pinquad.io.read import read_log as read_any
+from pinquad.io.read import with_vehicle
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie" / "imrc_brushed"
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushed"
 QUAT = ("quat_w", "quat_x", "quat_y", "quat_z")
 OPTIONS = LogOptions(msteps=("regressor",), information=False)
 
@@ -47,6 +53,32 @@ CONVENTIONS = (
     ("motor numbering rotated (2, 3, 4, 1)", Conventions(motor_order=(2, 3, 4, 1)), ()),
     ("Euler angles in degrees (roll, pitch, yaw columns)", Conventions(euler_unit="deg"), QUAT),
 )
+FALSE_DECLARATIONS = (  # (variant, as written, columns left out, the false sidecar keys)
+    ("w, x, y, z quaternion declared x, y, z, w", Conventions(), (),
+     {"quaternion": {"order": "xyzw"}}),
+    ("body-to-world quaternion declared world to body", Conventions(), (),
+     {"quaternion": {"rotation": "world_to_body"}}),
+    ("ENU/FLU log declared NED/FRD", Conventions(), (), {"frame": "NED/FRD"}),
+    ("... and the motor order the old refusal advised", Conventions(), (),
+     {"frame": "NED/FRD", "motor_order": [2, 1, 4, 3]}),
+    ("NED/FRD log declared ENU/FLU", Conventions(frame="NED/FRD"), (), {"frame": "ENU/FLU"}),
+    ("motor numbering as the vehicle's, declared (2, 3, 4, 1)", Conventions(), (),
+     {"motor_order": [2, 3, 4, 1]}),
+    ("numbered (2, 3, 4, 1), declared (3, 4, 1, 2)", Conventions(motor_order=(2, 3, 4, 1)), (),
+     {"motor_order": [3, 4, 1, 2]}),
+    ("rev/min declared rad/s", Conventions(), (), {"rotor_speed": "rad/s"}),
+    ("Euler angles in degrees declared rad", Conventions(euler_unit="deg"), QUAT,
+     {"euler": {"unit": "rad"}}),
+)
+VEHICLE_FILES = (  # (variant, the file's text from crazyflie21.toml, or a shipped file)
+    ("crazyflie21.toml given as a file", None, ROOT / "pinquad" / "data" / "crazyflie21.toml"),
+    ("crazyflie21.toml with its yaw spins flipped", ("spin = [-1, 1, -1, 1]",
+                                                     "spin = [1, -1, 1, -1]"), None),
+    ("the brushless build's file (cf21_brushless.toml)", None,
+     ROOT / "docs" / "vehicles" / "cf21_brushless.toml"),
+    ("a 0.5 kg quadcopter's file (quad250_plus.toml)", None,
+     ROOT / "docs" / "vehicles" / "quad250_plus.toml"),
+)
 
 
 def estimate(log: FlightLog, information: bool = False):
@@ -58,13 +90,17 @@ def estimate(log: FlightLog, information: bool = False):
             run.failure, result)
 
 
-def outcome(log_path: Path, base: np.ndarray, se: np.ndarray) -> str:
-    """What identify_log does with the log at log_path, in words."""
+def outcome(log_path: Path, base: np.ndarray, se: np.ndarray, vehicle: Path | None = None
+            ) -> str:
+    """What identify_log does with the log at log_path (read with ``vehicle``), in words."""
     try:
         log = read_log(log_path)
+        if vehicle is not None:
+            log = with_vehicle(log, str(vehicle), ROOT, "--vehicle")
         est, _, converged, failure, result = estimate(log)
     except (LogFormatError, ValueError) as exc:
-        return f"exit 2: `{exc}`".replace(str(log_path.parent) + "/", "")
+        return f"exit 2: `{exc}`".replace(str(log_path.parent) + "/", "").replace(
+            str(ROOT) + "/", "")
     change = np.abs(est - base)
     worst = int(np.argmax(change / se))
     names = ("mass", "I_xx", "I_yy", "I_zz")
@@ -119,6 +155,20 @@ def main() -> None:
                 else:
                     b, s = base, se
                 row(name, side, outcome(path, b, s))
+        for name, written, drop, keys in FALSE_DECLARATIONS:
+            path = write_foreign(clean, folder / f"{len(rows)}.parquet", written, False, drop)
+            side = Path(str(path) + ".json")
+            side.write_text(json.dumps({**json.loads(side.read_text()), **keys}))
+            row(name, json.dumps(keys), outcome(path, base, se))
+        for name, edit, shipped in VEHICLE_FILES:
+            vehicle = shipped
+            if edit is not None:
+                vehicle = folder / "crazyflie21_edited.toml"
+                text = (ROOT / "pinquad" / "data" / "crazyflie21.toml").read_text()
+                vehicle.write_text(text.replace(*edit))
+                shutil.copy(ROOT / "pinquad" / "data" / "crazyflie21.urdf", folder)
+            row(name, f"--vehicle {vehicle.name}",
+                outcome(folder / "flight.parquet", base, se, vehicle))
         bare = write_log(clean, folder / "bare.parquet")
         Path(str(bare) + ".json").unlink()
         est, _, _, _, result = estimate(read_log(bare))

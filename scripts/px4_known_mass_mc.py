@@ -3,16 +3,22 @@ of a 0.5 kg quad (sines, 30 s at 100 Hz, sensor noise, no process noise), their 
 and torques turned into per-rotor commands through a known curve, identified with the
 mass known.
 
-    python scripts/px4_known_mass_mc.py [FLIGHTS] [MOTOR_LAG_S] [em]
+    python scripts/px4_known_mass_mc.py [FLIGHTS] [MOTOR_LAG_S] [em|imu]
 
 MOTOR_LAG_S = 0 (default): aggressive sines, no effects in the truth. MOTOR_LAG_S > 0:
 gentle sines (flightgen's controller does not hold aggressive ones with a lag) with a
 first-order lag of that time constant on the wrench and rotor drag (0.1, 0.1, 0.2) N s/m.
 
 Prints, per flight, each estimate's error against the truth in its total standard
-errors and its verdict, then the share of |error| < 2 se and of trusted estimates. With
+errors and its verdict (the curve's thrust and slope at the flight's mean command u_m
+against the true curve's there), then the share of |error| < 2 se and of trusted
+estimates. With
 ``em``: the EM route too (``known_mass_em``), on the flight with its position removed
 (the E-step sees velocity, attitude and rates), its thrust scale s against 1.
+With ``imu``: the regression on the flight read as an ordinary log instead, its
+velocity, attitude and position removed (accelerometer, gyro and motor commands only, as
+``pinquad.io.imu_log`` reads a micro-SD log): no drag term, the same curve, time
+constant and inertia.
 The flight is built in pinquad's frames directly (the NED/FRD conversion is the readers'
 and has its own tests)."""
 
@@ -84,27 +90,43 @@ def _row(result, names, truth, covered, trusted) -> str:
     return "; ".join(row)
 
 
-def main(flights: int = 8, lag: float = 0.0, em: bool = False) -> None:
+def imu_only(log):
+    """The CommandLog with its velocity, attitude and position removed (NaN)."""
+    nan = np.full_like(log.log.velocity, np.nan)
+    return replace(log, log=replace(log.log, velocity=nan, euler=nan.copy(),
+                                    position=nan.copy()))
+
+
+def main(flights: int = 8, lag: float = 0.0, em: bool = False, imu: bool = False) -> None:
     positions, spin = rotors()
     curve = ActuatorCurve(command_range=(0.0, 1.0), yaw_ratio=YAW_RATIO,
                           yaw_ratio_se=0.05 * YAW_RATIO)
-    names = ("thrust c_1", "thrust c_2", "time constant", "I_xx", "I_yy", "I_zz")
+    names = ("thrust c_1", "thrust c_2", "thrust at mean u", "dT/du at mean u",
+             "time constant", "I_xx", "I_yy", "I_zz")
     em_names = ("thrust scale s", "I_xx", "I_yy", "I_zz")
     covered = {n: 0 for n in names}
     trusted = {n: 0 for n in names}
     em_covered = {n: 0 for n in em_names}
     em_trusted = {n: 0 for n in em_names}
-    print(f"{flights} flights, motor lag {lag} s; error / total se (verdict)")
+    print(f"{flights} flights, motor lag {lag} s{', IMU only' if imu else ''}; error / total "
+          "se (verdict)")
     for seed in range(flights):
         log, truth = flight_commands(seed, lag)
+        if imu:
+            log = imu_only(log)
         result = identify_known_mass(log, QUAD_250.mass, positions, spin, curve)
+        # the curve's thrust and slope at the fit's mean command u_m (from its note)
+        u_m = float(next(n for n in result.notes if n.startswith("mean command"))
+                    .split("=")[1].split(":")[0])
+        c1, c2 = CURVE
+        truth = (c1, c2, c1 * u_m + c2 * u_m * u_m, c1 + 2.0 * c2 * u_m, *truth[2:])
         print(f"seed {seed}: " + _row(result, names, truth, covered, trusted))
         if em:
             blind = replace(log, log=replace(log.log, position=np.full_like(log.log.position,
                                                                             np.nan)))
             route = identify_known_mass_em(blind, QUAD_250.mass, positions, spin, result,
                                            curve)
-            print(f"  EM ({route.seconds:.0f} s): " + _row(route, em_names, (1.0, *truth[3:]),
+            print(f"  EM ({route.seconds:.0f} s): " + _row(route, em_names, (1.0, *truth[5:]),
                                                            em_covered, em_trusted))
     print("\nwithin 2 total se: " + ", ".join(f"{n} {covered[n]}/{flights}" for n in names))
     print("trusted:           " + ", ".join(f"{n} {trusted[n]}/{flights}" for n in names))
@@ -118,4 +140,5 @@ def main(flights: int = 8, lag: float = 0.0, em: bool = False) -> None:
 if __name__ == "__main__":
     main(*(int(sys.argv[1]),) if len(sys.argv) > 1 else (),
          **({"lag": float(sys.argv[2])} if len(sys.argv) > 2 else {}),
-         em=len(sys.argv) > 3 and sys.argv[3] == "em")
+         em=len(sys.argv) > 3 and sys.argv[3] == "em",
+         imu=len(sys.argv) > 3 and sys.argv[3] == "imu")

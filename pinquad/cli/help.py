@@ -29,6 +29,17 @@ def whole_number_at_least(text: str, minimum: int) -> int:
     return value
 
 
+def non_negative_float(text: str) -> float:
+    """An argument that must be a finite number >= 0 (a mass in kg, 0 included)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not (value >= 0.0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
+    return value
+
+
 def non_negative_int(text: str) -> int:
     """An argument that must be a whole number >= 0 (0 switches something off)."""
     return whole_number_at_least(text, 0)

@@ -35,7 +35,7 @@ from pinquad.cli.common import (
     failure_message,
 )
 from pinquad.cli.file_vehicle import run_file_vehicle
-from pinquad.cli.help import HelpFormatter, non_negative_int, positive_int
+from pinquad.cli.help import HelpFormatter, non_negative_float, non_negative_int, positive_int
 from pinquad.cli.known_mass import run_known_mass
 from pinquad.core.execution import open_executor
 from pinquad.core.params import PAPER_SCENARIO
@@ -45,6 +45,7 @@ from pinquad.experiments.offline_mc import CycleJob, run_cycles
 from pinquad.experiments.recorded import LogOptions, worker_pool
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.pipeline import LOG_MAX_ITERATIONS, PipelineOptions, read, run
+from pinquad.realdata.observations import FAULT_MODES
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
 
 UNTRUSTED = 3
@@ -92,10 +93,23 @@ def build_parser() -> argparse.ArgumentParser:
                         "that log, --cycles seeds one after the other); with --log: the "
                         "log's vehicle, a shipped name or a vehicle file, overriding the "
                         "log's sidecar")
+    p.add_argument("--payload-mass", type=non_negative_float, default=None, metavar="KG",
+                   help="with --log: the mass [kg] of a load the vehicle carried that its "
+                        "vehicle file does not hold (overrides the sidecar's "
+                        "'payload_mass'); added to the file's [reference] mass that the "
+                        "verdict compares the estimate with (its inertia is taken as a "
+                        "point mass at the centre of mass: the inertia reference stays)")
     p.add_argument("--band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                    help="torque band [Hz] of the inertia M-step on a rotor-speed log "
                         "(default 3-8 Hz, the measured Crazyflie flights'; a simulated "
                         "vehicle file's cycles: 0-45 Hz; LO = 0 filters low-pass only)")
+    p.add_argument("--faults", choices=FAULT_MODES, default=None,
+                   help="implausible rotor readings of a rotor-speed log: repair (rebuild "
+                        "them from the micro-SD log's PWM commands through the diagonal "
+                        "partner's map), repair-all (through the map of all trusted motors) "
+                        "or exclude (skip their rows); default: the vehicle's (repair for "
+                        "crazyflie21, exclude for a vehicle file without [faults] "
+                        "repair_rel_se)")
     p.add_argument("--max-iterations", type=positive_int, default=None,
                    help="E-steps at most per EM run (default: 100 for the simulated cycles, "
                         f"{LOG_MAX_ITERATIONS} for a --log, whose measured flights' "
@@ -120,13 +134,26 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --log: skip the search for unmodelled effects")
     p.add_argument("--view", action="store_true", help="open the browser view of the run")
     p.add_argument("--mass", metavar="KG|file", default=None,
-                   help="with --log: known-mass mode for a PX4 log (ULog or data-driven-"
-                        "dynamics CSV, docs/px4.md): the mass in kg (or 'file': the "
+                   help="with --log: known-mass mode for a log whose actuation is motor "
+                        "commands: a PX4 log (ULog or data-driven-dynamics CSV, docs/px4.md) "
+                        "or a Crazyflie micro-SD log read as IMU-only (accelerometer, gyro, "
+                        "motor commands; docs/imu_only.md): the mass in kg (or 'file': the "
                         "--vehicle file's [reference] mass) fixes the scale; identifies the "
                         "thrust curve, motor time constant and inertia by regression, and "
-                        "the curve's scale and the inertia by EM beside it; --vehicle names "
-                        "the rotor positions (.toml or .yaml), --band the torque band of "
-                        "both (default 0.3-2 Hz)")
+                        "(a PX4 log) the curve's scale and the inertia by EM beside it; "
+                        "--vehicle names the rotor positions (.toml, a shipped name or "
+                        ".yaml), --band the torque band (default 0.3-2 Hz)")
+    p.add_argument("--range", type=str, nargs="+", action="append", default=None,
+                   metavar="LO HI",
+                   help="with --mass: the rows to fit, in seconds on the log's own clock, as "
+                        "pairs LO HI (several pairs: several segments of one log); give "
+                        "--range once per --log, in order ('auto': that log's flight "
+                        "segments). Without it an IMU-only log is fitted on its flight "
+                        "segments (motors on), a PX4 log on its armed segment")
+    p.add_argument("--joint", action="store_true",
+                   help="with --mass and several --log: one fit of the vehicle (curve, time "
+                        "constant, inertia shared; each log's drag and damping its own), "
+                        "printed beside each log's own fit")
     return p
 
 
@@ -187,10 +214,11 @@ def pipeline_options(args: argparse.Namespace) -> PipelineOptions:
     identification = LogOptions(
         sensors=tuple(args.sensor or ()), msteps=_msteps(args.mstep), estep=args.estep,
         max_iterations=args.max_iterations or LOG_MAX_ITERATIONS,
-        information=not args.no_information,
+        information=not args.no_information, faults=args.faults,
         **({} if args.band is None else {"band": tuple(args.band)}))
     return PipelineOptions(identification, NullSettings(args.null_replicates, args.null_seed),
-                           discover=not args.no_discover, vehicle=args.vehicle)
+                           discover=not args.no_discover, vehicle=args.vehicle,
+                           payload_mass=args.payload_mass)
 
 
 def run_log(args: argparse.Namespace) -> int:
@@ -206,7 +234,7 @@ def run_log(args: argparse.Namespace) -> int:
     print(f"pinquad offline --log {args.log}: E-step {args.estep}, "
           f"M-step(s) {', '.join(options.identification.msteps)}")
     writer = RunWriter(args.out or new_run_dir("log"))  # --out checked before any work
-    log = read(args.log, args.vehicle)
+    log = read(args.log, args.vehicle, args.payload_mass)
     if args.vehicle is not None:
         print(f"vehicle: {log.meta.vehicle}")
     with worker_pool(args.jobs) as pool:
@@ -231,10 +259,15 @@ def main(argv: list[str] | None = None) -> int:
     check_band(parser, args.band)
     try:
         if args.mass is not None:
-            if args.log is None or len(args.log) != 1:
-                return _fail("--mass identifies one PX4 log: --log FILE --mass KG")
-            args.log = args.log[0]
+            if args.log is None:
+                return _fail("--mass identifies a recorded log: --log FILE --mass KG")
+            if len(args.log) > 1 and not args.joint:
+                return _fail("--mass with several logs: add --joint (one vehicle: the "
+                             "curve, time constant and inertia shared) or run each log on "
+                             "its own")
             return run_known_mass(args)
+        if args.range is not None or args.joint:
+            return _fail("--range and --joint go with --mass (known-mass mode)")
         if args.log is not None and is_batch(args.log):
             return run_batch(args, pipeline_options(args), backend_from_args(args),
                              argv=sys.argv[1:] if argv is None else argv)

@@ -12,7 +12,8 @@ u = (r - lo) / (hi - lo) with ``command_range`` = (lo, hi).
 
 In a vehicle file (TOML, docs/vehicles.md) these are the optional ``[actuator_curve]``
 table's keys ``command_range``, ``thrust``, ``time_constant``, ``yaw_ratio`` and
-``yaw_ratio_se``; the
+``yaw_ratio_se`` (without them, the ``[actuators]`` table's ``yaw_ratio`` and
+``yaw_ratio_se``); the
 rotors are the file's ``[[rotor]]`` tables (x, y [m, body], spin). Any of the curve's
 numbers may be left out: known-mass identification estimates the thrust polynomial and
 the time constant (a given time constant is used as given; a given polynomial is kept
@@ -32,7 +33,13 @@ import yaml
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import NED_FRD_FLIP
-from pinquad.core.vehicle_file import VehicleFileError, VehicleSpec, parse_vehicle
+from pinquad.core.vehicle_file import (
+    SHIPPED,
+    VehicleFileError,
+    VehicleSpec,
+    parse_vehicle,
+    shipped_path,
+)
 
 Array = NDArray[np.float64]
 
@@ -97,12 +104,16 @@ def parse_curve(text: str, path: Path) -> CurveVehicle:
             isinstance(v, (int, float)) and not isinstance(v, bool) for v in thrust)):
         raise VehicleFileError(f"{path}: key 'actuator_curve.thrust' is {thrust!r}; expected "
                                "[c1, c2, ...] [N], T = c1 u + c2 u^2 + ...")
+    yaw_ratio = _number(path, table, "yaw_ratio")
+    yaw_ratio_se = _number(path, table, "yaw_ratio_se")
+    if yaw_ratio is None and spec.actuators is not None:
+        # the file's rotor constants carry the same yaw torque per thrust
+        yaw_ratio, yaw_ratio_se = spec.actuators.yaw_ratio, spec.actuators.yaw_ratio_se
     return CurveVehicle(spec, ActuatorCurve(
         command_range=(float(rng[0]), float(rng[1])),
         thrust=None if thrust is None else np.asarray(thrust, dtype=float),
         time_constant=_number(path, table, "time_constant"),
-        yaw_ratio=_number(path, table, "yaw_ratio"),
-        yaw_ratio_se=_number(path, table, "yaw_ratio_se")))
+        yaw_ratio=yaw_ratio, yaw_ratio_se=yaw_ratio_se))
 
 
 class _DddLoader(yaml.SafeLoader):
@@ -160,9 +171,11 @@ def toml_from_ddd_yaml(text: str, path: Path) -> str:
 
 
 def read_curve_vehicle(path: str | Path) -> CurveVehicle:
-    """A vehicle file (``.toml``) or a data-driven-dynamics configuration (``.yaml``,
-    converted by :func:`toml_from_ddd_yaml`) with its actuator curve. Raises
-    VehicleFileError."""
+    """A vehicle file (``.toml``), a shipped vehicle's name (``crazyflie21``) or a
+    data-driven-dynamics configuration (``.yaml``, converted by
+    :func:`toml_from_ddd_yaml`) with its actuator curve. Raises VehicleFileError."""
+    if str(path) in SHIPPED:
+        path = shipped_path(str(path))
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")

@@ -14,12 +14,8 @@ from pinquad.discovery.refit import corrected_observations, model_factory
 from pinquad.discovery.result import DiscoveryResult
 from pinquad.estep.fast_smoother import loglik_quad
 from pinquad.experiments.recorded import LogResult, input_reading, plausible_range
-from pinquad.identification.budget import (
-    ErrorBudget,
-    calibration_of,
-    error_budget,
-    named_vehicle,
-)
+from pinquad.identification.budget import ErrorBudget, calibration_of, error_budget
+from pinquad.identification.edges import collapsed_errors
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
     observed_information,
@@ -27,7 +23,7 @@ from pinquad.identification.fisher import (
 )
 from pinquad.identification.identify import Identification, unconverged
 from pinquad.identification.mass_balance import balance_mass
-from pinquad.identification.reference import reference_values
+from pinquad.identification.reference import log_reference
 from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import (
     EstimateVerdict,
@@ -116,7 +112,18 @@ def with_budget(evidence: VerdictEvidence, budget: ErrorBudget,
     what the model-free balance shares, the vehicle file's reference."""
     return replace(evidence, input_free_stderr=budget.total_without("input_reading"),
                    balance_stderr=float(budget.unshared_with_thrust()[0]),
-                   reference=reference_values(named_vehicle(result.log.meta)))
+                   reference=log_reference(result.log.meta))
+
+
+def error_failures(run: Identification) -> tuple[tuple[str, str], ...]:
+    """(name, reason) of the run's parameters whose statistical error collapsed
+    (``edges.collapsed_errors``): a measured flight's block jackknife against its
+    observed information, else the information's error alone."""
+    values = np.r_[run.mass, np.diag(run.inertia)]
+    if run.measured is not None:
+        return collapsed_errors(values, {"observed information": run.measured.se_info,
+                                         "block jackknife": run.measured.se_jack})
+    return collapsed_errors(values, {"observed information": run.stderr})
 
 
 def fit_evidence(result: LogResult, run: Identification) -> dict:
@@ -124,14 +131,17 @@ def fit_evidence(result: LogResult, run: Identification) -> dict:
     EM did not converge (unless its iterates have settled: the rest of the way,
     ``em.remaining_move``, is under ``SETTLED_SHARE`` of every statistical standard
     error, as when only a noise variance still creeps), or parameters ended on the edge
-    of the range EM searched."""
-    out: dict = {}
+    of the range EM searched, or its error estimates collapsed (``edges``: a measured
+    flight's block jackknife against its observed information, else the information's
+    error alone)."""
+    values = np.r_[run.mass, np.diag(run.inertia)]
+    out: dict = {"error_failures": error_failures(run)}
     if unconverged(run) is not None:
         why = f" ({run.failure})" if run.failure else ""
         out["not_converged"] = (f"EM did not converge in {run.e_steps or run.iterations} "
                                 f"E-steps{why}: the estimate is not the likelihood's maximum")
     if result.search is not None and run.mstep != "full":
-        out["at_bound"] = tuple(at_bound(np.r_[run.mass, np.diag(run.inertia)], result.search))
+        out["at_bound"] = tuple(at_bound(values, result.search))
         out["bound_source"] = result.search.source
     return out
 
@@ -191,6 +201,11 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
     missing = run.stderr_problem
     if discovery_config(result.kind).refit_em:
         statistical = standard_errors(observed_information(obs, theta, loglik_quad))
+        failures = collapsed_errors(
+            np.r_[found.mass, np.diag(found.inertia)],
+            {"refit's observed information": statistical},
+            {"base fit's statistical error": None if base.budget is None
+             else base.budget.parts["statistical"]})
         missing = STDERR_UNAVAILABLE
         note = ("observed information of the EKF likelihood on the observations with the "
                 "selected effects' thrust and torque folded in (body x/y forces of drag or "
@@ -199,11 +214,12 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
         assert base.budget is not None
         statistical = (run.measured.se_stat if run.measured is not None
                        else base.budget.parts["statistical"])
+        failures = error_failures(run)
         note = ("the base fit's (discovery keeps the base inertia and refits the mass on the "
                 "base posterior's force rows)")
     budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
     stderr = budget.total
-    ev = with_budget(ev, budget, result)
+    ev = replace(with_budget(ev, budget, result), error_failures=failures)
     verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result.log),
                     missing_stderr=missing)
     return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,

@@ -20,8 +20,8 @@ from pinquad.identification.budget import (
     ErrorBudget,
     calibration_of,
     error_budget,
-    named_vehicle,
 )
+from pinquad.identification.edges import collapsed_errors
 from pinquad.identification.em import initial_theta, project
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
@@ -29,7 +29,7 @@ from pinquad.identification.fisher import (
     standard_errors,
 )
 from pinquad.identification.identify import get_smoother
-from pinquad.identification.reference import reference_values
+from pinquad.identification.reference import log_reference
 from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge
 from pinquad.identification.window import window_em, window_prior
@@ -167,7 +167,8 @@ def replay_verdict(fit: StreamFit, meta: LogMeta, vrange: VehicleRange | None,
     if bounds is not None:
         evidence = replace(evidence, at_bound=tuple(at_bound(values, bounds)),
                            bound_source=bounds.source)
-    evidence = replace(evidence, reference=reference_values(named_vehicle(meta)))
+    evidence = replace(evidence, reference=log_reference(meta),
+                       error_failures=collapsed_errors(values, {"observed information": stat}))
     verdict = judge(plain.mass, plain.inertia, budget.total, evidence, vrange,
                     missing_stderr=STDERR_UNAVAILABLE)
     return verdict, budget

@@ -53,6 +53,7 @@ from pinquad.models.sources import floor_contact, interval_inputs, observations
 from pinquad.models.ssm import Observations, corrected
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real
+from pinquad.realdata.observations import FAULT_MODES
 from pinquad.realdata.thrust import ThrustCoefficient
 from pinquad.realdata.vehicle_check import (
     measured_observations,
@@ -75,7 +76,9 @@ class LogOptions:
     max_iterations: E-steps at most per EM run (>= 1); information: compute standard
     errors from the observed information; band (lo, hi) [Hz]: the torque rows' band of a
     rotor-speed log's inertia M-step (``realdata.identify_real``; 3-8 Hz for the measured
-    Crazyflie flights, whose unmodelled torques the band keeps out).
+    Crazyflie flights, whose unmodelled torques the band keeps out); faults: how a
+    rotor-speed log's implausible readings are handled (``realdata.observations.
+    FAULT_MODES``; None: the vehicle's default, ``options_for_vehicle``).
     """
 
     sensors: tuple[str, ...] = ()
@@ -84,11 +87,14 @@ class LogOptions:
     max_iterations: int = 100
     information: bool = True
     band: tuple[float, float] = (3.0, 8.0)
+    faults: str | None = None
 
     def __post_init__(self) -> None:
         unknown = [m for m in self.msteps if m not in MSTEPS]
         if unknown or not self.msteps:
             raise ValueError(f"M-steps must be some of {', '.join(MSTEPS)}; got {self.msteps}")
+        if self.faults is not None and self.faults not in FAULT_MODES:
+            raise ValueError(f"faults {self.faults!r}: expected one of {', '.join(FAULT_MODES)}")
         if self.max_iterations < 1:
             raise ValueError(f"max_iterations must be at least 1; got {self.max_iterations}")
         if not 0.0 <= self.band[0] < self.band[1]:
@@ -176,7 +182,7 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
     vehicle = log.meta.vehicle
     box = measured_search_range(log)
     for sensor in sensors:
-        real = measured_observations(log, sensor)
+        real = measured_observations(log, sensor, faults=options.faults)
         label = sensor or ",".join(real.obs.channels)
         theta = None
         if "regressor" in options.msteps:

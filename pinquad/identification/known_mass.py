@@ -1,5 +1,9 @@
-"""Known-mass identification of a flight logged with motor commands (a PX4 log): the
-thrust curve, the motor time constant and the inertia, by regression (not EM).
+"""Known-mass identification of a flight logged with motor commands (a PX4 log, or an
+IMU-only log: accelerometer, gyro and motor commands): the thrust curve, the motor time
+constant and the inertia, by regression (not EM). Several segments of one log, or of
+several logs of one vehicle, are fitted as one (``Stack``): the curve, time constant and
+inertia shared, each log's drag, damping and gyroscopic coefficient its own; filters,
+lags and derivatives run per segment.
 
 With the mass m [kg] known (a scale), the body z specific force a_z [m/s^2] fixes the
 scale of the actuator curve (``pinquad.core.actuator_curve``):
@@ -8,7 +12,8 @@ scale of the actuator curve (``pinquad.core.actuator_curve``):
 
 u'_i: command u_i through the first-order motor lag of time constant tau (exact
 zero-order-hold discretisation, a = exp(-dt / tau)); v_bz [m/s]: body-z velocity (a
-linear drag d_z [N s/m] that would otherwise be read as thrust). c_1 is kept only when
+linear drag d_z [N s/m] that would otherwise be read as thrust; an IMU-only log has no
+velocity, and no drag column). c_1 is kept only when
 the data carry it (|c_1| > 2 standard errors). tau is chosen by the profile likelihood of
 this regression over a grid (Gaussian residuals: -N_eff/2 log RSS(tau); its standard
 error from where the profile falls by 1/2).
@@ -37,6 +42,7 @@ curve's coefficients (their covariance carried through). The naive regression be
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -124,22 +130,32 @@ def motor_lag(command: Array, tau: float, dt: float) -> Array:
     return out
 
 
+def _cross_covariances(a: Array, b: Array, lags: int) -> Array:
+    """G[k, i, j] = sum_t a[t + k, i] b[t, j] for k = 0..lags, by FFT: (lags + 1, p, q)."""
+    n = a.shape[0]
+    size = 1 << (2 * n - 1).bit_length()
+    fa = np.fft.rfft(a, size, axis=0)
+    fb = np.fft.rfft(b, size, axis=0)
+    full = np.fft.irfft(fa[:, :, None] * np.conj(fb[:, None, :]), size, axis=0)
+    return full[: lags + 1]
+
+
 def newey_west(x: Array, resid: Array, min_lag: int = 0) -> tuple[Array, int]:
     """Coefficient covariance (p, p) of least squares x (N, p) with residuals (N,), HAC
     with Bartlett weights up to lag L: past the last lag (below N / 4) where the
     residuals' autocorrelation is still 0.05 or more in size, and at least ``min_lag``
     (a band-passed residual oscillates: its autocorrelation crosses zero long before it
-    dies out). Returns (cov, L)."""
+    dies out). The lagged sums are taken by FFT. Returns (cov, L)."""
     n = resid.shape[0]
     r = resid - resid.mean()
-    acf = np.correlate(r, r, "full")[n - 1:] / (r @ r)
+    acf = _cross_covariances(r[:, None], r[:, None], n // 4)[:, 0, 0] / (r @ r)
     big = np.flatnonzero(np.abs(acf[: n // 4]) >= 0.05)
     lag = int(min(max(big[-1] + 1 if big.size else 0, min_lag), n // 4))
     xe = x * resid[:, None]
-    s = xe.T @ xe
-    for k in range(1, lag + 1):
-        g = xe[k:].T @ xe[:-k]
-        s += (1.0 - k / (lag + 1.0)) * (g + g.T)
+    gammas = _cross_covariances(xe, xe, lag)
+    weights = 1.0 - np.arange(lag + 1) / (lag + 1.0)
+    g = np.einsum("k,kij->ij", weights[1:], gammas[1:])
+    s = xe.T @ xe + g + g.T
     bread = np.linalg.inv(x.T @ x)
     return bread @ s @ bread, lag
 
@@ -148,32 +164,71 @@ def effective_rows(resid: Array, lag: int) -> float:
     """N / (1 + 2 sum_{l=1..L} rho_l): rows of independent information in residuals."""
     n = resid.shape[0]
     r = resid - resid.mean()
-    rho = [(r[k:] @ r[:-k]) / (r @ r) for k in range(1, lag + 1)]
+    rho = _cross_covariances(r[:, None], r[:, None], lag)[1:, 0, 0] / (r @ r)
     return n / max(1.0 + 2.0 * float(np.sum(rho)), 1.0)
 
 
 @dataclass(frozen=True)
+class Stack:
+    """Rows of several flight segments stacked for one regression: bounds ((start, stop)
+    per segment, in stacked rows) and group (N,) int: which log each row is from (each
+    log's nuisance terms, drag and rotational damping, are its own; the vehicle's are
+    shared). Filters, lags and derivatives run per segment, never across a seam."""
+
+    bounds: tuple[tuple[int, int], ...]
+    group: NDArray[np.int64]
+
+    @property
+    def n_groups(self) -> int:
+        """Number of logs (nuisance groups)."""
+        return int(self.group.max()) + 1
+
+    def each(self, fn, arr: Array) -> Array:
+        """fn applied to each segment's rows of ``arr`` (N, ...), stacked again."""
+        return np.concatenate([fn(arr[a:b]) for a, b in self.bounds], axis=0)
+
+    def per_group(self, col: Array) -> Array:
+        """(N,) -> (N, G): ``col`` in the column of its row's group, 0 elsewhere."""
+        out = np.zeros((col.shape[0], self.n_groups))
+        out[np.arange(col.shape[0]), self.group] = col
+        return out
+
+
+@dataclass(frozen=True)
 class _Curve:
-    coef: Array          # (c_1, c_2, d_z) with c_1 = 0 when not carried
-    cov: Array           # (3, 3) statistical
+    coef: Array          # (c_1, c_2, d_z per group) with c_1 = 0 when not carried
+    cov: Array           # (2 + G, 2 + G) statistical
     linear: bool
     rss: float
     share: float
     resid: Array
 
 
-def _curve_fit(m: float, a_z: Array, v_bz: Array, u: Array, linear: bool | None) -> _Curve:
+def _curve_fit(m: float, a_z: Array, v_bz: Array | None, u: Array, linear: bool | None,
+               stack: Stack, rss_only: bool = False) -> _Curve:
+    """The vertical-force regression (module docstring), a drag d_z per log; without the
+    body-z velocity (``v_bz`` None: an IMU-only log) no drag columns, each d_z reported
+    as 0 with no variance. ``rss_only``: the fit and its residual sum of squares only
+    (the time constant's profile), no covariance (zeros)."""
     y = m * a_z
-    cols = [u.sum(axis=1), (u * u).sum(axis=1), -v_bz]
+    drag = [] if v_bz is None else list(stack.per_group(-v_bz).T)
+    cols = [u.sum(axis=1), (u * u).sum(axis=1), *drag]
     x = np.column_stack(cols if linear is not False else cols[1:])
     coef, *_ = np.linalg.lstsq(x, y, rcond=None)
     resid = y - x @ coef
+    if rss_only:
+        return _Curve(coef, np.zeros((x.shape[1], x.shape[1])), True, float(resid @ resid),
+                      1.0 - float(resid.var() / y.var()), resid)
     cov, _ = newey_west(x, resid)
     if linear is None and abs(coef[0]) < 2.0 * math.sqrt(cov[0, 0]):
-        return _curve_fit(m, a_z, v_bz, u, False)
-    if x.shape[1] == 2:
+        return _curve_fit(m, a_z, v_bz, u, False, stack)
+    linear_kept = linear is not False
+    if not linear_kept:
         coef, cov = np.r_[0.0, coef], np.pad(cov, ((1, 0), (1, 0)))
-    return _Curve(coef, cov, x.shape[1] == 3, float(resid @ resid),
+    if v_bz is None:
+        g = stack.n_groups
+        coef, cov = np.r_[coef, np.zeros(g)], np.pad(cov, ((0, g), (0, g)))
+    return _Curve(coef, cov, linear_kept, float(resid @ resid),
                   1.0 - float(resid.var() / y.var()), resid)
 
 
@@ -186,23 +241,29 @@ def _torques(thrust: Array, positions: Array, spin: Array, yaw_ratio: float | No
     return np.column_stack([thrust @ positions[:, 1], -(thrust @ positions[:, 0]), tz])
 
 
-def _inertia_fit(torque: Array, gyro: Array, dt: float, band: tuple[float, float]
-                 ) -> tuple[Array, Array, Array]:
+def _inertia_fit(torque: Array, gyro: Array, dt: float, band: tuple[float, float],
+                 stack: Stack) -> tuple[Array, Array, Array]:
     """Per axis (I, statistical se, explained share) of the band-passed torque against
-    domega/dt and omega (module docstring); NaN for an axis without torque."""
+    domega/dt and omega (module docstring; damping and gyroscopic coefficient per log);
+    NaN for an axis without torque."""
     sos = butter(4, band, btype="band", fs=1.0 / dt, output="sos")
-    w = sosfiltfilt(sos, gyro, axis=0)
-    wd = np.gradient(w, dt, axis=0)
+
+    def bandpass(a: Array) -> Array:
+        return sosfiltfilt(sos, a, axis=0)
+
+    w = stack.each(bandpass, gyro)
+    wd = stack.each(lambda a: np.gradient(a, dt, axis=0), w)
     # the gyroscopic term (I_bb - I_cc) omega_b omega_c with a free coefficient: it needs
     # the other moments, not yet known (the product is formed before filtering)
-    cross = sosfiltfilt(sos, np.column_stack([gyro[:, 1] * gyro[:, 2], gyro[:, 2] * gyro[:, 0],
-                                              gyro[:, 0] * gyro[:, 1]]), axis=0)
+    cross = stack.each(bandpass, np.column_stack([gyro[:, 1] * gyro[:, 2],
+                                                  gyro[:, 2] * gyro[:, 0],
+                                                  gyro[:, 0] * gyro[:, 1]]))
     value, se, share = np.full(3, np.nan), np.full(3, np.nan), np.full(3, np.nan)
     for a in range(3):
         if not np.isfinite(torque[:, a]).all():
             continue
-        y = sosfiltfilt(sos, torque[:, a])
-        x = np.column_stack([wd[:, a], w[:, a], cross[:, a]])
+        y = stack.each(bandpass, torque[:, a])
+        x = np.column_stack([wd[:, a], stack.per_group(w[:, a]), stack.per_group(cross[:, a])])
         coef, *_ = np.linalg.lstsq(x, y, rcond=None)
         resid = y - x @ coef
         # at least two periods of the band's lowest frequency
@@ -213,13 +274,13 @@ def _inertia_fit(torque: Array, gyro: Array, dt: float, band: tuple[float, float
 
 
 def _naive(m: float, a_z: Array, u: Array, gyro: Array, dt: float, positions: Array,
-           spin: Array) -> tuple[Array, tuple[float, ...]]:
+           spin: Array, stack: Stack) -> tuple[Array, tuple[float, ...]]:
     """No lag, no drag, no filter: c from m a_z = sum(c_1 u + c_2 u^2), torque against
     the finite-difference domega/dt with an offset."""
     x = np.column_stack([u.sum(axis=1), (u * u).sum(axis=1)])
     c, *_ = np.linalg.lstsq(x, m * a_z, rcond=None)
     torque = _torques(_thrust(c, u), positions, spin, None)
-    wd = np.gradient(gyro, dt, axis=0)
+    wd = stack.each(lambda a: np.gradient(a, dt, axis=0), gyro)
     out, share = np.full(3, np.nan), []
     for a in range(2):
         xa = np.column_stack([wd[:, a], np.ones_like(wd[:, a])])
@@ -267,44 +328,84 @@ def estimate_with_verdict(name: str, value: float, unit: str, parts: dict[str, f
     return Estimate(name, value, unit, total, tuple(parts.items()), verdict, reasons)
 
 
-def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin: Array,
-                        curve: ActuatorCurve | None = None,
-                        settings: KnownMassSettings | None = None) -> KnownMassResult:
-    """Known-mass identification of ``flight`` (module docstring): mass [kg], rotor
-    positions (k, 2) [m, body] and spin (k,) in the log's motor order, the vehicle's
-    actuator curve (its yaw_ratio used when given). Raises ValueError naming the log when
-    its rows are not evenly spaced or its motors and rotors disagree."""
+def stack_segments(segments: Sequence[CommandLog], groups: Sequence[int] | None = None
+                   ) -> tuple[Stack, float]:
+    """The ``Stack`` of ``segments`` (each a CommandLog of evenly spaced rows, all of one
+    row spacing) and that spacing dt [s]; groups (S,): the log each segment is from
+    (default: all from one). Raises ValueError naming the log on uneven rows or
+    different spacings."""
+    dts = []
+    for seg in segments:
+        steps = np.diff(seg.log.t)
+        dt = float(np.median(steps))
+        if np.abs(steps - dt).max() > 0.01 * dt:
+            raise ValueError(f"{seg.log.meta.source}: rows are not evenly spaced (steps "
+                             f"{steps.min():.4g} to {steps.max():.4g} s); expected one row "
+                             f"per {dt:.4g} s")
+        dts.append(dt)
+    if max(dts) - min(dts) > 0.01 * min(dts):
+        raise ValueError(f"{segments[0].log.meta.source}: row spacings {min(dts):.4g} to "
+                         f"{max(dts):.4g} s across the logs; expected one spacing")
+    groups = [0] * len(segments) if groups is None else list(groups)
+    sizes = np.array([seg.log.n for seg in segments])
+    ends = np.cumsum(sizes)
+    bounds = tuple((int(e - n), int(e)) for e, n in zip(ends, sizes, strict=True))
+    return Stack(bounds, np.repeat(np.asarray(groups, dtype=np.int64), sizes)), dts[0]
+
+
+def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
+                        positions: Array, spin: Array, curve: ActuatorCurve | None = None,
+                        settings: KnownMassSettings | None = None,
+                        groups: Sequence[int] | None = None) -> KnownMassResult:
+    """Known-mass identification of ``flight`` (module docstring): one log, or several
+    segments (of one log or of several logs of the same vehicle: ``groups`` (S,) the log
+    of each segment; the curve, time constant and inertia shared, each log's drag and
+    damping its own); mass [kg], rotor positions (k, 2) [m, body] and spin (k,) in the
+    logs' motor order, the vehicle's actuator curve (its yaw_ratio used when given).
+    Raises ValueError naming the log when its rows are not evenly spaced, its motors and
+    rotors disagree, or a signal is missing."""
     curve = curve or ActuatorCurve()
     settings = settings or KnownMassSettings()
-    log = flight.log
-    src = log.meta.source
-    if flight.n_motors != positions.shape[0]:
-        raise ValueError(f"{src}: {flight.n_motors} motor command columns but the vehicle "
-                         f"has {positions.shape[0]} rotors")
-    steps = np.diff(log.t)
-    dt = float(np.median(steps))
-    if np.abs(steps - dt).max() > 0.01 * dt:
-        raise ValueError(f"{src}: rows are not evenly spaced (steps {steps.min():.4g} to "
-                         f"{steps.max():.4g} s); expected one row per {dt:.4g} s")
+    segments = (flight,) if isinstance(flight, CommandLog) else tuple(flight)
+    src = segments[0].log.meta.source
+    for seg in segments:
+        if seg.n_motors != positions.shape[0]:
+            raise ValueError(f"{seg.log.meta.source}: {seg.n_motors} motor command columns "
+                             f"but the vehicle has {positions.shape[0]} rotors")
+    stack, dt = stack_segments(segments, groups)
     shortest = 4.0 / settings.band[0]
-    if log.t[-1] - log.t[0] < shortest:
-        raise ValueError(f"{src}: {log.t[-1] - log.t[0]:.1f} s of flight; the torque band's "
+    span = sum(seg.log.t[-1] - seg.log.t[0] for seg in segments)
+    if span < shortest:
+        raise ValueError(f"{src}: {span:.1f} s of flight; the torque band's "
                          f"low edge {settings.band[0]:g} Hz needs at least {shortest:.0f} s")
-    for name, arr in (("velocity", log.velocity), ("attitude", log.euler),
-                      ("gyro", log.gyro), ("acceleration", log.accel),
-                      ("motor command", flight.command)):
-        if not np.isfinite(arr).all():
-            raise ValueError(f"{src}: {name} is missing in some rows; expected every row")
-    rot = rotation_from_euler(log.euler)
-    v_bz = np.einsum("nij,ni->nj", rot, log.velocity)[:, 2]
-    a_z, u = log.accel[:, 2], flight.command
+    # no velocity, no attitude (an IMU-only log): no drag column
+    imu_only = any(seg.imu_only for seg in segments)
+    for seg in segments:
+        log = seg.log
+        for name, arr in (("velocity", log.velocity), ("attitude", log.euler),
+                          ("gyro", log.gyro), ("acceleration", log.accel),
+                          ("motor command", seg.command)):
+            if not (imu_only and name in ("velocity", "attitude")) and \
+                    not np.isfinite(arr).all():
+                raise ValueError(f"{log.meta.source}: {name} is missing in some rows; "
+                                 "expected every row")
+    v_bz = None if imu_only else np.concatenate([
+        np.einsum("nij,ni->nj", rotation_from_euler(seg.log.euler), seg.log.velocity)[:, 2]
+        for seg in segments])
+    a_z = np.concatenate([seg.log.accel[:, 2] for seg in segments])
+    u = np.concatenate([seg.command for seg in segments])
+    gyro = np.concatenate([seg.log.gyro for seg in segments])
+
+    def lag(tau: float) -> Array:
+        return stack.each(lambda c: motor_lag(c, tau, dt), u)
 
     # the time constant: profile of the vertical-force regression
-    fits = [_curve_fit(mass, a_z, v_bz, motor_lag(u, tau, dt), True) for tau in settings.lags]
+    fits = [_curve_fit(mass, a_z, v_bz, lag(tau), True, stack, rss_only=True)
+            for tau in settings.lags]
     rss = np.array([f.rss for f in fits])
     best = int(np.argmin(rss))
     tau = float(settings.lags[best])
-    top = _curve_fit(mass, a_z, v_bz, motor_lag(u, tau, dt), None)
+    top = _curve_fit(mass, a_z, v_bz, lag(tau), None, stack)
     _, lag_rows = newey_west(np.ones((a_z.shape[0], 1)), top.resid)
     n_eff = effective_rows(top.resid, lag_rows)
     drop = 0.5 * n_eff * np.log(rss / rss[best])
@@ -314,12 +415,12 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     tau_edge = inside[-1] == len(settings.lags) - 1  # 0 is physics' end, not the grid's
     if curve.time_constant is not None:  # given: the curve is fitted through it
         tau, tau_se, tau_edge = curve.time_constant, 0.0, False
-        top = _curve_fit(mass, a_z, v_bz, motor_lag(u, tau, dt), None)
-    alt = [_curve_fit(mass, a_z, v_bz, motor_lag(u, max(tau + s * tau_se, 0.0), dt),
-                      top.linear) for s in (-1.0, 1.0)]
+        top = _curve_fit(mass, a_z, v_bz, lag(tau), None, stack)
+    alt = [_curve_fit(mass, a_z, v_bz, lag(max(tau + s * tau_se, 0.0)), top.linear, stack)
+           for s in (-1.0, 1.0)]
     tau_part = np.abs(alt[1].coef - alt[0].coef) / 2.0
 
-    notes = list(flight.notes)
+    notes = list(dict.fromkeys(n for seg in segments for n in seg.notes))  # once each
     if curve.thrust is not None:
         notes.append(f"the vehicle file's thrust curve {curve.thrust.tolist()} N is not used: "
                      "the curve is identified from this flight")
@@ -328,11 +429,18 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
         f"the curve explains {top.share * 100:.0f} % of the vertical force (at least "
         f"{settings.min_fit_share * 100:.0f} % demanded)"))]
     estimates = []
-    for i, (name, unit) in enumerate((("thrust c_1", "N"), ("thrust c_2", "N"),
-                                      ("drag d_z", "N s/m"))):
+    n_groups = stack.n_groups
+    drags = [("drag d_z" if n_groups == 1 else f"drag d_z [log {g + 1}]", "N s/m")
+             for g in range(n_groups)]
+    if imu_only:
+        notes.append("no velocity in the log: no body-z drag term (d_z not estimated; "
+                     "a drag the flight excites is read as thrust)")
+    for i, (name, unit) in enumerate((("thrust c_1", "N"), ("thrust c_2", "N"), *drags)):
         if i == 0 and not top.linear:
             notes.append("thrust c_1 (linear term): not carried by this log (|c_1| < 2 se): "
                          "the curve is T = c_2 u^2")
+            continue
+        if i >= 2 and imu_only:
             continue
         parts = {"statistical": math.sqrt(top.cov[i, i]),
                  "mass": abs(top.coef[i]) * settings.mass_rel_se,
@@ -342,10 +450,11 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
     # the curve's scale where the flight flew: T(u_m) = c_1 u_m + c_2 u_m^2 and its slope
     # dT/du = c_1 + 2 c_2 u_m at the mean command u_m; c_1 and c_2 trade against each
     # other, these two do not (the slope is what turns command differences into torque)
-    u_m = float(motor_lag(u, tau, dt).mean())
+    u_m = float(lag(tau).mean())
     notes.append(f"mean command u = {u_m:.3f}: the curve's thrust and slope dT/du there")
-    for name, grad in (("thrust at mean u", np.array([u_m, u_m * u_m, 0.0])),
-                       ("dT/du at mean u", np.array([1.0, 2.0 * u_m, 0.0]))):
+    rest = np.zeros(n_groups)
+    for name, grad in (("thrust at mean u", np.r_[u_m, u_m * u_m, rest]),
+                       ("dT/du at mean u", np.r_[1.0, 2.0 * u_m, rest])):
         value = float(grad @ top.coef)
         parts = {"statistical": math.sqrt(float(grad @ top.cov @ grad)),
                  "mass": abs(value) * settings.mass_rel_se,
@@ -366,21 +475,21 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
         notes.append(f"time constant {tau:.4g} s: given by the vehicle file")
 
     # the inertia from the curve's torques
-    lagged = motor_lag(u, tau, dt)
+    lagged = lag(tau)
 
     def inertia_at(coef: Array, lag_u: Array, band: tuple[float, float]):
         torque = _torques(_thrust(coef, lag_u), positions, spin, curve.yaw_ratio)
-        return _inertia_fit(torque, log.gyro, dt, band)
+        return _inertia_fit(torque, gyro, dt, band, stack)
 
     inertia, inertia_se, share = inertia_at(top.coef, lagged, settings.band)
     jac = np.zeros((3, 2))
     for j in range(2):
-        step = np.zeros(3)
+        step = np.zeros(top.coef.shape[0])
         step[j] = math.sqrt(max(top.cov[j, j], 1e-24))
         jac[:, j] = (inertia_at(top.coef + step, lagged, settings.band)[0] - inertia) / step[j]
     curve_part = np.sqrt(np.einsum("aj,jk,ak->a", jac, top.cov[:2, :2], jac))
-    tau_inertia = [inertia_at(f.coef, motor_lag(u, max(tau + s * tau_se, 0.0), dt),
-                              settings.band)[0] for s, f in zip((-1.0, 1.0), alt, strict=True)]
+    tau_inertia = [inertia_at(f.coef, lag(max(tau + s * tau_se, 0.0)), settings.band)[0]
+                   for s, f in zip((-1.0, 1.0), alt, strict=True)]
     tau_inertia_part = np.abs(tau_inertia[1] - tau_inertia[0]) / 2.0
     lo, hi = settings.band
     mid = math.sqrt(lo * hi)
@@ -416,7 +525,7 @@ def identify_known_mass(flight: CommandLog, mass: float, positions: Array, spin:
                  "time_constant": float(tau_inertia_part[a])}
         estimates.append(estimate_with_verdict(name, float(inertia[a]), "kg m^2", parts,
                                                settings, checks))
-    naive, naive_share = _naive(mass, a_z, u, log.gyro, dt, positions, spin)
+    naive, naive_share = _naive(mass, a_z, u, gyro, dt, positions, spin, stack)
     return KnownMassResult(tuple(estimates), top.share,
                            tuple(float(s) for s in share[:2 if curve.yaw_ratio is None else 3]),
                            naive, naive_share, mass, mass * settings.mass_rel_se,

@@ -49,3 +49,26 @@ def balance_mass(obs: Observations, mean: Array, gravity: float) -> tuple[float,
                           for b in blocks])
     se = float(np.sqrt((BLOCKS - 1) / BLOCKS * np.sum((leave_out - leave_out.mean()) ** 2)))
     return m, se
+
+
+def balance_check(mass: float, se: float, model_free: tuple[float, float] | None,
+                  balance_stderr: float | None) -> list[str]:
+    """The reason the fitted mass [kg] disagrees with the model-free mass balance
+    ``model_free`` (m_bal, se_bal) [kg], or none: they disagree when they differ by more
+    than 2 combined standard errors, |m - m_bal| > 2 sqrt(se^2 + se_bal^2), with se the
+    mass's error without what both readings of the thrust share (``balance_stderr``; a
+    thrust calibration cancels between them; None: the mass's total ``se``)."""
+    if balance_stderr is not None:
+        se = balance_stderr
+    if model_free is None or not np.isfinite(se):
+        return []
+    m_bal, se_bal = model_free
+    if not (np.isfinite(m_bal) and np.isfinite(se_bal)):
+        return []
+    combined = float(np.hypot(se, se_bal))
+    if abs(mass - m_bal) <= 2.0 * combined:
+        return []
+    return [f"the model-free mass balance (mean vertical thrust over gravity plus vertical "
+            f"acceleration, no dynamic model) gives {m_bal * 1e3:.4g} +- {se_bal * 1e3:.2g} g, "
+            f"{abs(mass - m_bal) / combined:.1f} combined standard errors away: the two "
+            "readings of the same forces disagree"]

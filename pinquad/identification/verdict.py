@@ -15,11 +15,16 @@ ten-parameter model) gets one of ``VERDICTS``, judged from data by three checks:
   (``torque_excitation``): torques no larger than the unlogged disturbances are mostly a
   fast controller's answers to them, and an inertia read from those is biased (on
   closed-loop flights of an independent simulator: +45 to +90 %, standard error 3 %);
+  and the fit is not held by the physical set: no parameter on the edge of the range EM
+  searched, no inertia on a face of the triangle inequalities (``edges.triangle_face``),
+  no error estimate that collapsed (``edges.collapsed_errors``);
 * adequate: the model explains the data the parameter rests on: the mean normalised
   innovation squared of the EKF at the estimate, per measured channel and per row
   (``innovation_consistency``; 1 when the innovations are as large as the model says) is
   at most ``max_nis_ratio`` on the channels the parameter rests on (mass: pos, vel; the
   inertia: euler, gyro);
+  and it agrees with the vehicle file's reference (``reference``; a mass that disagrees
+  makes the inertia not adequate too);
 * plausible: the values are physically possible: positive, principal moments obeying the
   triangle inequality (I_1 + I_2 >= I_3), positive definite tensor, within the vehicle's
   range.
@@ -44,7 +49,9 @@ from pinquad.core.filters import band_sos
 from pinquad.core.params import VEHICLES, VehicleRange
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.estep.fast_smoother import Innovations, innovations_quad
-from pinquad.identification.reference import ReferenceValues, reference_check
+from pinquad.identification.edges import triangle_face
+from pinquad.identification.mass_balance import balance_check
+from pinquad.identification.reference import ReferenceValues, reference_check, vehicle_mismatch
 from pinquad.models.ssm import Observations, QuadSSM, Theta
 from pinquad.mstep.stats import transition_mask
 
@@ -153,7 +160,8 @@ class VerdictEvidence:
     without the parts the model-free balance shares (the same thrust: its calibration,
     between-flight model error, PWM repair; ``ErrorBudget.unshared_with_thrust``), which
     the balance is compared with (None: the mass's total); reference: the vehicle's
-    values known without flight data (``reference``), or None.
+    values known without flight data (``reference``), or None; error_failures: (name,
+    reason) of each parameter whose error estimate failed (``edges.collapsed_errors``).
     """
 
     torque_share: Array = field(default_factory=lambda: np.full(3, np.nan))
@@ -169,6 +177,7 @@ class VerdictEvidence:
     input_free_stderr: Array | None = None
     balance_stderr: float | None = None
     reference: ReferenceValues | None = None
+    error_failures: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -266,33 +275,14 @@ def _input_check(name: str, index: int, value: float, se: float, evidence: Verdi
 
 def _fit_checks(name: str, evidence: VerdictEvidence) -> list[str]:
     """Reasons the fit itself gives that parameter ``name`` is not determined: EM did not
-    converge, or the parameter ended on the edge of the range EM searched."""
+    converge, the parameter ended on the edge of the range EM searched, or its error
+    estimate failed."""
     out = [] if evidence.not_converged is None else [evidence.not_converged]
+    out += [why for n, why in evidence.error_failures if n == name]
     if name in evidence.at_bound:
         out.append(f"ended on the edge of the range EM searched ({evidence.bound_source}): "
                    "the log does not determine it, the number is the edge, not a fit")
     return out
-
-
-def _balance_check(mass: float, se: float, evidence: VerdictEvidence) -> list[str]:
-    """The mass against the model-free mass balance: they disagree when they differ by
-    more than 2 combined standard errors, |m - m_bal| > 2 sqrt(se^2 + se_bal^2), with se
-    the mass's error without what both readings of the thrust share
-    (``evidence.balance_stderr``; a thrust calibration cancels between them)."""
-    if evidence.balance_stderr is not None:
-        se = evidence.balance_stderr
-    if evidence.model_free_mass is None or not np.isfinite(se):
-        return []
-    m_bal, se_bal = evidence.model_free_mass
-    if not (np.isfinite(m_bal) and np.isfinite(se_bal)):
-        return []
-    combined = float(np.hypot(se, se_bal))
-    if abs(mass - m_bal) <= 2.0 * combined:
-        return []
-    return [f"the model-free mass balance (mean vertical thrust over gravity plus vertical "
-            f"acceleration, no dynamic model) gives {m_bal * 1e3:.4g} +- {se_bal * 1e3:.2g} g, "
-            f"{abs(mass - m_bal) / combined:.1f} combined standard errors away: the two "
-            "readings of the same forces disagree"]
 
 
 def _judged(se: float, missing_stderr: str | None) -> list[str]:
@@ -341,9 +331,9 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         ident.append(missing_stderr)
     params.append(_judge("mass", mass, stderr[0], {
         NOT_IDENTIFIABLE: ident,
-        NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th) + _balance_check(
-            mass, stderr[0], evidence) + reference_check("mass", 0, mass, stderr[0],
-                                                         evidence.reference, 1e3, "g"),
+        NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th)
+        + balance_check(mass, stderr[0], evidence.model_free_mass, evidence.balance_stderr)
+        + reference_check("mass", 0, mass, stderr[0], evidence.reference, 1e3, "g"),
         IMPLAUSIBLE: bad_value, NOT_JUDGED: _judged(stderr[0], missing_stderr)}))
 
     # the tensor as a whole: positive definite, principal moments obey the triangle inequality
@@ -357,7 +347,9 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         tensor.append(f"principal moments break the triangle inequality: "
                       f"{principal[0] * 1e6:.4g} + {principal[1] * 1e6:.4g} < "
                       f"{principal[2] * 1e6:.4g} e-6 kg m^2")
+    face = triangle_face(inertia)  # a face of the set EM searched: held there, not fitted
     rotation = _nis_check(evidence, INERTIA_CHANNELS, th)
+    rotation_ref = vehicle_mismatch(mass, stderr[0], evidence.reference)
     share = np.asarray(evidence.torque_share, dtype=float)
     excitation = np.asarray(evidence.torque_excitation, dtype=float)
     for i, name in enumerate(DIAGONAL):
@@ -371,7 +363,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         ident = [] if vrange is None else _range_check(
             name, stderr[i + 1], vrange.inertia_lo[i], vrange.inertia_hi[i], 1e6, "e-6 kg m^2", th)
         ident += _input_check(name, i + 1, value, stderr[i + 1], evidence, 1e6, "e-6 kg m^2", th)
-        ident += _fit_checks(name, evidence)
+        ident += _fit_checks(name, evidence) + ([] if face is None else [face])
         if missing_stderr and not np.isfinite(stderr[i + 1]):
             ident.append(missing_stderr)
         if np.isfinite(excitation[i]) and excitation[i] < th.min_torque_excitation:
@@ -386,8 +378,8 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
                             f"least {100 * th.min_torque_share:.0f} % needed)")
         params.append(_judge(name, value, stderr[i + 1], {
             NOT_IDENTIFIABLE: ident, IMPLAUSIBLE: implausible,
-            NOT_ADEQUATE: rotation + reference_check(name, i + 1, value, stderr[i + 1],
-                                                     evidence.reference, 1e6, "e-6 kg m^2"),
+            NOT_ADEQUATE: rotation + rotation_ref + reference_check(
+                name, i + 1, value, stderr[i + 1], evidence.reference, 1e6, "e-6 kg m^2"),
             NOT_JUDGED: _judged(stderr[i + 1], missing_stderr)}))
     if stderr_products is not None:
         for (name, i, j), se in zip(PRODUCTS, np.asarray(stderr_products, dtype=float),
@@ -397,7 +389,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
             if vrange is not None:  # |I_ij| <= I_kk / 2 for any rigid body
                 half = 0.5 * vrange.inertia_hi[k]
                 ident = _range_check(name, se, -half, half, 1e6, "e-6 kg m^2", th)
-            ident += _fit_checks(name, evidence)
+            ident += _fit_checks(name, evidence) + ([] if face is None else [face])
             quiet = [a for a in (i, j) if np.isfinite(excitation[a])
                      and excitation[a] < th.min_torque_excitation]
             if quiet:

@@ -37,7 +37,9 @@ the same data, and names only what it tried:
 
 Each test returns ``(check, column, message)`` or None (passed, not applicable, or too
 little motion to decide: nothing is said then). The motor test runs only when the
-others pass (it leans on the gyro's frame and the rotor speeds' unit).
+others pass (it leans on the gyro's frame and the rotor speeds' unit); the order, with
+the tests of what the sidecar and vehicle file do declare, is
+``pinquad.io.declaration_check.convention_problems``'s.
 """
 
 from __future__ import annotations
@@ -95,7 +97,8 @@ MAX_ROTORS = 6
 
 # ------------------------------------------------------------------ attitude vs gyro
 
-def _filled(values: Array, t: Array) -> Array | None:
+def filled(values: Array, t: Array) -> Array | None:
+    """Columns (N, k) with NaN rows interpolated in time, or None with < 2 samples."""
     ok = np.isfinite(values).all(axis=1)
     if ok.sum() < 2:
         return None
@@ -114,15 +117,15 @@ def agreement(t: Array, rot: Array, gyro: Array) -> tuple[float, float] | None:
     rotations rot (N, 3, 3) (NaN rows: no attitude) and gyro (N, 3) [rad/s]; None when
     too few windows or beta is not decided (module docstring, test 1)."""
     rows = np.flatnonzero(np.isfinite(rot).all(axis=(1, 2)))
-    filled = _filled(gyro, t)
-    if rows.size < 2 or filled is None:
+    rates = filled(gyro, t)
+    if rows.size < 2 or rates is None:
         return None
     a, b = _windows(t, rows)
     if a.size < MIN_WINDOWS:
         return None
     rel = np.einsum("wji,wjk->wik", rot[a], rot[b])
     y = Rotation.from_matrix(rel).as_rotvec()
-    steps = np.diff(t)[:, None] * 0.5 * (filled[1:] + filled[:-1])
+    steps = np.diff(t)[:, None] * 0.5 * (rates[1:] + rates[:-1])
     cum = np.vstack([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
     x = cum[b] - cum[a]
     sxx, syy = float(np.sum(x * x)), float(np.sum(y * y))
@@ -136,12 +139,15 @@ def agreement(t: Array, rot: Array, gyro: Array) -> tuple[float, float] | None:
     return beta, 1.0 - resid / syy
 
 
-def _agrees(fit: tuple[float, float] | None) -> bool:
+def agrees(fit: tuple[float, float] | None) -> bool:
+    """Whether an ``agreement`` fit says the attitude follows the gyro (test 1's bounds)."""
     return fit is not None and 1 / RATIO_TOLERANCE <= fit[0] <= RATIO_TOLERANCE \
         and fit[1] >= MIN_R2
 
 
-def _rotations(euler: Array, make) -> Array:
+def rotations(euler: Array, make) -> Array:
+    """(N, 3, 3) rotations ``make`` builds from the finite rows of euler (N, 3); NaN
+    elsewhere."""
     ok = np.isfinite(euler).all(axis=1)
     out = np.full((euler.shape[0], 3, 3), np.nan)
     if ok.any():
@@ -151,7 +157,7 @@ def _rotations(euler: Array, make) -> Array:
 
 def _declared_rotations(euler: Array, conv: Conventions) -> Array:
     """(N, 3, 3) the attitude as read, back in the declared frame (NaN rows kept)."""
-    rot = _rotations(euler, rotation_from_euler)
+    rot = rotations(euler, rotation_from_euler)
     return WORLD_SWAP @ rot @ BODY_SWAP if conv.frame == "NED/FRD" else rot
 
 
@@ -159,11 +165,14 @@ def _in_pinquads_frame(rot: Array, conv: Conventions) -> Array:
     return WORLD_SWAP @ rot @ BODY_SWAP if conv.frame == "NED/FRD" else rot
 
 
-def _alternatives(euler: Array, conv: Conventions) -> dict[str, tuple[Array, str]]:
-    """Undeclared readings of the attitude columns other than the one read: words ->
-    (rotations (N, 3, 3) in pinquad's frames, the sidecar declaration that reads them so).
-    The columns are rebuilt from the attitude as read with the reader's own conversion
-    (``pinquad.io.declared``), then read each other way."""
+def attitude_readings(euler: Array, conv: Conventions, every: bool = False
+                      ) -> dict[str, tuple[Array, str]]:
+    """Readings of the attitude columns other than the one read: words -> (rotations
+    (N, 3, 3) in pinquad's frames, the sidecar declaration that reads them so). The
+    columns are rebuilt from the attitude as read with the reader's own conversion
+    (``pinquad.io.declared``), then read each other way: every undeclared reading, or
+    with ``every`` also those that contradict the sidecar's quaternion or Euler keys (the
+    frame stays as declared)."""
     rot = _declared_rotations(euler, conv)
     ok = np.isfinite(rot).all(axis=(1, 2))
     out: dict[str, tuple[Array, str]] = {}
@@ -172,8 +181,9 @@ def _alternatives(euler: Array, conv: Conventions) -> dict[str, tuple[Array, str
     if conv.attitude_columns == "quat":
         order0, turn0 = conv.quaternion_order or "wxyz", conv.quaternion_rotation or "body_to_world"
         cols = quat_of_rotation(rot[ok], order0, turn0)
-        orders = QUATERNION_ORDERS if conv.quaternion_order is None else (order0,)
-        turns = QUATERNION_ROTATIONS if conv.quaternion_rotation is None else (turn0,)
+        orders = QUATERNION_ORDERS if every or conv.quaternion_order is None else (order0,)
+        turns = QUATERNION_ROTATIONS if every or conv.quaternion_rotation is None \
+            else (turn0,)
         for order, turn in itertools.product(orders, turns):
             if (order, turn) == (order0, turn0):
                 continue
@@ -186,11 +196,14 @@ def _alternatives(euler: Array, conv: Conventions) -> dict[str, tuple[Array, str
             out[words] = (new, json.dumps({"quaternion": {"order": order, "rotation": turn}}))
     else:
         order0, unit0 = conv.euler_order or "ZYX", conv.euler_unit or "rad"
-        cols = euler_of_rotation(rot[ok], order0, unit0) if conv.frame == "NED/FRD" or \
-            conv.euler_order is not None or conv.euler_unit is not None else euler[ok]
-        orders = [o for o in EULER_ORDERS if o.isupper()] if conv.euler_order is None \
-            else [order0]
-        units = EULER_UNITS if conv.euler_unit is None else (unit0,)
+        if conv.frame != "NED/FRD" and order0 == "ZYX":
+            # the reader scaled a unit alone exactly (unwrapped): undo it the same way
+            cols = euler[ok] * (180.0 / math.pi if unit0 == "deg" else 1.0)
+        else:
+            cols = euler_of_rotation(rot[ok], order0, unit0)
+        orders = [o for o in EULER_ORDERS if o.isupper()] \
+            if every or conv.euler_order is None else [order0]
+        units = EULER_UNITS if every or conv.euler_unit is None else (unit0,)
         for order, unit in itertools.product(orders, units):
             if (order, unit) == (order0, unit0):
                 continue
@@ -224,12 +237,12 @@ def check_attitude(log: FlightLog) -> Problem | None:
         return found
     if conv.attitude_columns not in ("quat", "euler"):
         return None
-    as_read = agreement(log.t, _rotations(log.euler, rotation_from_euler), log.gyro)
-    if _agrees(as_read):
+    as_read = agreement(log.t, rotations(log.euler, rotation_from_euler), log.gyro)
+    if agrees(as_read):
         return None
-    alternatives = _alternatives(log.euler, conv)
+    alternatives = attitude_readings(log.euler, conv)
     fits = {name: agreement(log.t, rot, log.gyro) for name, (rot, _) in alternatives.items()}
-    good = [name for name, fit in fits.items() if _agrees(fit)]
+    good = [name for name, fit in fits.items() if agrees(fit)]
     if not good:
         return None  # no declarable alternative: the units and sign checks speak
     best = max(good, key=lambda name: fits[name][1])  # type: ignore[index]
@@ -243,8 +256,8 @@ def check_attitude(log: FlightLog) -> Problem | None:
            f"{WINDOW_S} s windows {fit}; with {best} it turns {beta:.3g} times "
            f"as far (R^2 {r2:.2f}): declare {alternatives[best][1]} in the sidecar")
     if conv.attitude_columns == "quat" and "inverse" in best:
-        flipped = agreement(log.t, _rotations(log.euler, rotation_from_euler), -log.gyro)
-        if _agrees(flipped):
+        flipped = agreement(log.t, rotations(log.euler, rotation_from_euler), -log.gyro)
+        if agrees(flipped):
             msg += (f"; the gyro negated fits as well (R^2 {flipped[1]:.2f}: the flight turns "
                     "too little about the vertical to tell them apart), so either may be the "
                     "cause")
@@ -262,7 +275,7 @@ def check_gravity_direction(log: FlightLog) -> Problem | None:
         return None
     scale = float(np.median(np.linalg.norm(log.accel[acc_ok], axis=1)))
     body = float(np.median(log.accel[acc_ok, 2]))
-    euler = _filled(log.euler, log.t)
+    euler = filled(log.euler, log.t)
     world = None
     if euler is not None:
         rot = rotation_from_euler(euler[acc_ok])
@@ -330,7 +343,8 @@ def check_rotor_speed(log: FlightLog) -> Problem | None:
 
 # ------------------------------------------------------------------ motor order
 
-def _smooth(x: Array, width: int) -> Array:
+def smooth(x: Array, width: int) -> Array:
+    """Moving average of each column of x (N, k) over ``width`` samples (same length)."""
     kernel = np.ones(width) / width
     return np.column_stack([np.convolve(x[:, i], kernel, mode="same") for i in range(x.shape[1])])
 
@@ -339,21 +353,21 @@ def torque_correlations(log: FlightLog, spec: VehicleSpec) -> dict[tuple[int, ..
     """For every numbering p of the rpm columns (column i is motor p[i]), the mean
     correlation of the rotor model's roll and pitch torques with the gyro's derivative
     (module docstring, test 4)."""
-    gyro = _filled(log.gyro, log.t)
+    gyro = filled(log.gyro, log.t)
     n = log.rpm.shape[1]  # type: ignore[union-attr]
     if gyro is None or n > MAX_ROTORS or spec.positions.shape[0] != n \
             or log.t[-1] - log.t[0] < 20 * SMOOTH_S:
         return {}
     grid = np.arange(log.t[0], log.t[-1], GRID_S)
     width = max(int(round(SMOOTH_S / GRID_S)), 1)
-    rate = _smooth(np.column_stack([np.interp(grid, log.t, gyro[:, i]) for i in range(3)]), width)
+    rate = smooth(np.column_stack([np.interp(grid, log.t, gyro[:, i]) for i in range(3)]), width)
     accel = np.gradient(rate, GRID_S, axis=0)[width:-width, :2]
     omega = log.rpm * 2.0 * math.pi / 60.0  # type: ignore[operator]
-    thrust = _smooth(np.column_stack([np.interp(grid, log.t, spec.actuators.kf * omega[:, i] ** 2)
+    thrust = smooth(np.column_stack([np.interp(grid, log.t, spec.actuators.kf * omega[:, i] ** 2)
                                       for i in range(n)]), width)[width:-width]
     arms = np.column_stack([spec.positions[:, 1], -spec.positions[:, 0]])  # (n, 2)
     wide = max(int(round(DETREND_S / GRID_S)), 1)
-    thrust, accel = thrust - _smooth(thrust, wide), accel - _smooth(accel, wide)
+    thrust, accel = thrust - smooth(thrust, wide), accel - smooth(accel, wide)
     out = {}
     for perm in itertools.permutations(range(1, n + 1)):
         torque = thrust @ arms[np.asarray(perm) - 1]
@@ -380,24 +394,3 @@ def check_motor_order(log: FlightLog) -> Problem | None:
             f"correlate {scores[identity]:.2f} with the gyro's angular acceleration as "
             f"numbered; numbered {list(best)} they correlate {scores[best]:.2f}: declare "
             f"\"motor_order\": {list(best)} in the sidecar (column rpm_i holds motor k_i)")
-
-
-def convention_problems(log: FlightLog) -> tuple[Problem, ...]:
-    """Every failed test of the module docstring, attitude first (the gravity test rotates
-    by the attitude)."""
-    out = []
-    attitude = check_attitude(log)
-    if attitude is not None:
-        out.append(attitude)
-    else:
-        found = check_gravity_direction(log)
-        if found is not None:
-            out.append(found)
-    found = check_rotor_speed(log)
-    if found is not None:
-        out.append(found)
-    if not out:  # the motor test leans on the gyro's frame and the rotor speeds' unit
-        found = check_motor_order(log)
-        if found is not None:
-            out.append(found)
-    return tuple(out)

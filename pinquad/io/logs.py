@@ -13,7 +13,6 @@ reading.
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import math
@@ -33,6 +32,7 @@ from pinquad.core.conventions import (
 )
 from pinquad.core.params import VEHICLES
 from pinquad.core.vehicle_file import VehicleFileError, is_vehicle_file, load_vehicle
+from pinquad.io.csv_table import duplicated_names, read_csv_table
 from pinquad.io.declared import (
     CALIBRATION_KEYS,
     WRENCH_FROM_RPM,
@@ -74,7 +74,9 @@ class LogMeta:
     ``identification.budget``); wrench_from_rpm: the thrust and torque columns were
     computed from the rotor speeds (pinquad's export of a measured flight; sidecar
     ``"wrench": "from rpm"``): the log is identified from its rotor speeds, as the
-    flight it was exported from.
+    flight it was exported from. payload_mass [kg] >= 0: a load the vehicle carried
+    that its vehicle file does not hold (sidecar ``payload_mass``), added to the file's
+    reference mass (``identification.reference``).
     """
 
     vehicle: str = "paper"
@@ -90,6 +92,7 @@ class LogMeta:
     wrench_from_rpm: bool = False
     t_origin: float = 0.0
     conventions: Conventions = field(default_factory=Conventions)
+    payload_mass: float = 0.0
 
 
 ACTUATION = ("held", "sampled")
@@ -247,6 +250,7 @@ def sidecar(meta: LogMeta) -> dict:
         "mass_guess": meta.mass_guess,
         "inertia_guess": None if meta.inertia_guess is None else np.asarray(meta.inertia_guess).tolist(),
         "gravity": meta.gravity,
+        **({"payload_mass": meta.payload_mass} if meta.payload_mass else {}),
         "actuation": meta.actuation,
         **({} if meta.calibration is None else {"calibration": dict(zip(
             CALIBRATION_KEYS, meta.calibration, strict=True))}),
@@ -278,13 +282,15 @@ def write_log(log: FlightLog, path: str | Path) -> Path:
 
 # ----------------------------------------------------------------------------- reading
 
-def _read_table(path: Path) -> dict[str, Array]:
+def _read_table(path: Path) -> tuple[dict[str, Array], tuple[str, ...]]:
+    """The file's columns and notes on how they were read (a CSV's dialect)."""
     suffix = path.suffix.lower()
     if suffix == ".parquet":
         try:
             table = pq.read_table(path)
         except Exception as exc:  # pyarrow raises several types for corrupt files
             raise LogFormatError(f"{path}: not a readable Parquet file ({exc})") from None
+        duplicated_names(path, table.column_names)
         out = {}
         t_type = table.schema.field("t").type if "t" in table.column_names else None
         bits = t_type.bit_width if t_type is not None and pa.types.is_floating(t_type) else 64
@@ -296,51 +302,12 @@ def _read_table(path: Path) -> dict[str, Array]:
                     f"{path}: column {name!r} is not numeric; expected numbers") from None
         if "t" in out and (problem := stored_resolution_problem(out["t"], bits)):
             raise LogFormatError(f"{path}: column 't' {problem}")
-        return out
+        return out, ()
     if suffix == ".csv":
-        return _read_csv(path)
+        table = read_csv_table(path)
+        return table.columns, table.notes
     raise LogFormatError(f"{path}: unknown log format {suffix!r}; expected .csv, .parquet or a "
                          "Crazyflie micro-SD binary log")
-
-
-def _read_csv(path: Path) -> dict[str, Array]:
-    """The columns of a CSV file (the standard library's reader: quoted names and cells, as
-    spreadsheets and pyarrow write them, read as their text)."""
-    # utf-8-sig: a spreadsheet's byte-order mark is not part of the first column's name
-    text = path.read_text(encoding="utf-8-sig", errors="replace")
-    try:
-        rows = [(n, row) for n, row in _numbered_rows(text) if any(c.strip() for c in row)]
-    except csv.Error as exc:
-        raise LogFormatError(f"{path}: not a CSV table ({exc}); expected comma-separated "
-                             "numbers under a header row of column names") from None
-    if not rows:
-        raise LogFormatError(f"{path}: empty file; expected a header row with column names")
-    header = [h.strip() for h in rows[0][1]]
-    if len(rows) < 2:
-        raise LogFormatError(f"{path}: no data rows after the header")
-    data = np.full((len(rows) - 1, len(header)), np.nan)
-    for r, (line, cells) in enumerate(rows[1:]):
-        if len(cells) != len(header):
-            raise LogFormatError(
-                f"{path}: line {line} has {len(cells)} fields; expected {len(header)} "
-                f"(one per header column)")
-        for c, cell in enumerate(cells):
-            cell = cell.strip()
-            if cell == "" or cell.lower() == "nan":
-                continue
-            try:
-                data[r, c] = float(cell)
-            except ValueError:
-                raise LogFormatError(
-                    f"{path}: line {line}, column {header[c]!r}: {cell!r} is not a number"
-                ) from None
-    return {name: data[:, i] for i, name in enumerate(header)}
-
-
-def _numbered_rows(text: str) -> list[tuple[int, list[str]]]:
-    """(line number of its end, cells) of every CSV row of ``text``."""
-    reader = csv.reader(io.StringIO(text))
-    return [(reader.line_num, row) for row in reader]
 
 
 def _cols3(cols: dict[str, Array], prefix: str, n: int) -> Array:
@@ -441,6 +408,10 @@ def _read_sidecar(path: Path) -> LogMeta:
             f"{side}: key 'vehicle' is {vehicle!r}; expected one of {', '.join(VEHICLES)}, "
             "or give 'mass_guess' and 'inertia_guess' for another vehicle")
     gravity = _sidecar_number(side, raw, "gravity")
+    payload = _sidecar_number(side, raw, "payload_mass")
+    if payload is not None and payload < 0:
+        raise LogFormatError(f"{side}: key 'payload_mass' is {payload!r}; expected the mass "
+                             "[kg] of a load the vehicle carried, 0 or more")
     notes = () if vehicle in VEHICLES or is_vehicle_file(vehicle) else (
         f"vehicle {vehicle!r} is not one pinquad knows ({', '.join(VEHICLES)}): EM starts "
         "from the sidecar's guesses and the thrust is not compared with a nominal mass",)
@@ -467,6 +438,7 @@ def _read_sidecar(path: Path) -> LogMeta:
         calibration=calibration(side, raw.get("calibration")),
         wrench_from_rpm=wrench_from_rpm(side, raw.get("wrench")),
         conventions=read_conventions(side, raw),
+        payload_mass=payload or 0.0,
     )
 
 
@@ -477,8 +449,9 @@ def read_log(path: str | Path) -> FlightLog:
         raise LogFormatError(f"{path}: no such file")
     if path.is_dir():
         raise LogFormatError(f"{path}: is a directory; expected a log file")
-    cols = _read_table(path)
+    cols, read_notes = _read_table(path)
     meta = _read_sidecar(path)
+    meta = replace(meta, notes=(*meta.notes, *read_notes))
     if "t" not in cols:
         raise LogFormatError(f"{path}: missing required column 't' (time in seconds)")
     _check_groups(path, cols)

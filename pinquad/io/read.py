@@ -7,8 +7,10 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from pinquad.core.vehicle_file import SHIPPED, is_vehicle_file
-from pinquad.io import ddd_csv, fixed_frequency, logs, sdlog, ulog
+from pinquad.io import ddd_csv, fixed_frequency, imu_log, logs, sdlog, ulog
 from pinquad.io.command_log import CommandLog
 from pinquad.io.logs import FlightLog, LogFormatError, vehicle_file_named
 
@@ -25,7 +27,14 @@ def read_log(path: str | Path) -> FlightLog:
     if path.is_dir():
         raise LogFormatError(f"{path}: is a directory; expected a log file")
     if sdlog.is_sdlog(path):
-        return with_sidecar_vehicle(sdlog.read_sdlog(path))
+        log = sdlog.read_sdlog(path)
+        if log.rpm is None and not (np.isfinite(log.position).any()
+                                    or np.isfinite(log.velocity).any()):
+            raise LogFormatError(f"{path}: onboard IMU and motor commands only (no pose, "
+                                 "velocity or rotor speed): identify it with python -m "
+                                 "pinquad.offline --log FILE --mass KG --vehicle FILE "
+                                 "(known-mass mode, docs/imu_only.md)")
+        return with_sidecar_vehicle(log)
     if is_command_log(path):
         read_command_log(path)  # its own errors first (e.g. no armed flight segment)
         raise LogFormatError(f"{path}: a PX4 log: its actuation is motor commands, not thrust "
@@ -44,14 +53,17 @@ def is_command_log(path: Path) -> bool:
 
 
 def read_command_log(path: str | Path) -> CommandLog:
-    """The flight in a PX4 log (ULog or data-driven-dynamics CSV), motor commands as its
-    actuation. Raises LogFormatError naming the file and what was expected."""
+    """The flight in a PX4 log (ULog or data-driven-dynamics CSV) or a Crazyflie micro-SD
+    log read as IMU-only (``pinquad.io.imu_log``), motor commands as its actuation.
+    Raises LogFormatError naming the file and what was expected."""
     path = Path(path)
     if not path.is_file():
-        raise LogFormatError(f"{path}: no such file; expected a PX4 ULog (.ulg) or a "
-                             "data-driven-dynamics CSV")
+        raise LogFormatError(f"{path}: no such file; expected a PX4 ULog (.ulg), a "
+                             "data-driven-dynamics CSV or a Crazyflie micro-SD log")
     if ulog.is_ulog(path):
         return ulog.read_ulog(path)
+    if sdlog.is_sdlog(path):
+        return imu_log.read_imu_log(path)
     if path.suffix.lower() == ".csv":
         return ddd_csv.read_ddd_csv(path)  # names the columns it lacks
     raise LogFormatError(f"{path}: neither a ULog (magic bytes 'ULog') nor a CSV with the "

@@ -22,8 +22,11 @@ Checks, in order (the first failure is reported):
    (e.g. gyro beyond 1e4 rad/s): a located error (column, rows, value);
    then the conventions the sidecar does not declare (``pinquad.io.conventions_check``:
    attitude vs gyro under each quaternion or Euler reading, gravity along -z, rotor
-   speeds vs a hover's thrust, motor order vs angular acceleration); when one fails,
-   it is reported and the checks below are not run;
+   speeds vs a hover's thrust, motor order vs angular acceleration) and what the
+   sidecar and vehicle file declare (``pinquad.io.declaration_check``: each declared
+   convention against the same physics, a positive model-free mass, the vehicle file's
+   reference mass and torque-axis signs); when one fails, it is reported and the checks
+   below are not run;
 5. gyro vs attitude: over windows of ``ATTITUDE_WINDOW_S`` (or ``ATTITUDE_WINDOW_RAD``),
    the body rotation vector of R_a^T R_b from the pose against the integrated gyro,
    fitted as rotvec = beta * integral(omega dt); 1 / beta within [1 / ``RATIO_TOLERANCE``,
@@ -56,8 +59,10 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.params import VEHICLES
-from pinquad.io.conventions_check import convention_problems
+from pinquad.io.actuation_check import actuation_problems
+from pinquad.io.declaration_check import convention_problems
 from pinquad.io.logs import FlightLog, LogFormatError
+from pinquad.io.units_check import check_gyro_axes, unit_problems
 
 Array = NDArray[np.float64]
 
@@ -442,15 +447,24 @@ def findings(log: FlightLog) -> tuple[Finding, ...]:
     impossible = _check_impossible(log)
     if impossible is not None:
         return (*out, impossible)
+    # a dead, stuck or falsely declared rotor channel makes the rotor tests below misread
+    channels = actuation_problems(log)
+    if channels:
+        return (*out, *(Finding(*found) for found in channels))
     # an undeclared convention read wrong makes the unit checks below meaningless
     conventions = convention_problems(log)
     if conventions:
         return (*out, *(Finding(*found) for found in conventions))
+    axis = check_gyro_axes(log)  # one gyro column wrong: named before the whole sensor
+    if axis is not None:
+        out.append(Finding(*axis))
     for check in (_check_gyro, _check_position_velocity, _check_kinematics,
                   _check_accelerometer, _check_thrust):
         found = check(log)
         if found is not None:
             out.append(found)
+    # single columns the whole-sensor checks above cannot see (pinquad.io.units_check)
+    out.extend(Finding(*found) for found in unit_problems(log, implied_mass(log)))
     return tuple(out)
 
 

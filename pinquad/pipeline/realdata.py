@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.discovery_report import measured_effects
+from pinquad.experiments.headline import error_failures
 from pinquad.identification.identify import Identification
 from pinquad.identification.reference import vehicle_reference
 from pinquad.identification.verdict import (
@@ -81,7 +82,8 @@ def run_table_job(job: TableJob) -> FlightRow | str:
     assert run.theta is not None and run.posterior is not None  # identify_real keeps them
     effects = None if job.discover is None else measured_effects(real.obs, run.theta,
                                                                  run.posterior, job.discover)
-    evidence = replace(real_evidence(run), reference=vehicle_reference(job.vehicle))
+    evidence = replace(real_evidence(run), reference=vehicle_reference(job.vehicle),
+                       error_failures=error_failures(run))
     verdict = judge(run.mass, run.inertia, run.stderr, evidence, vehicle_range(job.vehicle))
     # the row goes back from the worker without the smoothed posterior and observations
     # (tens of MB per flight; the table reads only the estimates and their errors)

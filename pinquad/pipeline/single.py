@@ -80,7 +80,9 @@ class PipelineOptions:
     calibration of discovery's selection against shadow flights (``NullSettings``;
     replicates 0: off); discover: look for unmodelled effects; vehicle: a shipped vehicle
     name or a ``.toml`` vehicle file (relative paths from the working directory) that
-    overrides the log's sidecar, None: the log's own.
+    overrides the log's sidecar, None: the log's own; payload_mass [kg]: a load the
+    vehicle carried that its file does not hold, overriding the sidecar's
+    ``payload_mass`` (None: the log's own), added to the file's reference mass.
     """
 
     identification: LogOptions = field(
@@ -88,13 +90,18 @@ class PipelineOptions:
     null: NullSettings = field(default_factory=NullSettings)
     discover: bool = True
     vehicle: str | None = None
+    payload_mass: float | None = None
 
 
-def read(path: str | Path, vehicle: str | None = None) -> FlightLog:
-    """The flight recorded in ``path``, its vehicle set to ``vehicle`` when given. Raises
+def read(path: str | Path, vehicle: str | None = None,
+         payload_mass: float | None = None) -> FlightLog:
+    """The flight recorded in ``path``, its vehicle set to ``vehicle`` and the payload it
+    carried to ``payload_mass`` [kg] when given. Raises
     ``pinquad.io.logs.LogFormatError`` naming the file and the column, row or byte offset
     when it is not a readable log, or the vehicle when it is not one."""
     log = read_log(path)
+    if payload_mass is not None:
+        log = replace(log, meta=replace(log.meta, payload_mass=float(payload_mass)))
     if vehicle is None:
         return log
     return with_vehicle(log, vehicle, Path.cwd(), "--vehicle")
@@ -262,5 +269,5 @@ def run_path(path: str | Path, options: PipelineOptions | None = None,
     """read -> check -> identify -> discover -> judge for the log at ``path``."""
     options = options or PipelineOptions()
     started = time.perf_counter()
-    log = read(path, options.vehicle)
+    log = read(path, options.vehicle, options.payload_mass)
     return run(log, options, executor, str(Path(path)), started)

@@ -233,6 +233,32 @@ def detect_actuation_faults(log: FlightLog, flight_rpm: float | None = None,
         notes=tuple(notes))
 
 
+def no_actuation_message(source: str, report: ActuationFaultReport, has_pwm: bool,
+                         faults: str) -> str:
+    """Why no grid step of a log kept a usable rotor-speed input, naming the channels
+    and their flagged rows, and what the command line can do about it."""
+    n = report.motor_mask.shape[0]
+    parts = []
+    for i in range(report.motor_mask.shape[1]):
+        rows = np.flatnonzero(report.motor_mask[:, i])
+        if rows.size or report.unreliable[i]:
+            whole = " (more than 5 % of the airborne rows: the whole channel is distrusted)" \
+                if report.unreliable[i] else ""
+            where = f"rows {rows[0] + 1}-{rows[-1] + 1}" if rows.size else "no row"
+            parts.append(f"rpm_{i + 1}: {rows.size} implausible reading(s), {where}{whole}")
+    if has_pwm and faults == "exclude":
+        advice = "rebuild them from the log's PWM commands: --faults repair (or repair-all)"
+    elif has_pwm:
+        advice = ("the PWM map could not rebuild them: try --faults repair-all, or cut the "
+                  "log to the rows where every channel reads")
+    else:
+        advice = ("the log carries no PWM commands to rebuild them from: cut the log to the "
+                  "rows where every channel reads, or give the micro-SD log with its PWM")
+    return (f"{source}: no usable actuation sample in the whole log: "
+            f"{'; '.join(parts) or 'every row lacks a rotor speed'} (of {n} rows); expected "
+            f"finite, plausible rotor speeds in every channel; {advice}")
+
+
 # ----------------------------------------------------------------------------- repair
 
 @dataclass(frozen=True)

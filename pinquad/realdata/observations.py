@@ -58,6 +58,7 @@ from pinquad.realdata.faults import (
     ActuationFaultReport,
     detect_actuation_faults,
     diagonal_partners,
+    no_actuation_message,
     reconstruct_rpm,
 )
 from pinquad.realdata.input_holes import input_holes
@@ -103,6 +104,10 @@ assert CRAZYFLIE_FAULTS.flight_rpm is not None and CRAZYFLIE_FAULTS.max_rpm is n
 
 
 # ----------------------------------------------------------------------------- options
+
+FAULT_MODES = ("repair", "repair-all", "exclude")
+"""How implausible rotor readings are handled (``RealDataOptions.faults``)."""
+
 
 @dataclass(frozen=True)
 class RealDataOptions:
@@ -157,7 +162,7 @@ class RealDataOptions:
         bad = [c for c in self.channels if c not in ("pos", "vel", "euler", "gyro")]
         if bad or not self.channels:
             raise ValueError(f"channels {self.channels}: expected some of pos, vel, euler, gyro")
-        if self.faults not in ("repair", "repair-all", "exclude"):
+        if self.faults not in FAULT_MODES:
             raise ValueError(f"faults {self.faults!r}: expected repair, repair-all or exclude")
         if not self.dt > 0:
             raise ValueError(f"dt must be positive; got {self.dt}")
@@ -526,10 +531,8 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     resets = (nan_in & flagged) | singular.touching() | holes.gap
     notes.extend(n for n in (holes.note(dt),) if n)
     if nan_in.all():
-        raise ValueError(f"{source}: no usable actuation sample in the whole log "
-                         f"({report.n_flagged} of {log.n} rotor readings implausible); "
-                         "expected finite, plausible rpm (rebuild them from the PWM commands: "
-                         "RealDataOptions(faults='repair'))")
+        raise ValueError(no_actuation_message(source, report, raw.pwm is not None,
+                                              options.faults))
     inputs = np.column_stack([interp_nan(grid, inputs[:, c]) for c in range(4)])
 
     # --- measurements

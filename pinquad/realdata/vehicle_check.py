@@ -82,7 +82,8 @@ def over_max_thrust(log: FlightLog, max_thrust: float, kf: float, where: object,
 
 
 def measured_observations(log: FlightLog, sensor: str | None = None,
-                          kf: ThrustCoefficient | None = None) -> RealObservations:
+                          kf: ThrustCoefficient | None = None, faults: str | None = None
+                          ) -> RealObservations:
     """The EM observations of a measured rotor-speed log on the 100 Hz grid
     (``realdata.observations.build_observations``), its rotor speeds read with its
     vehicle's mixer and kf (:func:`measured_vehicle`; ``kf`` given: that thrust
@@ -91,7 +92,8 @@ def measured_observations(log: FlightLog, sensor: str | None = None,
     the log has; a log without any position sample, a velocity-only export, is observed
     through its velocity, attitude and rates: the smoother carries the unobserved
     position as the velocity's integral, its variance growing but finite, and the
-    translational dynamics rest on the velocity). Raises LogFormatError for a log
+    translational dynamics rest on the velocity); faults: how implausible readings are
+    handled (``RealDataOptions.faults``; None: the vehicle's default). Raises LogFormatError for a log
     without rotor speeds, ValueError when the vehicle contradicts the log or nothing
     usable remains."""
     if log.rpm is None:
@@ -100,7 +102,8 @@ def measured_observations(log: FlightLog, sensor: str | None = None,
     options, vehicle_kf = measured_vehicle(log)
     kf = vehicle_kf if kf is None else kf
     raw = raw_flight(log)
-    options = options_for_sensor(sensor, options)
+    options = options_for_sensor(sensor, options if faults is None
+                                 else replace(options, faults=faults))
     pose = raw.pose.position if raw.pose is not None else log.position
     if not (sensor is None and not np.isfinite(pose).any()
             and np.isfinite(log.velocity).any()):

@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
 from pinquad.core.actuator_curve import CurveVehicle
+from pinquad.identification.excitation import Excitation
 from pinquad.identification.known_mass import Estimate, KnownMassResult
 from pinquad.identification.known_mass_em import KnownMassEM
 from pinquad.identification.verdict import TRUSTED
@@ -98,10 +100,50 @@ def _estimates_json(estimates: tuple[Estimate, ...]) -> list[dict]:
             for e in estimates]
 
 
+SHARED = ("thrust c_1", "thrust c_2", "time constant", "I_xx", "I_yy", "I_zz")
+"""The vehicle's estimates a joint fit of several logs shares (the curve's thrust and
+slope at the mean command are left out: each fit's mean command is its own)."""
+
+
+def joint_comparison(names: list[str], separate: list[KnownMassResult | str],
+                     joint: KnownMassResult) -> str:
+    """Each shared estimate of every log's own fit beside the joint fit's: value +- total
+    se (verdict), and the largest distance of a log's value from the joint one in
+    combined total errors (sqrt(se_log^2 + se_joint^2); the joint fit uses the same rows,
+    so this understates the distance: a value over 2 is a log that disagrees). A log
+without a fit of its own (``separate`` holds why, a string) shows '-'."""
+    lines = ["joint fit against each log's own (value +- total se, verdict; max |log - "
+             "joint| in combined total errors):"]
+    for name in SHARED:
+        cells, worst = [], 0.0
+        j = next((e for e in joint.estimates if e.name == name), None)
+        for log_name, res in zip(names, separate, strict=True):
+            e = None if isinstance(res, str) else next(
+                (e for e in res.estimates if e.name == name), None)
+            if e is None or not math.isfinite(e.value):
+                cells.append(f"{Path(log_name).name} -")
+                continue
+            cells.append(f"{Path(log_name).name} {_num(e.value)} +- {_num(e.stderr)} ({e.verdict})")
+            if j is not None and math.isfinite(j.value):
+                worst = max(worst, abs(e.value - j.value) / math.hypot(e.stderr, j.stderr))
+        if j is None:
+            continue
+        lines.append(f"  {name}: " + "; ".join(cells) + f"; joint {_num(j.value)} +- "
+                     f"{_num(j.stderr)} ({j.verdict}); max {worst:.1f}")
+    return "\n".join(lines)
+
+
 def known_mass_report(result: KnownMassResult, log_path: str, vehicle: CurveVehicle,
-                      seconds: float, em: KnownMassEM | None = None) -> dict:
+                      seconds: float, em: KnownMassEM | None = None,
+                      separate: list[KnownMassResult | str] | None = None,
+                      segments: list[list[tuple[float, float]]] | None = None,
+                      excitation: list[Excitation | None] | None = None) -> dict:
     """report.json (the house's keys, the headline the regression's; the known-mass
-    specifics under ``known_mass``, the EM route's under ``known_mass.em``)."""
+    specifics under ``known_mass``, the EM route's under ``known_mass.em``; with several
+    logs the headline is the joint fit and each log's own under ``known_mass.separate``;
+    ``known_mass.segments``: the fitted rows per log (lo, hi) [s, the log's clock];
+    ``known_mass.excitation``: per log its flight segments and useful excitation ranges
+    per axis, or None)."""
     inertia = np.array([result.get(n).value for n in INERTIA])
     inertia_se = [result.get(n).stderr for n in INERTIA]
     em_block = ({"iterations": 0, "loglik": [], "converged": None,
@@ -119,6 +161,17 @@ def known_mass_report(result: KnownMassResult, log_path: str, vehicle: CurveVehi
                   "torque_share": list(result.naive_share)},
         "notes": list(result.notes), "seconds": seconds,
     }
+    if separate is not None:
+        known["separate"] = [{"not_fitted": r} if isinstance(r, str) else {
+            "estimates": _estimates_json(r.estimates), "vertical_force_share": r.force_share}
+            for r in separate]
+    if segments is not None:
+        known["segments"] = [[list(s) for s in log] for log in segments]
+    if excitation is not None:
+        known["excitation"] = [None if e is None else {
+            "flight_segments": [list(t) for t in e.segment_times],
+            "ranges": {k: [list(r) for r in v] for k, v in e.ranges.items()},
+            "window_s": e.window, "band_hz": list(e.band)} for e in excitation]
     if em is not None:
         known["em"] = {"estimates": _estimates_json(em.estimates), "mass_hat": em.mass_hat,
                        "inertia_hat_diag": em.inertia_hat.tolist(),
