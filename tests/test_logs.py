@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -30,6 +33,18 @@ def test_round_trip(short_log, tmp_path, suffix):
     _same(short_log, back)
     assert back.meta.vehicle == short_log.meta.vehicle
     assert (tmp_path / f"flight{suffix}.json").exists()
+
+
+def test_a_log_that_names_no_vehicle_is_written_naming_none(short_log, tmp_path):
+    """A log whose vehicle is not named (a Neural-Swarm flight, a sidecar without the
+    key) is written without a ``vehicle`` key, and reads back naming none: the default
+    written out would claim the paper's vehicle and judge the flight against its range."""
+    unnamed = replace(short_log, meta=replace(short_log.meta, vehicle_named=False))
+    path = write_log(unnamed, tmp_path / "flight.csv")
+    assert "vehicle" not in json.loads((tmp_path / "flight.csv.json").read_text())
+    assert read_log(path).meta.vehicle_named is False
+    named = read_log(write_log(short_log, tmp_path / "named.csv"))
+    assert named.meta.vehicle_named is True and named.meta.vehicle == short_log.meta.vehicle
 
 
 def _write_csv(path, header, rows):

@@ -213,6 +213,9 @@ def test_ulog_round_trip_equals_csv(px4_flight):
     for name, value in truth.items():
         est = a.get(name)
         assert abs(est.value - value) < 3.0 * est.stderr, (name, est.value, value, est.stderr)
+    # the vehicle file's yaw ratio is known to 5 % (yaw_ratio_se): 5 % of I_zz, in kg m^2
+    izz = a.get("I_zz")
+    assert dict(izz.parts)["yaw_torque_coefficient"] == pytest.approx(0.05 * izz.value, rel=1e-12)
 
 
 def test_ulog_frames_are_the_flights(px4_flight):
@@ -330,6 +333,43 @@ def test_ulog_nan_motor_output_named(tmp_path):
         read_command_log(tmp_path / "nan.ulg")
 
 
+def _pwm_ulog(path: Path, params: dict[str, int]) -> Path:
+    """A 3 s armed ULog at rest whose four motor outputs hold 1260, 1420, 1580, 1740 us
+    (exact in float32), with the PWM parameters ``params``."""
+    n = 300
+    ts = (T0_US + 10_000 * np.arange(n, dtype=float))[:, None]
+    pwm = np.tile([1260.0, 1420.0, 1580.0, 1740.0], (n, 1))
+    write_ulog(path, {
+        "vehicle_status": ([("uint8_t", "arming_state", 1)], np.array([[T0_US, 2.0]])),
+        "vehicle_attitude": ([("float", "q", 4)], np.hstack([ts, np.tile([1.0, 0, 0, 0], (n, 1))])),
+        "vehicle_angular_velocity": ([("float", "xyz", 3)], np.hstack([ts, np.zeros((n, 3))])),
+        "vehicle_acceleration": ([("float", "xyz", 3)],
+                                 np.hstack([ts, np.tile([0.0, 0.0, -9.81], (n, 1))])),
+        "vehicle_local_position": ([("float", "vx", 1), ("float", "vy", 1), ("float", "vz", 1)],
+                                   np.hstack([ts, np.zeros((n, 3))])),
+        "actuator_outputs": ([("float", "output", 4)], np.hstack([ts, pwm])),
+    }, params)
+    return path
+
+
+def test_ulog_pwm_range_is_the_logs_own(tmp_path):
+    """Motor outputs read as PWM map through the log's own range, not the 1000-2000 us
+    default: with PWM_MAIN_MIN/MAX 1100/1900 (and the auxiliary outputs' 1000/2000 beside
+    them, as a real log holds them) 1260 us is (1260 - 1100) / 800 = 0.2, and 1420, 1580,
+    1740 us are 0.4, 0.6, 0.8; an older log with only PWM_MIN/MAX 1075/1950 (the values
+    of the shared PX4 bench log) maps 1260 us to 185 / 875 = 0.2114."""
+    main = read_command_log(_pwm_ulog(tmp_path / "main.ulg", {
+        "PWM_MAIN_MIN": 1100, "PWM_MAIN_MAX": 1900, "PWM_AUX_MIN": 1000, "PWM_AUX_MAX": 2000}))
+    assert main.command_range == (1100.0, 1900.0)
+    np.testing.assert_allclose(main.command, np.tile([0.2, 0.4, 0.6, 0.8], (main.log.n, 1)),
+                               rtol=0, atol=1e-12)
+    assert any("1100-1900 us" in note for note in main.notes)
+    old = read_command_log(_pwm_ulog(tmp_path / "old.ulg", {
+        "PWM_MIN": 1075, "PWM_MAX": 1950, "PWM_AUX_MIN": 1000, "PWM_AUX_MAX": 2000}))
+    assert old.command_range == (1075.0, 1950.0)
+    np.testing.assert_allclose(old.command[:, 0], (1260.0 - 1075.0) / 875.0, rtol=0, atol=1e-12)
+
+
 def test_given_time_constant_is_used(px4_flight):
     """A time constant from the vehicle file replaces the profiled one in both the curve
     and the torques: on the lag-free flight, giving 0 s (what the profile finds) gives the
@@ -380,6 +420,9 @@ def test_em_route_velocity_only_rescales_a_wrong_curve(px4_flight):
         assert est.value == pytest.approx(scale.value * em.inertia_hat[a], rel=1e-12)
         # the assumed mass's 1 % is in every inertia's error bar
         assert dict(est.parts)["mass"] == pytest.approx(0.01 * est.value, rel=1e-12)
+    # the yaw ratio's 5 % (the vehicle file's yaw_ratio_se) of I_zz itself
+    izz = em.get("I_zz")
+    assert dict(izz.parts)["yaw_torque_coefficient"] == pytest.approx(0.05 * izz.value, rel=1e-12)
 
 
 def test_measured_flight_without_position_runs_on_velocity(tmp_path):

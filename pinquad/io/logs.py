@@ -243,9 +243,10 @@ def log_columns(log: FlightLog) -> dict[str, Array]:
 
 
 def sidecar(meta: LogMeta) -> dict:
-    """The JSON sidecar of a log."""
+    """The JSON sidecar of a log (``vehicle`` only when the log names one: a default
+    written out would name it on reading)."""
     return {
-        "vehicle": meta.vehicle,
+        **({"vehicle": meta.vehicle} if meta.vehicle_named else {}),
         "mass_guess": meta.mass_guess,
         "inertia_guess": None if meta.inertia_guess is None else np.asarray(meta.inertia_guess).tolist(),
         "gravity": meta.gravity,
