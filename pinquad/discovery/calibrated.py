@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.discovery.discover import Selection, refit_selection, select_effects
-from pinquad.discovery.domain import outside_domain, unexplained_residual
+from pinquad.discovery.domain import outside_domain, transition_heights, unexplained_residual
 from pinquad.discovery.null import (
     NullCalibration,
     NullSettings,
@@ -33,7 +33,6 @@ from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.identification.identify import Identification
 from pinquad.models.contact import FloorLevel
 from pinquad.models.ssm import Observations, Theta, corrected
-from pinquad.mstep.stats import transition_mask
 
 Array = NDArray[np.float64]
 
@@ -140,8 +139,7 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
         # 1e-106 m); with nothing selected the base fit itself is the answer
         return plausible if sel.selected else theta
 
-    # the height above the floor the log shows (Observations.floor), as the law takes it
-    heights = post.mean[np.flatnonzero(transition_mask(obs)), 2] - obs.floor.height
+    heights = transition_heights(obs, post.mean)
     unphysical: list[dict] = []
     try:
         while True:  # until every selected effect's fit is inside its physical domain

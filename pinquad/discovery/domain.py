@@ -36,6 +36,8 @@ from numpy.typing import NDArray
 from pinquad.core.effect_vocabulary import COEFFICIENT_NAMES
 from pinquad.discovery.library import NON_NEGATIVE, lower_bounds
 from pinquad.discovery.result import DiscoveryResult
+from pinquad.models.ssm import Observations
+from pinquad.mstep.stats import transition_mask
 
 Array = NDArray[np.float64]
 
@@ -60,6 +62,14 @@ FORCE_EFFECTS = ("drag", "ground_effect", "wind")
 """Effects on the force rows only: they rest on the mass, not on the inertia."""
 DOMAIN_SE = 2.0
 """Standard errors beyond the domain's edge that make a coefficient outside it."""
+
+
+def transition_heights(obs: Observations, mean: Array) -> Array:
+    """(K,) [m] the smoothed height above the floor the log shows, z_k - z_f
+    (``Observations.floor``), on the transitions k -> k+1 the M-step uses
+    (``transition_mask``): what ``outside_domain``'s ground-effect reach is judged on.
+    mean (N, 12): the smoothed states."""
+    return mean[np.flatnonzero(transition_mask(obs)), 2] - obs.floor.height
 
 
 def outside_domain(found: DiscoveryResult, heights: Array, ground_radius: float

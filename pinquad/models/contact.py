@@ -264,14 +264,15 @@ def detect_floor_contact(t: Array, height: Array, vertical_velocity: Array | Non
 @dataclass(frozen=True)
 class FloorLevel:
     """The floor's height in the log's frame, from which discovery's ground-effect law
-    measures the vehicle's height (``Observations.floor_height``).
+    measures the vehicle's height (``Observations.floor``).
 
-    height z_f [m, world]; source: ``resting`` (the median logged height over the rows
-    the vehicle rests on the floor), ``striking`` (a log that strikes the floor but does
-    not rest on it for ``ContactSettings.sustain``: the detector's lowest sustained
-    height, ``ContactDetection.floor_height``) or ``none`` (no contact in the log, or a
-    contact flag too brief to place the floor: z_f = 0, the origin of the log's frame,
-    taken as the floor); rows: how many rows it came from."""
+    height z_f [m, world]; source: ``flags`` (the median logged height over the rows a
+    simulator flags as resting on the floor, when they last ``ContactSettings.sustain``),
+    ``contact`` (contact found from the data, ``detect_floor_contact``: its floor level,
+    the lowest height the vehicle sustains, ``ContactDetection.floor_height``) or
+    ``none`` (no contact in the log, or contact flags too brief to place the floor:
+    z_f = 0, the origin of the log's frame, taken as the floor); rows: how many contact
+    rows it came from."""
 
     height: float
     source: str
@@ -279,12 +280,12 @@ class FloorLevel:
 
     def describe(self) -> str:
         """One line for the report: where the ground-effect law puts the floor."""
-        if self.source == "resting":
+        if self.source == "flags":
             return (f"floor at z = {self.height:+.3f} m: the median height over the "
-                    f"{self.rows} rows the vehicle rests on it")
-        if self.source == "striking":
-            return (f"floor at z = {self.height:+.3f} m: the lowest sustained height of a "
-                    f"log that strikes it ({self.rows} contact rows) and never rests on it")
+                    f"{self.rows} rows the log flags as resting on it")
+        if self.source == "contact":
+            return (f"floor at z = {self.height:+.3f} m: the lowest height the vehicle "
+                    f"sustains, in a log whose {self.rows} contact rows show the floor")
         if self.rows:
             return (f"floor at z = 0 (the log's frame origin): its {self.rows} contact rows "
                     "are too brief to place the floor")
@@ -296,25 +297,30 @@ NO_FLOOR = FloorLevel(0.0, "none")
 """A log without floor contact: the ground-effect law takes the floor at z = 0."""
 
 
-def floor_level(height: Array, resting: BoolArray | None, min_rows: int,
+def floor_level(height: Array, flags: BoolArray | None, min_rows: int,
                 contact: BoolArray | None = None, lowest: float = float("nan")) -> FloorLevel:
     """Where the log shows the floor (``FloorLevel``). height (N,) [m] world z (NaN: not
-    sampled); resting (N,) bool: rows resting on the floor (a simulator's contact flags,
-    or ``ContactDetection.resting``), or None; min_rows: the fewest sampled resting rows
-    whose median places the floor (``ContactSettings.sustain`` seconds of rows: a single
-    position sample is off by its noise, millimetres, which moves a ground-effect gain
-    measured a few centimetres up by several per cent); contact (N,) bool: every contact
-    row (resting or striking), or None; lowest [m]: the detector's lowest sustained
-    height, taken when the log strikes the floor but does not rest on it that long.
+    sampled); flags (N,) bool or None: a simulator's contact flags (the rows its vehicle
+    rests on the floor); min_rows: the fewest sampled flagged rows whose median places
+    the floor (``ContactSettings.sustain`` seconds of rows: a single position sample is
+    off by its noise, millimetres, which moves a ground-effect gain measured a few
+    centimetres up by several per cent); contact (N,) bool or None: the contact rows
+    found from the data (resting or striking); lowest [m]: the detector's floor level,
+    the lowest height sustained over ``ContactSettings.sustain``.
 
-    A vehicle at rest stands on the floor, so its logged height there is the floor's in
-    the log's frame: the law's z is then the height above that resting level, as in the
-    simulators, whose vehicles rest at z = 0."""
+    The flags, when given, decide alone. A vehicle on the floor stands at its lowest
+    sustained height: the law's z is then the height above that level, as in the
+    simulators, whose vehicles rest at z = 0. Of a log whose contact is found from the
+    data, the floor level is taken rather than the median height of the rows found
+    resting: a Parrot-frame random walk "rests" 0.5-1.2 cm above its floor level
+    (hovering in ground effect at the floor, where the thrust no longer balances
+    the weight), and its floor level is the data set's stated floor plane within 4 mm."""
     z = np.asarray(height, dtype=float)
-    on = (np.zeros(z.shape, dtype=bool) if resting is None
-          else np.asarray(resting, dtype=bool) & np.isfinite(z))
-    if on.sum() >= max(min_rows, 1):
-        return FloorLevel(float(np.median(z[on])), "resting", int(on.sum()))
+    if flags is not None:
+        on = np.asarray(flags, dtype=bool) & np.isfinite(z)
+        if on.sum() >= max(min_rows, 1):
+            return FloorLevel(float(np.median(z[on])), "flags", int(on.sum()))
+        return FloorLevel(0.0, "none", int(on.sum()))
     if contact is not None and np.any(contact) and np.isfinite(lowest):
-        return FloorLevel(float(lowest), "striking", int(np.sum(contact)))
-    return FloorLevel(0.0, "none", int(on.sum()))
+        return FloorLevel(float(lowest), "contact", int(np.sum(contact)))
+    return NO_FLOOR

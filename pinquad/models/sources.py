@@ -199,16 +199,15 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
 
 def log_floor(log: FlightLog, contact: FloorContact | None) -> FloorLevel:
     """Where the log shows the floor (``models.contact.floor_level``): the rows its
-    contact flags mark (a simulator flags the rows resting on the floor), else the rows
-    the detector found resting, else its lowest sustained height when it only found
-    strikes; no contact (or no ``contact`` given and no flags, or flags too brief to
-    place it): z = 0."""
+    contact flags mark (a simulator flags the rows resting on the floor), else the floor
+    level of the contact found from the data; no contact (or no ``contact`` given and
+    no flags, or flags too brief to place it): z = 0."""
     z = log.position[:, 2]
     min_rows = round(ContactSettings().sustain / log.dt) if log.n > 1 else 1
     if contact is not None and contact.source == "data":
         found = contact.detection
         if found is None:
             return NO_FLOOR
-        return floor_level(z, found.resting, min_rows, found.contact, found.floor_height)
+        return floor_level(z, None, min_rows, found.contact, found.floor_height)
     flags = contact.rows if contact is not None else log.contact
     return floor_level(z, flags, min_rows)

@@ -472,9 +472,8 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         grid, z, vel[:, 2], inputs[:, 0], rotation_from_euler(euler)[:, 2, 2], mass_guess,
         log.meta.gravity, ContactSettings(margin=0.0), np.hypot(vel[:, 0], vel[:, 1]))
     detected = found.contact
-    # resting on the floor: found so, or standing with the rotors idle (before take-off)
-    floor = floor_level(z, found.resting | rotors_idle, round(ContactSettings().sustain / dt),
-                        detected, found.floor_height)
+    # the floor where contact shows: found from the data, or the rotors idle on it
+    floor = floor_level(z, None, 1, detected | rotors_idle, found.floor_height)
     contact = heuristic | detected
     grow = int(round(options.contact_margin / dt))
     if contact.any():
