@@ -343,7 +343,7 @@ def report_json(result: LogResult, path: str, estep: str, seconds: float,
         "discovery": discovery if discovery is not None else {
             "selected": [], "residual_rms_before": {}, "residual_rms_after": {},
             "validation": "not run", "not_run": "not asked for", "note": None,
-            "unphysical": []},
+            "unphysical": [], "ground_effect_floor": None},
         "excluded": list(result.excluded),
         "cycles": [],
         "run_logs": {"log": {"log": "logs/flight.parquet",
