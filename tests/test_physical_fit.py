@@ -134,7 +134,7 @@ def test_model_error_recovers_a_seeded_spread():
 
 def test_effects_outside_their_domain_are_not_kept():
     found = SimpleNamespace(
-        selected=("drag", "ground_effect", "wind"),
+        selected=("drag", "ground_effect", "wind"), coefficients_free={},
         coefficients={"drag": np.array([0.01, 0.01, -0.0445]), "ground_effect": np.array([-305.0]),
                       "wind": np.array([-0.01, 0.02])},
         stderr={"drag": np.array([0.001, 0.001, 0.004]), "ground_effect": np.array([90.0]),
@@ -144,7 +144,7 @@ def test_effects_outside_their_domain_are_not_kept():
     assert set(bad) == {"drag", "ground_effect"}
     assert "D_z" in bad["drag"] and "never comes within" in bad["ground_effect"]
     # near the floor with a positive k_ge, and a drag within noise of zero: both physical
-    ok = SimpleNamespace(selected=("drag", "ground_effect"),
+    ok = SimpleNamespace(selected=("drag", "ground_effect"), coefficients_free={},
                          coefficients={"drag": np.array([0.01, 0.01, -0.001]),
                                        "ground_effect": np.array([0.6])},
                          stderr={"drag": np.array([0.001, 0.001, 0.004]),

@@ -10,7 +10,9 @@ says otherwise), and the simulator's default drag is the shipped Crazyflie file'
 ``[aero]``, the vehicle the simulated effects are modelled on.
 
 Forms (body frame: x forward, y left, z up; v_b = R^T v the body velocity [m/s]; F the
-collective thrust [N]; all wrenches at the body origin):
+collective thrust [N]; all wrenches at the body origin; in ``ground_effect`` z is the
+height above the floor: the simulators' z, whose floor is z = 0; a log's z less the
+floor it shows, ``models.contact.floor_level``):
 
 ====================  ===========================================  ==========================
 name                  extra body wrench / effect                   coefficients (units)

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
 from pinquad.discovery.discover import Selection, refit_selection, select_effects
-from pinquad.discovery.domain import outside_domain, unexplained_residual
+from pinquad.discovery.domain import outside_domain, transition_heights, unexplained_residual
 from pinquad.discovery.null import (
     NullCalibration,
     NullSettings,
@@ -31,8 +31,8 @@ from pinquad.discovery.null import (
 )
 from pinquad.discovery.result import DiscoveryConfig, DiscoveryResult
 from pinquad.identification.identify import Identification
+from pinquad.models.contact import FloorLevel
 from pinquad.models.ssm import Observations, Theta, corrected
-from pinquad.mstep.stats import transition_mask
 
 Array = NDArray[np.float64]
 
@@ -77,6 +77,7 @@ class DiscoveryOutcome:
     unphysical: tuple[dict, ...] = ()
     not_run: str | None = None
     note: str | None = None
+    floor: FloorLevel | None = None
 
 
 DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},
@@ -123,7 +124,9 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
     the final selection); None: everything here, in turn. inertia_bounds: the vehicle's
     physically possible inertia diagonal (lo, hi) [kg m^2], into which the null clips an
     implausible base fit (``null.plausible_base_fit``), and from which the selection's fits
-    and the refit then start. A numerical failure is reported in the outcome, not raised."""
+    and the refit then start. A numerical failure is reported in the outcome, not raised.
+    The outcome carries where the log shows the floor (``Observations.floor``), from
+    which the ground-effect law measured the height."""
     null = NullSettings() if null is None else null
     calibrations: list[NullCalibration] = []
     obs, theta, post = start.obs, start.theta, start.posterior
@@ -136,7 +139,7 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
         # 1e-106 m); with nothing selected the base fit itself is the answer
         return plausible if sel.selected else theta
 
-    heights = post.mean[np.flatnonzero(transition_mask(obs)), 2]
+    heights = transition_heights(obs, post.mean)
     unphysical: list[dict] = []
     try:
         while True:  # until every selected effect's fit is inside its physical domain
@@ -148,9 +151,9 @@ def discover_calibrated(start: DiscoveryStart, cfg: DiscoveryConfig,
             unphysical += [unexplained_residual(found, e, why) for e, why in bad.items()]
             cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c not in bad))
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
-        return DiscoveryOutcome(None, f"discovery failed numerically: {exc}")
+        return DiscoveryOutcome(None, f"discovery failed numerically: {exc}", floor=obs.floor)
     return DiscoveryOutcome(found, null=combine(calibrations) if calibrations else None,
-                            unphysical=tuple(unphysical))
+                            unphysical=tuple(unphysical), floor=obs.floor)
 
 
 def _select_and_refit(obs: Observations, theta: Theta, post: Posterior, cfg: DiscoveryConfig,

@@ -61,6 +61,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators.protocol import Posterior
+from pinquad.discovery.domain import on_edge, project
 from pinquad.discovery.evidence import effect_evidence
 from pinquad.discovery.refit import refit
 from pinquad.discovery.residuals import (
@@ -189,7 +190,7 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
         # torque rows that no effect caused); mass and coefficients are fitted together
         # on the force rows, since a missing force effect bends the base mass.
         coeffs, _, mf = estimate_coefficients(obs, posterior, theta, selected, cfg, train,
-                                              hold_inertia=True)
+                                              hold_inertia=True, bounded=True)
         pi_after = mf.fit.pi
         after = heldout_rms(res0, pi_after, coeffs, test, window)
         jack = jackknife(obs, posterior, theta, selected, cfg, train, hold_inertia=True)
@@ -200,7 +201,9 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
                                tuple(scores), before, after,
                                float(pi_after[0]), np.asarray(theta.inertia), theta, posterior,
                                validation + " (no EM refit: effects fitted on the base posterior)",
-                               evidence, stderr_jackknife=jack, stderr_information=info)
+                               evidence, stderr_jackknife=jack, stderr_information=info,
+                               coefficients_free={e: mf.free[e] for e in on_edge(coeffs)
+                                                  if e in mf.free})
     th_tr, post_tr, coeffs_tr = refit(obs, theta, posterior, selected, smoother, cfg, train)
     res_tr = compute_residuals(obs, post_tr, th_tr.gravity, cfg.block_seconds)
     pi_tr = np.r_[th_tr.mass, np.diag(th_tr.inertia)]
@@ -229,10 +232,17 @@ def refit_selection(obs: Observations, theta: Theta, posterior: Posterior, sel: 
     fit = information_fit(obs, th_f, post_f.mean, coeffs_f, selected, jack)
     info = fit.stderr
     alternation = {e: np.asarray(coeffs_f[e], dtype=float) for e in selected}
-    coeffs_f = {**coeffs_f, **fit.maximiser}
+    coeffs_f = project({**coeffs_f, **fit.maximiser})
+    edge = on_edge({e: coeffs_f[e] for e in selected})
+    free: dict[str, NDArray[np.float64]] = {}
+    if edge:
+        # what the same posterior says without the domains, reported beside the edge
+        unbounded, _, _ = estimate_coefficients(obs, post_f, th_f, selected, cfg, all_blocks,
+                                                sampling=cfg.sampling_nuisance)
+        free = {e: unbounded[e] for e in edge}
     evidence = effect_evidence(selected, res0, pi0, res_tr, pi_tr, coeffs_tr, test)
     return DiscoveryResult(tuple(selected), coeffs_f, reported_stderr(jack, info), tuple(scores),
                            before, after, th_f.mass, np.asarray(th_f.inertia), th_f, post_f,
                            validation, evidence, stderr_jackknife=jack, stderr_information=info,
                            coefficients_alternation=alternation,
-                           likelihood_step_gain=fit.gain)
+                           likelihood_step_gain=fit.gain, coefficients_free=free)

@@ -46,7 +46,8 @@ class TransitionData:
     index (K,): the step k of each row; dt [s]; ground_radius [m]: the vehicle's
     ground-effect radius (``Observations.ground_radius``); samples (N, 4) or None: the
     logged command at each row's instant when ``applied_history`` holds its interval
-    means (``Observations.samples``; None: held inputs).
+    means (``Observations.samples``; None: held inputs); floor_height z_f [m, world]:
+    where the log shows the floor (``Observations.floor``), the ground-effect law's zero.
     """
 
     x: Array
@@ -56,14 +57,22 @@ class TransitionData:
     dt: float
     ground_radius: float
     samples: Array | None = None
+    floor_height: float = 0.0
+
+    @property
+    def height(self) -> Array:
+        """(K,) [m] the height above the floor the log shows, z - z_f, that the
+        ground-effect law takes (``Observations.floor``)."""
+        return self.x[:, 2] - self.floor_height
 
     @classmethod
     def of(cls, obs: Observations, x_now: Array, idx: NDArray[np.int64]) -> TransitionData:
         """The transitions idx (K,) of ``obs`` at the states x_now (K, 12): the logged
-        inputs of those steps, the whole input history, the vehicle's ground-effect radius
-        and the log's samples, as ``obs`` carries them."""
+        inputs of those steps, the whole input history, the vehicle's ground-effect
+        radius, the log's samples and its floor, as ``obs`` carries them."""
         return cls(x=x_now, inputs=obs.inputs[idx], applied_history=obs.inputs, index=idx,
-                   dt=obs.dt, ground_radius=obs.ground_radius, samples=obs.samples)
+                   dt=obs.dt, ground_radius=obs.ground_radius, samples=obs.samples,
+                   floor_height=obs.floor.height)
 
 
 def lagged_inputs(inputs: Array, time_constant: float, dt: float) -> Array:
@@ -157,6 +166,25 @@ SPECS: dict[str, EffectSpec] = {
 """Effect name -> its estimator-side description (every name of ``EFFECT_NAMES``)."""
 
 
+NON_NEGATIVE = {"drag": (0, 1, 2), "ground_effect": (0,), "motor_lag": (0,)}
+"""Effect -> the indices of its coefficients that cannot be negative (their physical
+domain, ``pinquad.discovery.domain``); the others are unbounded."""
+
+
+def lower_bounds(effect: str) -> Array:
+    """(p,) each coefficient's lower bound for ``effect`` (0, or -inf: none), in the order
+    of ``COEFFICIENT_NAMES``."""
+    lo = np.full(len(COEFFICIENT_NAMES[effect]), -np.inf)
+    lo[list(NON_NEGATIVE.get(effect, ()))] = 0.0
+    return lo
+
+
+def domain_text(effect: str) -> dict[str, str]:
+    """Coefficient name -> its domain in words (``">= 0"`` or ``"unbounded"``)."""
+    return {n: (">= 0" if np.isfinite(b) else "unbounded")
+            for n, b in zip(COEFFICIENT_NAMES[effect], lower_bounds(effect), strict=True)}
+
+
 def wrench_features(name: str, data: TransitionData) -> Array:
     """Phi (K, 6, p) with the effect's extra body wrench [N, N m] = Phi @ c (linear effects)."""
     k = data.x.shape[0]
@@ -168,7 +196,7 @@ def wrench_features(name: str, data: TransitionData) -> Array:
         return phi
     if name == "ground_effect":
         phi = np.zeros((k, 6, 1))
-        phi[:, 2, 0] = data.inputs[:, 0] * ground_effect_gain(data.x[:, 2], data.ground_radius)
+        phi[:, 2, 0] = data.inputs[:, 0] * ground_effect_gain(data.height, data.ground_radius)
         return phi
     if name == "com_offset":
         phi = np.zeros((k, 6, 2))
@@ -199,7 +227,7 @@ def explaining_feature(name: str, data: TransitionData, row: int) -> Array:
         v_b = np.einsum("kji,kj->ki", rotation_from_euler(data.x[:, 6:9]), data.x[:, 3:6])
         return v_b[:, min(row, 2)]
     if name == "ground_effect":
-        return data.x[:, 2]
+        return data.height
     if name == "com_offset":
         return data.inputs[:, 0]
     if name == "wind":

@@ -53,7 +53,7 @@ def corrected_observations(obs: Observations, state: Array, coefficients: dict[s
         inputs = applied_lag(obs.inputs, obs.samples, float(coefficients["motor_lag"][0]), obs.dt)
     idx = np.arange(obs.n)
     data = TransitionData(x=state, inputs=inputs, applied_history=inputs, index=idx, dt=obs.dt,
-                          ground_radius=obs.ground_radius)
+                          ground_radius=obs.ground_radius, floor_height=obs.floor.height)
     extra = np.zeros((obs.n, 6))
     for name, c in coefficients.items():
         if name in ("motor_lag", "gyro_bias"):
@@ -185,7 +185,7 @@ def _joint_refinement(obs: Observations, exclude: NDArray[np.bool_], coeffs: dic
         post = smoother(model_factory(coeffs)(corr, theta), corr.ys)
         theta = effect_mstep(coeffs, cfg.search)(post, corr, theta).theta
         new, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train,
-                                          sampling=cfg.sampling_nuisance)
+                                          sampling=cfg.sampling_nuisance, bounded=True)
         change = max(float(np.max(np.abs(new[e] - coeffs[e])
                                   / np.maximum(np.abs(coeffs[e]), 1e-12))) for e in new)
         coeffs = new
@@ -207,8 +207,10 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
     from the M-step. A gyro offset is solved before each EM pass (``solve_gyro_bias``,
     from ``gyro_bias_used`` when given: the offset already removed from the observations
     ``post`` was smoothed on) and finally at the EM's parameters, so the returned offset
-    is the one the returned posterior used. Returns the refit parameters, their posterior
-    (on the corrected observations) and the final coefficients.
+    is the one the returned posterior used. Every coefficient is fitted inside its
+    physical domain (``selection.fit_model``'s ``bounded``). Returns the refit
+    parameters, their posterior (on the corrected observations) and the final
+    coefficients.
     """
     n_blocks = int(step_blocks(obs, cfg.block_seconds).max()) + 1
     train = np.ones(n_blocks, dtype=bool) if train_blocks is None else train_blocks
@@ -216,7 +218,7 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
     exclude = (obs.exclude.copy() if obs.exclude.size else np.zeros(obs.n, dtype=bool))
     exclude |= ~train[steps_block]
     train_steps = train[steps_block]
-    coeffs, _, mf = estimate_coefficients(obs, post, theta, effects, cfg, train)
+    coeffs, _, mf = estimate_coefficients(obs, post, theta, effects, cfg, train, bounded=True)
     # The base fit bent mass, inertia and the wrench noise to absorb the missing effect
     # (a CoM torque can inflate the inertia a hundredfold): start the refit EM from the
     # joint fit of (pi, c) at the base posterior, its profiled row variances as wrench
@@ -251,7 +253,7 @@ def refit(obs: Observations, theta: Theta, post: Posterior, effects: Sequence[st
         b_used = coeffs.get("gyro_bias")
         theta, post = em.theta, em.posterior
         coeffs, _, _ = estimate_coefficients(obs, post, theta, effects, cfg, train,
-                                             sampling=cfg.sampling_nuisance)
+                                             sampling=cfg.sampling_nuisance, bounded=True)
         if gyro:
             coeffs["gyro_bias"] = b_used
     if cfg.joint_iterations and not gyro:

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from estimators.protocol import Posterior
 from pinquad.core.effect_vocabulary import EFFECT_NAMES
 from pinquad.core.params import VehicleRange
-from pinquad.discovery.library import SPECS
+from pinquad.discovery.library import SPECS, domain_text, lower_bounds
 from pinquad.models.ssm import Theta
 
 Array = NDArray[np.float64]
@@ -185,7 +185,9 @@ class DiscoveryResult:
     empty until drawn); coefficients_alternation: name -> (p,) the refit's coefficients
     before the Newton step to their likelihood's maximum (``uncertainty.information_fit``;
     empty without an EM refit) and likelihood_step_gain [nats] what that step gained (0:
-    none taken).
+    none taken); coefficients_free: name -> (p,) for the effects with a coefficient on
+    its domain's edge (``pinquad.discovery.domain``), their fit without the domain at the
+    same posterior (the reported coefficients are the fit inside it).
     """
 
     selected: tuple[str, ...]
@@ -205,6 +207,7 @@ class DiscoveryResult:
     stderr_information: dict[str, Array] = field(default_factory=dict)
     coefficients_alternation: dict[str, Array] = field(default_factory=dict)
     likelihood_step_gain: float = 0.0
+    coefficients_free: dict[str, Array] = field(default_factory=dict)
 
     def to_report(self) -> dict:
         """report.json's ``discovery`` section (plus candidate scores and refit estimates)."""
@@ -225,6 +228,13 @@ class DiscoveryResult:
                 "coefficients_before_likelihood_step": _by_name(
                     spec.coefficient_names, self.coefficients_alternation.get(name)),
                 "units": dict(zip(spec.coefficient_names, spec.units, strict=True)),
+                "domain": domain_text(name),
+                "on_domain_edge": [n for n, c, b in zip(spec.coefficient_names,
+                                                        self.coefficients[name],
+                                                        lower_bounds(name), strict=True)
+                                   if c <= b],
+                "coefficients_without_domain": _by_name(spec.coefficient_names,
+                                                        self.coefficients_free.get(name)),
                 "evidence": {"heldout_gain": best.gain, "d_loglik_heldout": best.d_loglik_heldout,
                              "d_bic_train": best.d_bic, "round": best.round,
                              "rows": [AXES[r] for r in spec.rows] or list(GYRO_AXES)},

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from scipy.optimize import minimize, minimize_scalar
 
 from estimators.protocol import Posterior
-from pinquad.discovery.library import SPECS
+from pinquad.discovery.library import SPECS, lower_bounds
 from pinquad.discovery.residuals import (
     Residuals,
     block_grams,
@@ -38,13 +38,16 @@ LAG_GRID = np.concatenate([[0.0], np.geomspace(0.002, 0.25, 28)])
 class ProfiledFit:
     """The profiled ML fit of one summed Gram matrix: pi (4,) = [m (kg), I_xx, I_yy, I_zz
     (kg m^2)]; c (p,) the effects' coefficients; objective: J at the optimum; row_var (6,):
-    the profiled wrench row variances s_j / n [N^2, (N m)^2]; n: transitions."""
+    the profiled wrench row variances s_j / n [N^2, (N m)^2]; n: transitions; c_free (p,):
+    the coefficients of the fit without their domain (``profiled_fit``'s lower bounds;
+    c itself when it was inside them, or no bounds were given)."""
 
     pi: Array
     c: Array
     objective: float
     row_var: Array
     n: int
+    c_free: Array | None = None
 
 
 def _objective(theta_full: Array, gram: Array, n: int) -> tuple[float, Array]:
@@ -59,14 +62,19 @@ def _objective(theta_full: Array, gram: Array, n: int) -> tuple[float, Array]:
     return val, grad
 
 
-def profiled_fit(gram: Array, n: int, pi0: Array, p: int, hold_inertia: bool = False
-                 ) -> ProfiledFit:
+def profiled_fit(gram: Array, n: int, pi0: Array, p: int, hold_inertia: bool = False,
+                 lower: Array | None = None) -> ProfiledFit:
     """Profiled ML over (log pi, c) of J (module docstring) for the summed Gram (6, q, q).
 
     hold_inertia: the inertia stays at ``pi0[1:4]`` and only (log m, c) move (J's inertia
     log det term is then constant): the measured-flight M-step fits the mass on the same
     full-band force rows, but its inertia on band-limited torque rows this fit must not
-    undo."""
+    undo. lower (p,) or None: each coefficient's lower bound (-inf: none; the effects'
+    physical domains, ``domain.lower_bounds``). The fit is first made without them; if it
+    lands below a bound, J is minimised again over the box c >= lower (L-BFGS-B from the
+    projected point: coefficients on the edge stay there, the others and pi move to
+    their best fit with them held), as the M-step projects the inertia onto its range;
+    the free fit's coefficients are kept in ``c_free``."""
     free = np.array([True] + [not hold_inertia] * 3)
     scale_c = np.ones(p)
     if p:
@@ -98,8 +106,19 @@ def profiled_fit(gram: Array, n: int, pi0: Array, p: int, hold_inertia: bool = F
     v0 = np.concatenate([np.zeros(n_free), c0 / scale_c])
     out = minimize(fun, v0, jac=True, method="BFGS", options={"gtol": 1e-8, "maxiter": 500})
     th = unpack(out.x)
+    c_free = th[4:4 + p].copy()
+    if lower is not None and p and np.any(c_free < lower):
+        lo_v = np.where(np.isfinite(lower), lower / scale_c, -np.inf)
+        bounds = [(None, None)] * n_free + [(None if not np.isfinite(b) else float(b), None)
+                                            for b in lo_v]
+        start = out.x.copy()
+        start[n_free:] = np.maximum(start[n_free:], lo_v)
+        out = minimize(fun, start, jac=True, method="L-BFGS-B", bounds=bounds,
+                       options={"ftol": 1e-15, "gtol": 1e-10, "maxiter": 1000})
+        th = unpack(out.x)
+        th[4:4 + p] = np.maximum(th[4:4 + p], lower)
     s = np.einsum("q,aqr,r->a", th, gram, th)
-    return ProfiledFit(th[0:4], th[4:4 + p], float(out.fun), s / n, n)
+    return ProfiledFit(th[0:4], th[4:4 + p], float(out.fun), s / n, n, c_free)
 
 
 def _heldout_sse(fit: ProfiledFit, gram: Array) -> Array:
@@ -117,7 +136,9 @@ class ModelFit:
     """A set of wrench effects fitted on a set of blocks: linear coefficients by effect,
     the lag time constant (or None), the fit, and the held-out SSE per row (6,);
     sampling (s,): the nuisance coefficients of ``residuals.sampling_columns``
-    (empty when the fit went without them)."""
+    (empty when the fit went without them); free: the linear coefficients by effect of
+    the fit without the effects' domains (the same as ``coefficients`` unless the fit
+    was bounded and a coefficient met its bound)."""
 
     coefficients: dict[str, Array]
     lag: float | None
@@ -127,16 +148,19 @@ class ModelFit:
     heldout_sse_window: Array
     train_var_window: Array
     sampling: Array = field(default_factory=lambda: np.zeros(0))
+    free: dict[str, Array] = field(default_factory=dict)
 
 
 def fit_model(res: Residuals, effects: Sequence[str], train: NDArray[np.bool_], pi0: Array,
                window: int = 10, hold_inertia: bool = False,
-               sampling: tuple[int, ...] = ()) -> ModelFit:
+               sampling: tuple[int, ...] = (), bounded: bool = False) -> ModelFit:
     """Fit pi and the wrench effects' coefficients on the blocks ``train`` (B,) bool
     (``hold_inertia``: mass and coefficients, the inertia held at ``pi0``'s; ``sampling``:
     the nuisance columns of ``residuals.sampling_columns`` with these indices fitted alongside,
     in every model the selection compares, so the actuation's change within a logged
-    interval is never credited to an effect)."""
+    interval is never credited to an effect; ``bounded``: each coefficient kept inside
+    its physical domain, ``library.lower_bounds``, by ``profiled_fit``; the motor lag's
+    search starts at 0 and is inside it already)."""
     wrench_effects = [e for e in effects if e != "gyro_bias"]
     n_train = int(np.isin(res.block, np.flatnonzero(train)).sum())
     n_test = int(np.isin(res.block, np.flatnonzero(~train)).sum())
@@ -145,11 +169,15 @@ def fit_model(res: Residuals, effects: Sequence[str], train: NDArray[np.bool_], 
     if n_nuisance:
         phi = np.concatenate([res.sampling[:, :, list(sampling)], phi], axis=2)
     p = phi.shape[2]
+    lower = None
+    if bounded:
+        lower = np.concatenate([np.full(n_nuisance, -np.inf)]
+                               + [lower_bounds(e) for e in wrench_effects if e != "motor_lag"])
 
     def fit_at(lag: float | None) -> tuple[ProfiledFit, Array]:
         _, fixed = effect_columns(res, [], lag)
         g = block_grams(res, phi, fixed)
-        return (profiled_fit(g[train].sum(axis=0), n_train, pi0, p, hold_inertia),
+        return (profiled_fit(g[train].sum(axis=0), n_train, pi0, p, hold_inertia, lower),
                 g[~train].sum(axis=0))
 
     lag = None
@@ -169,17 +197,21 @@ def fit_model(res: Residuals, effects: Sequence[str], train: NDArray[np.bool_], 
     th = np.concatenate([fit.pi, fit.c, [1.0]])
     sse_w = np.einsum("q,baqr,r->ba", th, gw, th)
     coeffs: dict[str, Array] = {}
+    free: dict[str, Array] = {}
+    c_free = fit.c if fit.c_free is None else fit.c_free
     j = n_nuisance
     for e in wrench_effects:
         if e == "motor_lag":
             coeffs[e] = np.array([lag])
+            free[e] = coeffs[e].copy()
             continue
         n_c = SPECS[e].n_coefficients
         coeffs[e] = fit.c[j:j + n_c].copy()
+        free[e] = c_free[j:j + n_c].copy()
         j += n_c
     return ModelFit(coeffs, lag, fit, _heldout_sse(fit, g_test), n_test,
                      sse_w[~train].sum(axis=0), sse_w[train].sum(axis=0),
-                     fit.c[:n_nuisance].copy())
+                     fit.c[:n_nuisance].copy(), free)
 
 
 def gyro_fit(res: Residuals, train_steps: NDArray[np.bool_]) -> tuple[Array, Array, Array]:
@@ -300,7 +332,8 @@ def shortest_lag(cfg: DiscoveryConfig, dt: float) -> float:
 
 def estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effects: Sequence[str],
                            cfg: DiscoveryConfig, train: NDArray[np.bool_],
-                           hold_inertia: bool = False, sampling: tuple[int, ...] = ()
+                           hold_inertia: bool = False, sampling: tuple[int, ...] = (),
+                           bounded: bool = False
                            ) -> tuple[dict[str, Array], Residuals, ModelFit]:
     """The coefficients of ``effects`` (name -> (p,)) fitted on the training blocks
     ``train`` (B,) at the posterior ``post``, with the residuals and the model fit they
@@ -308,21 +341,24 @@ def estimate_coefficients(obs: Observations, post: Posterior, theta: Theta, effe
     nuisance columns fitted alongside, as in ``fit_model``; the refit passes
     ``cfg.sampling_nuisance`` once its posterior has the effects in the model: at the
     base posterior, which bent the states to absorb the missing effect, a free nuisance
-    took 20 % of a held-input drag flight's drag coefficient, at the refit's 2 %)."""
+    took 20 % of a held-input drag flight's drag coefficient, at the refit's 2 %;
+    ``bounded``: inside the effects' physical domains, as ``fit_model``)."""
     res = compute_residuals(obs, post, theta.gravity, cfg.block_seconds)
-    coeffs, mf = coefficients_at(res, theta, effects, train, hold_inertia, sampling)
+    coeffs, mf = coefficients_at(res, theta, effects, train, hold_inertia, sampling, bounded)
     return coeffs, res, mf
 
 
 def coefficients_at(res: Residuals, theta: Theta, effects: Sequence[str],
                     train: NDArray[np.bool_], hold_inertia: bool = False,
-                    sampling: tuple[int, ...] = ()) -> tuple[dict[str, Array], ModelFit]:
+                    sampling: tuple[int, ...] = (), bounded: bool = False
+                    ) -> tuple[dict[str, Array], ModelFit]:
     """``estimate_coefficients`` on residuals already computed at the posterior (the
     coefficients by effect and the model fit): the block jackknife refits them on
     other training blocks of the same residuals."""
     train = train[: res.n_blocks]
     pi0 = np.r_[theta.mass, np.diag(theta.inertia)]
-    mf = fit_model(res, effects, train, pi0, hold_inertia=hold_inertia, sampling=sampling)
+    mf = fit_model(res, effects, train, pi0, hold_inertia=hold_inertia, sampling=sampling,
+                   bounded=bounded)
     coeffs = dict(mf.coefficients)
     if "gyro_bias" in effects:
         coeffs["gyro_bias"] = gyro_fit(res, train[res.gyro_block])[0]
@@ -334,7 +370,9 @@ def jackknife(obs: Observations, post: Posterior, theta: Theta, effects: Sequenc
                sampling: tuple[int, ...] = ()) -> dict[str, Array]:
     """Block-jackknife standard errors of the coefficients (robust to the residuals'
     serial correlation within a block). The residuals at ``post`` do not depend on the
-    blocks left out: they are computed once and each draw refits on its blocks."""
+    blocks left out: they are computed once and each draw refits on its blocks. The
+    draws are fits without the effects' domains: the spread of the free estimator, which
+    a bound would collapse for a coefficient on its edge."""
     res = compute_residuals(obs, post, theta.gravity, cfg.block_seconds)
     blocks = np.flatnonzero(train)
     draws: dict[str, list[Array]] = {e: [] for e in effects}

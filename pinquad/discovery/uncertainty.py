@@ -25,7 +25,8 @@ found by a few diagonal rounds from three jackknife standard errors. The reporte
 standard error of each coefficient is max(jackknife, sqrt(diag Info^-1)); the jackknife
 alone where the information is not positive definite. The same central differences give
 L's gradient, and the reported coefficients of an EM refit are those after one Newton
-step to L's maximum (``information_fit``; taken only where it raises L).
+step to L's maximum inside the coefficients' physical domains (``information_fit``;
+taken only where it raises L; ``projected_newton``).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from pinquad.discovery.library import lower_bounds
 from pinquad.discovery.refit import corrected_observations, model_factory
 from pinquad.estep.fast_smoother import loglik_quad
 from pinquad.identification.fisher import central_differences, positive_definite_information, standard_errors
@@ -71,6 +73,32 @@ class InformationFit:
     gain: float = 0.0
 
 
+def projected_newton(x0: Array, grad: Array, info: Array, lower: Array) -> Array:
+    """The maximiser of the quadratic model L(x0) + g^T d - d^T Info d / 2 over the box
+    x0 + d >= lower (x0 (p,) inside it; g (p,) the gradient; Info (p, p) positive
+    definite; lower (p,), -inf: unbounded): the Newton step x0 + Info^-1 g when it stays
+    inside, else the coordinates it would take below their bound held there and the
+    step re-solved on the others, d_F = Info_FF^-1 (g_F - Info_FA d_A), until none
+    crosses (at most p rounds: each holds one more coordinate). Coordinates already on
+    their bound with the gradient pushing outwards are held from the start."""
+    p = x0.size
+    held = (x0 <= lower) & (grad <= 0)
+    x1 = x0.copy()
+    for _ in range(p + 1):
+        d = np.zeros(p)
+        d[held] = lower[held] - x0[held]
+        free = ~held
+        if free.any():
+            rhs = grad[free] - info[np.ix_(free, held)] @ d[held]
+            d[free] = np.linalg.solve(info[np.ix_(free, free)], rhs)
+        x1 = x0 + d
+        crossing = free & (x1 < lower)
+        if not crossing.any():
+            break
+        held |= crossing
+    return np.maximum(x1, lower)
+
+
 def information_stderr(obs: Observations, theta: Theta, state: Array,
                        coefficients: dict[str, Array], effects: Sequence[str],
                        jackknife: dict[str, Array],
@@ -100,7 +128,8 @@ def information_fit(obs: Observations, theta: Theta, state: Array,
     obs: the log's observations (uncorrected); theta: the refit's parameters, held;
     state (N, 12): the smoothed path at which the thrust and torque corrections are
     evaluated; jackknife: effect -> (p,) jackknife standard errors, whose triple starts
-    the step search; newton: False skips the step (and its likelihood evaluation)."""
+    the step search; newton: False skips the step (and its likelihood evaluation). The
+    step stays inside the coefficients' physical domains (``projected_newton``)."""
     sizes = [np.size(coefficients[e]) for e in effects]
     x0 = np.concatenate([np.asarray(coefficients[e], dtype=float).ravel() for e in effects])
 
@@ -144,7 +173,8 @@ def information_fit(obs: Observations, theta: Theta, state: Array,
     stderr = _split(standard_errors(info), effects, sizes)
     maximiser, gain = unavailable.maximiser, 0.0
     if newton and np.all(np.isfinite(grad)):
-        x1 = x0 + np.linalg.solve(info, grad)
+        lower = np.concatenate([lower_bounds(e) for e in effects])
+        x1 = projected_newton(x0, grad, info, lower)
         try:
             gain = value(x1) - l0
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):

@@ -41,12 +41,19 @@ def measured_effects(obs: Observations, theta: Theta, posterior: Posterior,
 
 def discovery_section(outcome: DiscoveryOutcome) -> dict:
     """The ``discovery`` section of report.json; figure paths (if drawn) named
-    relative to the run directory (``figures/<name>``)."""
+    relative to the run directory (``figures/<name>``); ``ground_effect_floor``: where
+    the ground-effect law put the floor ({'height' [m], 'source', 'note'}; None when
+    discovery did not reach the log)."""
+    floor = None if outcome.floor is None else {
+        "height": outcome.floor.height, "source": outcome.floor.source,
+        "note": outcome.floor.describe()}
     if outcome.result is None:
         return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
                 "validation": "not run", "error": outcome.error, "not_run": outcome.not_run,
-                "note": outcome.note, "unphysical": list(outcome.unphysical)}
+                "note": outcome.note, "unphysical": list(outcome.unphysical),
+                "ground_effect_floor": floor}
     section = outcome.result.to_report()
+    section["ground_effect_floor"] = floor
     section["unphysical"] = list(outcome.unphysical)
     section["note"] = outcome.note
     section["not_run"] = None

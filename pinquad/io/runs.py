@@ -42,6 +42,9 @@ LOG_REPORT_KEYS: dict[str, str] = {
     "discovery.unphysical": "effects whose best fit is outside their physical domain, not "
                             "kept: [{'effect', 'reason', 'closest_unphysical_fit', 'stderr', "
                             "'unexplained_rows': {axis: {'rms_before', 'rms_after', 'share'}}}]",
+    "discovery.ground_effect_floor": "where the ground-effect law puts the floor: {'height' [m], "
+                                     "'source' (flags, contact or none: z = 0), 'note'}; null "
+                                     "when discovery did not reach the log",
     "estimates.model": "the model the estimate was fitted under, in words",
     "estimates.stderr_note": "how its standard errors were computed",
     "base": "the base fit (the first run), the same layout as estimates",

@@ -259,3 +259,68 @@ def detect_floor_contact(t: Array, height: Array, vertical_velocity: Array | Non
     widened = _dilate(contact, round(s.margin / dt))
     return ContactDetection(contact, resting, striking, widened, floor, mass, mass_from,
                             thr_rest, thr_imp)
+
+
+@dataclass(frozen=True)
+class FloorLevel:
+    """The floor's height in the log's frame, from which discovery's ground-effect law
+    measures the vehicle's height (``Observations.floor``).
+
+    height z_f [m, world]; source: ``flags`` (the median logged height over the rows a
+    simulator flags as resting on the floor, when they last ``ContactSettings.sustain``),
+    ``contact`` (contact found from the data, ``detect_floor_contact``: its floor level,
+    the lowest height the vehicle sustains, ``ContactDetection.floor_height``) or
+    ``none`` (no contact in the log, or contact flags too brief to place the floor:
+    z_f = 0, the origin of the log's frame, taken as the floor); rows: how many contact
+    rows it came from."""
+
+    height: float
+    source: str
+    rows: int = 0
+
+    def describe(self) -> str:
+        """One line for the report: where the ground-effect law puts the floor."""
+        if self.source == "flags":
+            return (f"floor at z = {self.height:+.3f} m: the median height over the "
+                    f"{self.rows} rows the log flags as resting on it")
+        if self.source == "contact":
+            return (f"floor at z = {self.height:+.3f} m: the lowest height the vehicle "
+                    f"sustains, in a log whose {self.rows} contact rows show the floor")
+        if self.rows:
+            return (f"floor at z = 0 (the log's frame origin): its {self.rows} contact rows "
+                    "are too brief to place the floor")
+        return ("floor at z = 0 (the log's frame origin): the log shows no floor contact "
+                "to find it from")
+
+
+NO_FLOOR = FloorLevel(0.0, "none")
+"""A log without floor contact: the ground-effect law takes the floor at z = 0."""
+
+
+def floor_level(height: Array, flags: BoolArray | None, min_rows: int,
+                contact: BoolArray | None = None, lowest: float = float("nan")) -> FloorLevel:
+    """Where the log shows the floor (``FloorLevel``). height (N,) [m] world z (NaN: not
+    sampled); flags (N,) bool or None: a simulator's contact flags (the rows its vehicle
+    rests on the floor); min_rows: the fewest sampled flagged rows whose median places
+    the floor (``ContactSettings.sustain`` seconds of rows: a single position sample is
+    off by its noise, millimetres, which moves a ground-effect gain measured a few
+    centimetres up by several per cent); contact (N,) bool or None: the contact rows
+    found from the data (resting or striking); lowest [m]: the detector's floor level,
+    the lowest height sustained over ``ContactSettings.sustain``.
+
+    The flags, when given, decide alone. A vehicle on the floor stands at its lowest
+    sustained height: the law's z is then the height above that level, as in the
+    simulators, whose vehicles rest at z = 0. Of a log whose contact is found from the
+    data, the floor level is taken rather than the median height of the rows found
+    resting: a Parrot-frame random walk "rests" 0.5-1.2 cm above its floor level
+    (hovering in ground effect at the floor, where the thrust no longer balances
+    the weight), and its floor level is the data set's stated floor plane within 4 mm."""
+    z = np.asarray(height, dtype=float)
+    if flags is not None:
+        on = np.asarray(flags, dtype=bool) & np.isfinite(z)
+        if on.sum() >= max(min_rows, 1):
+            return FloorLevel(float(np.median(z[on])), "flags", int(on.sum()))
+        return FloorLevel(0.0, "none", int(on.sum()))
+    if contact is not None and np.any(contact) and np.isfinite(lowest):
+        return FloorLevel(float(lowest), "contact", int(np.sum(contact)))
+    return NO_FLOOR

@@ -23,9 +23,12 @@ from pinquad.io.logs import FlightLog
 from pinquad.io.timebase import clock_times, gap_steps, uniform_step
 from pinquad.models.attitude_range import SingularAttitude
 from pinquad.models.contact import (
+    NO_FLOOR,
     ContactDetection,
     ContactSettings,
+    FloorLevel,
     detect_floor_contact,
+    floor_level,
     touching_transitions,
 )
 from pinquad.models.navigation import NavTuning, SensorANavModel
@@ -190,4 +193,21 @@ def observations(log: FlightLog, source: str, contact: FloorContact | None = Non
     clock = clock_times(log.t)
     return Observations(t=clock, dt=uniform_step(clock), inputs=inputs, channels=channels, ys=ys, x0=x0,
                         p0=p0, exclude=exclude, resets=resets, ground_radius=radius,
-                        samples=samples, continuous=log.meta.actuation == "sampled")
+                        samples=samples, continuous=log.meta.actuation == "sampled",
+                        floor=log_floor(log, contact))
+
+
+def log_floor(log: FlightLog, contact: FloorContact | None) -> FloorLevel:
+    """Where the log shows the floor (``models.contact.floor_level``): the rows its
+    contact flags mark (a simulator flags the rows resting on the floor), else the floor
+    level of the contact found from the data; no contact (or no ``contact`` given and
+    no flags, or flags too brief to place it): z = 0."""
+    z = log.position[:, 2]
+    min_rows = round(ContactSettings().sustain / log.dt) if log.n > 1 else 1
+    if contact is not None and contact.source == "data":
+        found = contact.detection
+        if found is None:
+            return NO_FLOOR
+        return floor_level(z, None, min_rows, found.contact, found.floor_height)
+    flags = contact.rows if contact is not None else log.contact
+    return floor_level(z, flags, min_rows)

@@ -49,6 +49,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import euler_rate_kinematics, euler_rate_matrix_inv, wrap_angle
 from pinquad.core.effect_vocabulary import DEFAULT_GROUND_RADIUS
+from pinquad.models.contact import NO_FLOOR, FloorLevel
 from pinquad.models.continuous import continuous_step, kinematic_noise
 from pinquad.models.nuisance import NuisanceMoment
 from pinquad.vehicle.model import RigidBodyParams, state_derivative_and_jacobian
@@ -143,7 +144,9 @@ class Observations:
     between rows (a recorded flight, or a simulator finer than its log), so the attitude,
     the thrust direction and the position advance by their mean rates over each interval
     (``models.continuous``); False for pinquad's own simulator, which moves by explicit
-    Euler at the log's step, as the model then does.
+    Euler at the log's step, as the model then does; floor: where the log shows the floor
+    (``models.contact.floor_level``), from which discovery's ``ground_effect`` feature
+    measures the height (default: no contact seen, the floor at z = 0).
     """
 
     t: Array
@@ -158,6 +161,7 @@ class Observations:
     ground_radius: float = DEFAULT_GROUND_RADIUS
     samples: Array | None = None
     continuous: bool = False
+    floor: FloorLevel = NO_FLOOR
 
     @property
     def n(self) -> int:

@@ -51,7 +51,7 @@ from pinquad.core.vehicle_file import VehicleSpec
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.timebase import clock_times, grid_times, sampling_interval
 from pinquad.models.attitude_range import near_euler_singularity
-from pinquad.models.contact import ContactSettings, detect_floor_contact
+from pinquad.models.contact import ContactSettings, detect_floor_contact, floor_level
 from pinquad.models.ssm import Observations
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.faults import (
@@ -473,9 +473,12 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     heuristic = low | rotors_idle
     mass_guess = (log.meta.mass_guess if log.meta.mass_guess is not None
                   else default_guess(log.meta.vehicle)[0])
-    detected = detect_floor_contact(
+    found = detect_floor_contact(
         grid, z, vel[:, 2], inputs[:, 0], rotation_from_euler(euler)[:, 2, 2], mass_guess,
-        log.meta.gravity, ContactSettings(margin=0.0), np.hypot(vel[:, 0], vel[:, 1])).contact
+        log.meta.gravity, ContactSettings(margin=0.0), np.hypot(vel[:, 0], vel[:, 1]))
+    detected = found.contact
+    # the floor where contact shows: found from the data, or the rotors idle on it
+    floor = floor_level(z, None, 1, detected | rotors_idle, found.floor_height)
     contact = heuristic | detected
     grow = int(round(options.contact_margin / dt))
     if contact.any():
@@ -560,7 +563,7 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
     obs = Observations(t=grid - grid[0], dt=dt, inputs=inputs, channels=options.channels,
                        ys=ys, x0=x0, p0=p0, exclude=exclude, resets=resets,
                        ground_radius=footprint if options.ground_radius is None
-                       else options.ground_radius, continuous=True)
+                       else options.ground_radius, continuous=True, floor=floor)
     if obs.n < 3 or int((~exclude[:n_tr]).sum()) < 10:
         why = "; ".join(e.reason for e in exclusions if e.transitions)
         raise ValueError(f"{source}: only {int((~exclude[:n_tr]).sum())} usable transitions "

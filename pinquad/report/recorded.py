@@ -262,10 +262,13 @@ def discovery_summary(section: dict) -> str:
         return "\n".join([head, *odd, *(null_lines(null) if calibrated else [])])
     lines = [f"effect discovery: selected {', '.join(s['effect'] for s in sel)}"]
     for s in sel:
-        co = ", ".join(f"{n} = {v:.4g} ± {s['stderr'][n]:.2g} {s['units'][n]}"
-                       for n, v in s["coefficients"].items())
+        co = ", ".join(coefficient_text(s, n) for n in s["coefficients"])
         lines.append(f"  {s['effect']}: {co}; held-out gain "
                      f"{100 * s['evidence']['heldout_gain']:.0f} %")
+    named = {s["effect"] for s in sel} | {e["effect"] for e in section.get("unphysical", ())}
+    floor = section.get("ground_effect_floor")
+    if floor and "ground_effect" in named:
+        lines.append(f"  ground-effect law: height above the {floor['note']}")
     refit = section.get("refit")
     if refit:
         inertia = np.diag(np.asarray(refit["inertia"])) * 1e6
@@ -277,6 +280,18 @@ def discovery_summary(section: dict) -> str:
     lines.extend(odd)
     lines.extend(null_lines(null))
     return "\n".join(lines)
+
+
+def coefficient_text(entry: dict, name: str) -> str:
+    """One coefficient of a selected effect as printed: value ± standard error and unit;
+    on its domain's edge, said so with the fit without the domain beside it."""
+    value, se, unit = entry["coefficients"][name], entry["stderr"][name], entry["units"][name]
+    if name not in entry.get("on_domain_edge", ()):
+        return f"{name} = {value:.4g} ± {se:.2g} {unit}"
+    free = (entry.get("coefficients_without_domain") or {}).get(name)
+    without = "" if free is None else f"; without it {free:.4g}"
+    return (f"{name} = {value:.4g} ± {se:.2g} {unit} (on the edge of its domain "
+            f"{name} {entry['domain'][name]}{without})")
 
 
 def unphysical_lines(entries) -> list[str]:
@@ -328,7 +343,7 @@ def report_json(result: LogResult, path: str, estep: str, seconds: float,
         "discovery": discovery if discovery is not None else {
             "selected": [], "residual_rms_before": {}, "residual_rms_after": {},
             "validation": "not run", "not_run": "not asked for", "note": None,
-            "unphysical": []},
+            "unphysical": [], "ground_effect_floor": None},
         "excluded": list(result.excluded),
         "cycles": [],
         "run_logs": {"log": {"log": "logs/flight.parquet",
