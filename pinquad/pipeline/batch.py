@@ -89,7 +89,7 @@ def run_log_task(task: LogTask) -> LogOutcome:
               f", M-step(s) {', '.join(task.options.identification.msteps)}")
         try:
             result = run_path(task.log, task.options)
-            print(result.text())
+            print(result.explain())
             report = _save(result, task)
         except (LogFormatError, FileExistsError, FileNotFoundError, ValueError) as exc:
             error = str(exc)

@@ -48,6 +48,7 @@ from pinquad.io.logs import FlightLog
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.runs import RunWriter
 from pinquad.io.sanity import check_log
+from pinquad.report.console import console_summary
 from pinquad.report.discovery import discovery_figure_name, draw_discovery_figures
 from pinquad.report.recorded import (
     discovery_summary,
@@ -240,8 +241,12 @@ class Result:
         return seen + tuple(n for n in self.run.notes if n not in seen)
 
     def summary(self) -> str:
-        """What ``python -m pinquad.offline --log`` prints about the run."""
-        return self.text()
+        """What ``python -m pinquad.offline --log`` prints about the run: one line per
+        parameter (value ± total standard error, unit, verdict, the main reason), the
+        vehicle's reference values, one line per effect found, warnings
+        (``pinquad.report.console``)."""
+        return console_summary(self.identified, self.headline, self.source, self.seconds,
+                               self.discovery(), self.discovery_skipped)
 
     def discovery(self) -> dict | None:
         """report.json's ``discovery`` section (None: not run), its figures named as
@@ -255,9 +260,11 @@ class Result:
                                              for ev in found.evidence))
         return discovery_section(replace(self.outcome, result=named))
 
-    def text(self) -> str:
-        """What the command line prints about the run: the log, exclusions and notes, the
-        EM time, discovery's summary, the table of runs and the headline with its verdict."""
+    def explain(self) -> str:
+        """The whole printed report (``offline --log --explain``): the log, exclusions and
+        notes, the EM time, discovery's selection with its coefficients, held-out residual
+        RMS and null calibration, the table of runs, the headline with every reason and
+        its error budget."""
         ident = self.identified
         lines = [f"log: {ident.contents}; {ident.obs.n} steps of {ident.obs.dt * 1e3:.0f} ms",
                  f"initial guess: {ident.guess}",
