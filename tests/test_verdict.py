@@ -210,7 +210,14 @@ def test_untrusted_headline_exits_3_and_still_writes_the_report(noisy_torque_log
     assert code == 3
     printed = capsys.readouterr()
     assert "exit code 3" in printed.err
-    assert "log: thrust/torque commands, simulator truth" in printed.out
+    # the short report: the log's contents, then one line per parameter with its verdict
+    lines = printed.out.splitlines()
+    assert "noisy.csv: thrust/torque commands, simulator truth;" in printed.out
+    report_lines = [line for line in lines
+                    if line.split()[:1] in (["mass"], ["I_xx"], ["I_yy"], ["I_zz"])]
+    assert len(report_lines) == 4
+    assert all(any(w in line for w in ("trusted", "not identifiable", "model not adequate",
+                                       "implausible", "not judged")) for line in report_lines)
     report = json.loads((out / "report.json").read_text())
     # DESIGN 4.3's keys all there, plus base and verdict
     assert set(report) >= {"schema", "source", "estimates", "em", "discovery", "cycles",

@@ -1,6 +1,7 @@
 """What ``python -m pinquad.offline --log`` prints by default: the answer a person reads in
 ten seconds. One line per parameter of the headline estimate (value ± total standard
-error, unit, verdict, the one main reason when not trusted), the vehicle's reference
+error, unit, verdict, the one main reason when not trusted; the ten-parameter model's
+centre of mass and products of inertia in one line each), the vehicle's reference
 values when its file has them, one line per effect found (or why none), and a warning when
 an assumption moves every number (the thrust coefficient not from a thrust stand, no
 vehicle named). Everything else (each run's table, every reason, the error budget, the
@@ -18,6 +19,8 @@ import numpy as np
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.experiments.headline import Estimate, Headline
 from pinquad.experiments.recorded import LogResult
+from pinquad.identification.identify import Identification
+from pinquad.identification.verdict import PRODUCTS, EstimateVerdict
 from pinquad.io.datadir import FETCH_COMMAND
 
 WIDTH = 120
@@ -64,6 +67,26 @@ def parameter_lines(estimate: Estimate) -> list[str]:
             head += ": " + shortened(verdict.reasons[0], max(WIDTH - len(head) - 2, 20))
         lines.append(head)
     return lines
+
+
+def full_lines(run: Identification, verdict: EstimateVerdict) -> list[str]:
+    """The ten-parameter model's centre of mass [mm] and products of inertia [1e-6 kg
+    m^2], one line each: value ± standard error, or the value with its verdict."""
+    full = run.full
+    assert full is not None
+    asked = np.isfinite(full.stderr_mass)
+    com = ", ".join(
+        f"c_{'xyz'[i]} {_number(full.com[i], full.stderr_com[i], 1e3)}"
+        + (" (not identifiable)" if asked and not np.isfinite(full.stderr_com[i]) else "")
+        for i in range(3))
+    products = []
+    for name, i, j in PRODUCTS:
+        v = verdict.get(name)
+        value, se = full.inertia[i, j], full.stderr_inertia[i, j]
+        products.append(f"{name} " + (_number(value, se, 1e6) if v.trusted
+                                      else f"{value * 1e6:.3g} ({v.verdict})"))
+    return [f"  centre of mass: {com} mm",
+            f"  products of inertia: {', '.join(products)} e-6 kg m^2"]
 
 
 def reference_line(result: LogResult) -> str | None:
@@ -141,6 +164,9 @@ def console_summary(result: LogResult, headline: Headline, source: str, seconds:
              f"{result.obs.dt * 1e3:.0f} ms; EM {seconds:.1f} s",
              f"estimate ({final.model}): {final.verdict.overall}",
              *parameter_lines(final)]
+    run = result.runs[0]
+    if run.full is not None:  # the ten-parameter model: its CoM and products too
+        lines += full_lines(run, headline.run_verdicts[0])
     ref = reference_line(result)
     if ref is not None:
         lines.append(ref)
