@@ -62,7 +62,7 @@ _MOVED = {
     "PAPER_SCENARIO": "pinquad.core.params",
 }
 """Names once exported here and still resolved, with a DeprecationWarning naming their
-module: users reach them through a ``Result`` (``fit.run``, ``found.found``) or import
+module: users reach them through a ``Result`` (``fit.run``, ``found.effects``) or import
 them from that module."""
 
 __all__ = [

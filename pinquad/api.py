@@ -16,6 +16,7 @@ verdicts, the same ``Result``; ``pinquad/__init__.py`` re-exports these names, a
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,7 @@ from pinquad.pipeline.single import (
     run,
     with_discovery,
 )
+from pinquad.report.console import warning_lines
 from pinquad.sim.simulator import SimConfig, flight_log
 from pinquad.sim.simulator import simulate as simulate_flight
 
@@ -62,12 +64,18 @@ def identify(log: FlightLog, *, mstep: str = "regressor", sensor: str | None = N
     measurements to use (``A``, ``B``, ``C``; None: what the log carries); estep: ``rts``
     (compiled EKF + RTS), ``ieks`` or ``gtsam``; information: standard errors from the
     observed information (measured flights: combined with the block jackknife and the
-    thrust-stand kf's uncertainty). Raises ``ImplausibleLogError`` / ValueError naming the
+    thrust-stand kf's uncertainty). Warns (``UserWarning``) when an assumption moves every
+    number, as the command prints it: a thrust coefficient not from a thrust stand (no
+    stand data found: the vehicle's own value with its assumed error, counted in
+    ``stderr``), no vehicle named. Raises ``ImplausibleLogError`` / ValueError naming the
     log on bad input.
     """
     options = LogOptions(sensors=() if sensor is None else (sensor,), msteps=(mstep,),
                          estep=estep, max_iterations=max_iterations, information=information)
-    return run(log, PipelineOptions(options, discover=False))
+    result = run(log, PipelineOptions(options, discover=False))
+    for line in warning_lines(result.identified):
+        warnings.warn(line.removeprefix("warning: "), UserWarning, stacklevel=2)
+    return result
 
 
 def discover(log: FlightLog, fit: Result | None = None, *,
@@ -76,7 +84,7 @@ def discover(log: FlightLog, fit: Result | None = None, *,
     pinquad.offline --log`` finds it (the same guarded step): the effects of the effect
     vocabulary (drag, ground_effect, com_offset, wind, motor_lag, gyro_bias) that explain
     held-out residuals beyond what shadow flights of the base fit do, their coefficients
-    with standard errors (``found``), and the headline re-judged under the final model
+    with standard errors (``effects``), and the headline re-judged under the final model
     (``mass``, ``inertia``, ``verdict``: discovery's refit when effects were selected).
 
     fit: ``identify(log)``'s result (None: identified here with the defaults); null: the
@@ -88,9 +96,20 @@ def discover(log: FlightLog, fit: Result | None = None, *,
     """
     if fit is None:
         fit = identify(log)
-    elif fit.source != str(log.meta.source):
+    elif not _same_flight(log, fit):
         raise ValueError(f"discover: the fit is of {fit.source}, not of {log.meta.source}")
     return with_discovery(fit, null)
+
+
+def _same_flight(log: FlightLog, fit: Result) -> bool:
+    """Whether ``fit`` identified ``log``: the same source, and for a log with thrust and
+    torque columns (which the E-step sees as they are) the same time stamps and thrust."""
+    seen = fit.identified.log
+    if fit.source != str(log.meta.source):
+        return False
+    return fit.identified.kind != "simulated" or (
+        seen.n == log.n and np.array_equal(seen.t, log.t)
+        and np.array_equal(seen.thrust, log.thrust, equal_nan=True))
 
 
 def simulate(vehicle: str | Vehicle = "paper", sensor: str = "B", seed: int = 0,

@@ -6,6 +6,7 @@ pinquad.identify(log))`` in this process, and prints both: effects kept (or why 
 did not run), the verdict per parameter and overall, the headline mass and inertia.
 
     python scripts/api_vs_cli.py [--data ../shared/data] [--only NAME ...]
+                                 [--with-vehicle both|no|only]
 """
 
 from __future__ import annotations
@@ -63,12 +64,16 @@ def from_api(log: Path, vehicle: Path | None) -> dict:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data")
-    parser.add_argument("--only", nargs="*", default=None)
+    parser.add_argument("--only", nargs="*", default=None, help="log names to run")
+    parser.add_argument("--with-vehicle", choices=["both", "no", "only"], default="both",
+                        help="the Parrot-frame flights with their vehicle file too (both), "
+                             "not (no), or those alone (only)")
     args = parser.parse_args()
     flights = sorted((args.data / "neural_swarm" / "flights").glob("*"))
-    cases = [(p, None) for p in flights]
-    cases += [(p, PARROT) for p in flights if "cf10" in p.name]
-    cases.append((args.data / "crazyflie" / "imrc_brushed" / "jana00", None))
+    plain = [(p, None) for p in flights]
+    plain.append((args.data / "crazyflie" / "imrc_brushed" / "jana00", None))
+    parrot = [(p, PARROT) for p in flights if "cf10" in p.name]
+    cases = {"both": plain + parrot, "no": plain, "only": parrot}[args.with_vehicle]
     cases = [c for c in cases if args.only is None or c[0].name in args.only]
     print("| log | vehicle | offline --log: effects | verdicts m/xx/yy/zz (overall, exit) "
           "| API: effects | verdicts (overall, exit) | same | largest value difference |")

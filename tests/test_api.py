@@ -99,7 +99,7 @@ def test_simulated_flight_identified_through_the_api_within_the_paper_bounds():
     np.testing.assert_array_less(np.abs(fit.inertia_diag / np.diag(truth.inertia) - 1.0), 0.05)
     assert np.all(fit.stderr > 0)
     # the base fit is the headline when discovery did not run
-    assert fit.mass == fit.run.mass and fit.selected == () and fit.found is None
+    assert fit.mass == fit.run.mass and fit.selected == () and fit.effects is None
     assert fit.run.posterior is not None and fit.run.posterior.mean.shape == (log.n, 12)
     assert fit.run.history_mass.shape[0] == fit.run.history_inertia.shape[0]
 
@@ -107,7 +107,8 @@ def test_simulated_flight_identified_through_the_api_within_the_paper_bounds():
 def test_a_measured_flight_says_where_its_thrust_coefficient_came_from(monkeypatch, tmp_path):
     """Rotor speeds become thrust through kf, and every estimate scales with it: the fit's
     notes name the thrust-stand runs it came from, and, with no stand data found, the
-    shipped constant and its assumed 5 % error (a 2.8 % heavier jana00 then, not silently)."""
+    shipped constant and its assumed 5 % error (a 2.8 % heavier jana00 then, not silently:
+    a UserWarning from the API and a warning line in the printed summary)."""
     import pinquad
     import pinquad.realdata.thrust as thrust
 
@@ -116,16 +117,21 @@ def test_a_measured_flight_says_where_its_thrust_coefficient_came_from(monkeypat
     log = pinquad.read_log(JANA00)
     fit = pinquad.identify(log, max_iterations=5, information=False)
     assert any("thrust-stand run(s)" in n for n in fit.notes), fit.notes
+    assert "thrust-stand" not in fit.summary()
     monkeypatch.setattr(thrust, "stand_dir", lambda *a, **k: tmp_path)
     thrust.thrust_coefficient.cache_clear()   # kf is cached per directory argument
     try:
-        fallback = pinquad.identify(log, max_iterations=5, information=False)
+        with pytest.warns(UserWarning, match="no thrust-stand data found"):
+            fallback = pinquad.identify(log, max_iterations=5, information=False)
     finally:
         monkeypatch.undo()
         thrust.thrust_coefficient.cache_clear()
     assert any("no thrust-stand CSV" in n and "assumed 5 % standard error" in n
                for n in fallback.notes), fallback.notes
     assert fallback.mass != fit.mass
+    # said where a person reads, with the error assumed, never silently
+    assert "warning: no thrust-stand data found: kf = 2.06e-08 N/(rad/s)^2 ± 5 % assumed" in (
+        fallback.summary())
 
 
 def test_every_type_the_api_signatures_take_or_give_is_exported():
@@ -190,7 +196,7 @@ def test_api_discover_does_not_run_on_an_unconverged_fit():
     fit = pinquad.identify(log, max_iterations=2, information=False)
     assert not fit.run.converged
     found = pinquad.discover(log, fit, null=pinquad.NullSettings(replicates=0))
-    assert found.selected == () and found.found is None
+    assert found.selected == () and found.effects is None
     assert "did not converge" in found.discovery_note
     other = pinquad.simulate(sensor="B", seed=1).slice(0, 800)
     with pytest.raises(ValueError, match="not of"):

@@ -211,7 +211,7 @@ class Result:
         return self.identified.runs[0]
 
     @property
-    def found(self) -> DiscoveryResult | None:
+    def effects(self) -> DiscoveryResult | None:
         """Effect discovery's result (selected effects, coefficients with standard errors,
         held-out scores, the refit); None when discovery was not run or found it could
         not run (``discovery_note`` says why)."""
@@ -220,7 +220,7 @@ class Result:
     @property
     def selected(self) -> tuple[str, ...]:
         """The unmodelled effects discovery kept (empty: none, or not run)."""
-        found = self.found
+        found = self.effects
         return () if found is None else tuple(found.selected)
 
     @property
