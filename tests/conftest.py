@@ -60,6 +60,9 @@ def pytest_sessionstart(session: pytest.Session) -> None:
               "(pinned commit, SHA-256 checked) ...", file=sys.stderr)
         try:
             fetch_crazyflie(DATA / "crazyflie")
+        except requests.ConnectionError as exc:
+            host = exc.request.url.split("/")[2] if exc.request is not None else "its origin"
+            fetched = f" (fetching the Crazyflie part failed: cannot reach {host})"
         except (requests.RequestException, ValueError, OSError) as exc:
             fetched = f" (fetching the Crazyflie part failed: {type(exc).__name__}: {exc})"
     missing = _missing()
