@@ -82,3 +82,25 @@ def test_the_default_report_is_a_few_short_lines_and_explain_has_the_rest(short_
         assert part in explain and part not in short_result.summary()
     assert len(explain.splitlines()) > len(summary)
     assert np.isfinite(estimate.stderr).all()
+
+
+def test_the_ten_parameter_model_prints_its_centre_of_mass_and_products_in_a_line_each():
+    """Values with their errors; an untrusted product with its verdict, not an error bar;
+    a CoM the likelihood leaves flat says so."""
+    from types import SimpleNamespace
+
+    from pinquad.report.console import full_lines
+
+    inertia = np.array([[250e-6, 1.2e-6, -0.4e-6], [1.2e-6, 310e-6, 0.1e-6],
+                        [-0.4e-6, 0.1e-6, 200e-6]])
+    full = SimpleNamespace(com=np.array([0.004, -0.003, 0.002]), stderr_mass=1e-4,
+                           stderr_com=np.array([1e-4, 1e-4, np.nan]), inertia=inertia,
+                           stderr_inertia=np.full((3, 3), 0.2e-6))
+    verdicts = {"I_xy": "trusted", "I_xz": "not identifiable", "I_yz": "trusted"}
+    verdict = SimpleNamespace(get=lambda n: SimpleNamespace(
+        verdict=verdicts[n], trusted=verdicts[n] == "trusted"))
+    com, products = full_lines(SimpleNamespace(full=full), verdict)
+    assert com == ("  centre of mass: c_x 4.00 ± 0.10, c_y -3.00 ± 0.10, "
+                   "c_z 2 (not identifiable) mm")
+    assert products == ("  products of inertia: I_xy 1.20 ± 0.20, I_xz -0.4 (not "
+                        "identifiable), I_yz 0.10 ± 0.20 e-6 kg m^2")
