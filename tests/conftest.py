@@ -12,6 +12,7 @@ run the tests that need none).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import subprocess
@@ -49,30 +50,35 @@ def _missing() -> list[str]:
             if not (DATA / part).is_dir() or not any((DATA / part).iterdir())]
 
 
-def pytest_sessionstart(session: pytest.Session) -> None:
+def pytest_configure(config: pytest.Config) -> None:
     """Fetch the Crazyflie data the tests need on first use; stop once, with one
     instruction, when data is still missing (module docstring)."""
     if os.environ.get(WITHOUT_DATA) or not _missing():
         return
-    fetched = ""
+    failed = ""
     if any(part.startswith("crazyflie/") for part in _missing()):
-        print(f"\nfetching the Crazyflie data the tests read into {DATA / 'crazyflie'} "
+        print(f"fetching the Crazyflie data the tests read into {DATA / 'crazyflie'} "
               "(pinned commit, SHA-256 checked) ...", file=sys.stderr)
+        created = [d for d in (DATA.parent, DATA, DATA / "crazyflie") if not d.exists()]
         try:
             fetch_crazyflie(DATA / "crazyflie")
         except requests.ConnectionError as exc:
             host = exc.request.url.split("/")[2] if exc.request is not None else "its origin"
-            fetched = f" (fetching the Crazyflie part failed: cannot reach {host})"
+            failed = f"fetching the Crazyflie part failed: cannot reach {host}.\n"
         except (requests.RequestException, ValueError, OSError) as exc:
-            fetched = f" (fetching the Crazyflie part failed: {type(exc).__name__}: {exc})"
+            failed = f"fetching the Crazyflie part failed: {type(exc).__name__}: {exc}\n"
+        if failed:  # no empty folders left behind, which would read as the data's place
+            for folder in reversed(created):
+                with contextlib.suppress(OSError):
+                    folder.rmdir()
     missing = _missing()
     if missing:
         pytest.exit(
-            f"the tests read real flight data from {DATA}, and these folders are missing "
-            f"or empty: " + "; ".join(f"{part}: {NEEDED[part]}" for part in missing)
-            + fetched + f". Put them there (the Crazyflie part: `python -m pinquad.data "
-            f"fetch crazyflie --cache {DATA / 'crazyflie'}` on a machine with internet), or "
-            f"set {WITHOUT_DATA}=1 to run the tests that need none (the others then fail).",
+            f"the tests read real flight data from {DATA}; missing there:\n"
+            + "".join(f"  {part}: {NEEDED[part]}\n" for part in missing) + failed
+            + f"Put them there (the Crazyflie part: `python -m pinquad.data fetch crazyflie "
+            f"--cache {DATA / 'crazyflie'}` where the network reaches GitHub), or set "
+            f"{WITHOUT_DATA}=1 to run the tests that need none (the others then fail).",
             returncode=2)
 
 
