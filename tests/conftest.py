@@ -67,10 +67,10 @@ def pytest_configure(config: pytest.Config) -> None:
             failed = f"fetching the Crazyflie part failed: cannot reach {host}.\n"
         except (requests.RequestException, ValueError, OSError) as exc:
             failed = f"fetching the Crazyflie part failed: {type(exc).__name__}: {exc}\n"
-        if failed:  # no empty folders left behind, which would read as the data's place
-            for folder in reversed(created):
+        if failed and created:  # no empty folders left, which would read as the data's place
+            for folder in [*sorted(created[0].rglob("*"), reverse=True), *reversed(created)]:
                 with contextlib.suppress(OSError):
-                    folder.rmdir()
+                    folder.rmdir()  # only an empty folder goes
     missing = _missing()
     if missing:
         pytest.exit(
