@@ -241,12 +241,15 @@ def test_untrusted_headline_exits_3_and_still_writes_the_report(noisy_torque_log
     # the mass is still right; nothing discovered, so the headline is the base fit
     assert report["estimates"]["mass"] == pytest.approx(M, rel=0.01)
     assert report["estimates"]["mass"] == report["base"]["mass"]
-    # the printed table shows the untrusted inertia with its verdict, not an error bar
-    row = next(line for line in printed.out.splitlines() if line.startswith("| B | regressor"))
+    # printed: the untrusted inertia with its verdict and main reason beside it
+    i_xx = next(line for line in report_lines if line.split()[0] == "I_xx")
+    assert "not identifiable: torques explain" in i_xx
+    # the table of runs (report.md, --explain) shows it with its verdict, not an error bar
+    md = (out / "report.md").read_text()
+    row = next(line for line in md.splitlines() if line.startswith("| B | regressor"))
     cells = [c.strip() for c in row.split("|")[1:-1]]
     assert "±" in cells[2] and "(not identifiable: torques explain" in cells[3]
     assert "±" not in cells[3]
-    md = (out / "report.md").read_text()
     assert "verdict: not identifiable" in md
 
 
