@@ -37,6 +37,10 @@ def test_one_line_per_effect_or_one_saying_why_there_is_none():
     lines = effect_lines({"selected": [drag, wind]}, None)
     assert lines == ["effect drag: D_x 0.0158 ± 0.0017, D_y 0.0158 ± 0.002 N s/m; held-out "
                      "gain 27 %", "effect wind: w_x -0.004 ± 0.00091 N; held-out gain 36 %"]
+    ground = {"effect": "ground_effect", "coefficients": {"k_ge": 5.907}, "units": {"k_ge": "-"},
+              "stderr": {"k_ge": 0.2}, "evidence": {"heldout_gain": 0.79}}
+    assert effect_lines({"selected": [ground]}, None) == [
+        "effect ground_effect: k_ge 5.91 ± 0.2; held-out gain 79 %"]  # dimensionless
     assert effect_lines({"selected": [], "unphysical": [{"effect": "drag"}]}, None) == [
         "effects: none found (best fit outside its physical domain, not kept: drag)"]
     not_run = effect_lines({"selected": [], "not_run": "the base fit did not converge (EM "

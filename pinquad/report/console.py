@@ -109,12 +109,13 @@ def reference_line(result: LogResult) -> str | None:
 
 
 def _coefficients(selected: dict) -> str:
-    units = set(selected["units"].values())
-    one = units.pop() if len(units) == 1 else None
+    # "-": a dimensionless coefficient, printed without a unit
+    units = {n: "" if u == "-" else f" {u}" for n, u in selected["units"].items()}
+    one = set(units.values()).pop() if len(set(units.values())) == 1 else None
     text = ", ".join(f"{n} {v:.3g} ± {selected['stderr'][n]:.2g}"
-                     + ("" if one is not None else f" {selected['units'][n]}")
+                     + ("" if one is not None else units[n])
                      for n, v in selected["coefficients"].items())
-    return text + (f" {one}" if one else "")
+    return text + (one or "")
 
 
 def effect_lines(section: dict | None, skipped: str | None) -> list[str]:
