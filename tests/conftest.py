@@ -1,16 +1,85 @@
-"""Shared test fixtures."""
+"""Shared test fixtures, and the check, before any test runs, that the real data the tests
+read is there.
+
+The tests read the public flights from ``../shared/data`` beside the checkout (CI's copy).
+When a part is missing, the session first fetches the Crazyflie part there (pinned commit,
+SHA-256 per file: ``pinquad.io.datafetch``); if anything is still missing (offline, or the
+Neural-Swarm and PX4 files, which pinquad cannot download), it stops once with one
+instruction instead of a hundred "data not found" failures. A test run alone still fails,
+never skips, without its data (``PINQUAD_TESTS_WITHOUT_DATA=1`` lets the session start to
+run the tests that need none).
+"""
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+import requests
 
 from estimators.linear import LinearGaussianModel
+from pinquad.io.crazyflie_files import COMMIT, REPOSITORY
+from pinquad.io.datafetch import fetch_crazyflie
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+"""Where the tests read the real data: ``../shared/data`` beside the checkout."""
+
+NEEDED = {
+    "crazyflie/imrc_brushed": f"the IMRC Crazyflie flights ({REPOSITORY} at {COMMIT[:8]})",
+    "crazyflie/imrc_brushless": "the IMRC brushless Crazyflie flights (the same repository)",
+    "crazyflie/thrust_stand": "the Bitcraze thrust-stand runs (the same download)",
+    "neural_swarm/flights": "the Caltech Neural-Swarm flights (aerorobotics/neural-swarm at "
+                            "48b18511, data/training/datacollection21_06_16_2020/; "
+                            "docs/data.md)",
+    "px4": "the PX4 logs (ethz-asl/data-driven-dynamics at 252a9cb0, "
+           "resources/quadrotor_model.csv and its config; PX4/pyulog's test/sample.ulg)",
+}
+"""The data folders the tests read, and what each holds."""
+
+WITHOUT_DATA = "PINQUAD_TESTS_WITHOUT_DATA"
+
+
+def _missing() -> list[str]:
+    return [part for part in NEEDED
+            if not (DATA / part).is_dir() or not any((DATA / part).iterdir())]
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Fetch the Crazyflie data the tests need on first use; stop once, with one
+    instruction, when data is still missing (module docstring)."""
+    if os.environ.get(WITHOUT_DATA) or not _missing():
+        return
+    failed = ""
+    if any(part.startswith("crazyflie/") for part in _missing()):
+        print(f"fetching the Crazyflie data the tests read into {DATA / 'crazyflie'} "
+              "(pinned commit, SHA-256 checked) ...", file=sys.stderr)
+        created = [d for d in (DATA.parent, DATA, DATA / "crazyflie") if not d.exists()]
+        try:
+            fetch_crazyflie(DATA / "crazyflie")
+        except requests.ConnectionError as exc:
+            host = exc.request.url.split("/")[2] if exc.request is not None else "its origin"
+            failed = f"fetching the Crazyflie part failed: cannot reach {host}.\n"
+        except (requests.RequestException, ValueError, OSError) as exc:
+            failed = f"fetching the Crazyflie part failed: {type(exc).__name__}: {exc}\n"
+        if failed and created:  # no empty folders left, which would read as the data's place
+            for folder in [*sorted(created[0].rglob("*"), reverse=True), *reversed(created)]:
+                with contextlib.suppress(OSError):
+                    folder.rmdir()  # only an empty folder goes
+    missing = _missing()
+    if missing:
+        pytest.exit(
+            f"the tests read real flight data from {DATA}; missing there:\n"
+            + "".join(f"  {part}: {NEEDED[part]}\n" for part in missing) + failed
+            + f"Put them there (the Crazyflie part: `python -m pinquad.data fetch crazyflie "
+            f"--cache {DATA / 'crazyflie'}` where the network reaches GitHub), or set "
+            f"{WITHOUT_DATA}=1 to run the tests that need none (the others then fail).",
+            returncode=2)
 
 
 def random_stable_model(rng: np.random.Generator, n: int = 4, m: int = 3) -> LinearGaussianModel:

@@ -54,21 +54,34 @@ def test_readme_python_example_runs_and_prints_what_the_readme_says():
 def test_public_names_resolve_to_the_implementations():
     import pinquad
     from pinquad import api
-    from pinquad.discovery.result import DiscoveryResult
-    from pinquad.identification.identify import Identification
     from pinquad.io.logs import FlightLog
+    from pinquad.pipeline.single import Result
 
     assert pinquad.read_log is api.read_log
     assert pinquad.identify is api.identify
     assert pinquad.discover is api.discover
     assert pinquad.simulate is api.simulate
-    assert pinquad.Identification is Identification
-    assert pinquad.DiscoveryResult is DiscoveryResult
-    assert not hasattr(pinquad, "Discovery")  # one name per type
+    assert pinquad.Result is Result
     assert pinquad.FlightLog is FlightLog
+    assert not hasattr(pinquad, "Discovery")  # one name per type
     assert set(pinquad.__all__) <= set(dir(pinquad))
+    assert len(pinquad.__all__) == len(set(pinquad.__all__)) <= 25
     with pytest.raises(AttributeError):
         pinquad.no_such_name  # noqa: B018
+
+
+def test_names_no_longer_exported_still_resolve_with_a_warning_naming_their_module():
+    """What users reach through a Result (the EM run, discovery's result) left the public
+    names; old code that names them gets them, told where they live."""
+    import pinquad
+    from pinquad.discovery.result import DiscoveryResult
+    from pinquad.identification.identify import Identification
+
+    for name, cls, module in (("Identification", Identification, "pinquad.identification.identify"),
+                              ("DiscoveryResult", DiscoveryResult, "pinquad.discovery.result")):
+        assert name not in pinquad.__all__ and name not in dir(pinquad)
+        with pytest.warns(DeprecationWarning, match=module):
+            assert getattr(pinquad, name) is cls
 
 
 def test_simulated_flight_identified_through_the_api_within_the_paper_bounds():
@@ -77,21 +90,25 @@ def test_simulated_flight_identified_through_the_api_within_the_paper_bounds():
     experiment's bounds, docs/paper.md), with positive standard errors and a posterior
     as long as the log."""
     import pinquad
+    from pinquad.core.params import PAPER_VEHICLE as truth
 
     log = pinquad.simulate(sensor="B", seed=1)
     fit = pinquad.identify(log)
-    truth = pinquad.PAPER_VEHICLE
+    assert isinstance(fit, pinquad.Result)
     assert abs(fit.mass / truth.mass - 1.0) < 0.005
     np.testing.assert_array_less(np.abs(fit.inertia_diag / np.diag(truth.inertia) - 1.0), 0.05)
     assert np.all(fit.stderr > 0)
-    assert fit.posterior is not None and fit.posterior.mean.shape == (log.n, 12)
-    assert fit.history_mass.shape[0] == fit.history_inertia.shape[0]
+    # the base fit is the headline when discovery did not run
+    assert fit.mass == fit.run.mass and fit.selected == () and fit.effects is None
+    assert fit.run.posterior is not None and fit.run.posterior.mean.shape == (log.n, 12)
+    assert fit.run.history_mass.shape[0] == fit.run.history_inertia.shape[0]
 
 
 def test_a_measured_flight_says_where_its_thrust_coefficient_came_from(monkeypatch, tmp_path):
     """Rotor speeds become thrust through kf, and every estimate scales with it: the fit's
     notes name the thrust-stand runs it came from, and, with no stand data found, the
-    shipped constant and its assumed 5 % error (a 2.8 % heavier jana00 then, not silently)."""
+    shipped constant and its assumed 5 % error (a 2.8 % heavier jana00 then, not silently:
+    a UserWarning from the API and a warning line in the printed summary)."""
     import pinquad
     import pinquad.realdata.thrust as thrust
 
@@ -100,16 +117,21 @@ def test_a_measured_flight_says_where_its_thrust_coefficient_came_from(monkeypat
     log = pinquad.read_log(JANA00)
     fit = pinquad.identify(log, max_iterations=5, information=False)
     assert any("thrust-stand run(s)" in n for n in fit.notes), fit.notes
+    assert "thrust-stand" not in fit.summary()
     monkeypatch.setattr(thrust, "stand_dir", lambda *a, **k: tmp_path)
     thrust.thrust_coefficient.cache_clear()   # kf is cached per directory argument
     try:
-        fallback = pinquad.identify(log, max_iterations=5, information=False)
+        with pytest.warns(UserWarning, match="no thrust-stand data found"):
+            fallback = pinquad.identify(log, max_iterations=5, information=False)
     finally:
         monkeypatch.undo()
         thrust.thrust_coefficient.cache_clear()
     assert any("no thrust-stand CSV" in n and "assumed 5 % standard error" in n
                for n in fallback.notes), fallback.notes
     assert fallback.mass != fit.mass
+    # said where a person reads, with the error assumed, never silently
+    assert "warning: no thrust-stand data found: kf = 2.06e-08 N/(rad/s)^2 ± 5 % assumed" in (
+        fallback.summary())
 
 
 def test_every_type_the_api_signatures_take_or_give_is_exported():
@@ -133,6 +155,49 @@ def test_every_type_the_api_signatures_take_or_give_is_exported():
         for hint in typing.get_type_hints(fn).values():
             taken |= {c for c in classes(hint) if c.__module__.startswith("pinquad")}
     assert {c.__name__ for c in taken} >= {"NullSettings", "PipelineOptions", "Batch",
-                                           "DiscoveryConfig", "DiscoveryResult"}
+                                           "Result", "FlightLog"}
     for cls in taken:
         assert getattr(pinquad, cls.__name__, None) is cls, f"{cls.__name__} not exported"
+
+
+def test_api_discover_is_the_command_lines_guarded_step_on_the_same_flight(tmp_path):
+    """``pinquad.discover(log, pinquad.identify(log))`` and the pipeline run of ``offline
+    --log`` on one simulated flight: the same effects, the same headline numbers and
+    verdicts; the Result prints its summary and saves the run directory the command
+    writes (report.json with the same estimates)."""
+    import json
+
+    import pinquad
+    from pinquad.experiments.recorded import LogOptions
+    from pinquad.pipeline.single import LOG_MAX_ITERATIONS, PipelineOptions, run
+
+    log = pinquad.simulate(sensor="B", seed=0).slice(0, 800)
+    null = pinquad.NullSettings(replicates=0)
+    found = pinquad.discover(log, pinquad.identify(log, information=False), null=null)
+    command = run(log, PipelineOptions(LogOptions(msteps=("regressor",), information=False,
+                                                  max_iterations=LOG_MAX_ITERATIONS), null))
+    assert found.selected == command.selected
+    assert found.verdict.to_report() == command.verdict.to_report()
+    np.testing.assert_array_equal(np.r_[found.mass, found.inertia_diag],
+                                  np.r_[command.mass, command.inertia_diag])
+    assert "mass" in found.summary() and found.verdict.overall in found.summary()
+    saved = json.loads((found.save(tmp_path / "run") / "report.json").read_text())
+    assert saved["estimates"]["mass"] == found.mass
+    assert saved["verdict"]["overall"] == found.verdict.overall
+
+
+def test_api_discover_does_not_run_on_an_unconverged_fit():
+    """The guard ``offline --log`` applies: a base fit stopped at its E-step limit is no
+    ground for effects (its residual is an arbitrary point's); the API says so instead of
+    reading effects from it."""
+    import pinquad
+
+    log = pinquad.simulate(sensor="B", seed=0).slice(0, 800)
+    fit = pinquad.identify(log, max_iterations=2, information=False)
+    assert not fit.run.converged
+    found = pinquad.discover(log, fit, null=pinquad.NullSettings(replicates=0))
+    assert found.selected == () and found.effects is None
+    assert "did not converge" in found.discovery_note
+    other = pinquad.simulate(sensor="B", seed=1).slice(0, 800)
+    with pytest.raises(ValueError, match="not of"):
+        pinquad.discover(other, fit)

@@ -75,7 +75,7 @@ def _same_columns(a, b) -> None:
 
 
 def _estimate(log) -> np.ndarray:
-    run = identify(log, information=False)
+    run = identify(log, information=False).run
     return np.r_[run.mass, np.diag(run.inertia)]
 
 

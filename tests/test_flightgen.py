@@ -144,7 +144,7 @@ tolerance to loosen: the verdict of ``offline --log`` calls this inertia not ide
 def crazyflie_identification(tmp_path_factory):
     flight = generate(FlightSpec(duration=10.0, dt=0.001, seed=3, log_rate=500))
     path = write_csv(flight, tmp_path_factory.mktemp("fg") / "cf.csv")
-    return identify(read_log(path), information=False)
+    return identify(read_log(path), information=False).run
 
 
 def test_identify_gets_the_mass_of_a_flightgen_crazyflie(crazyflie_identification):

@@ -239,7 +239,7 @@ def test_offline_log_identifies_all_ten_parameters(tmp_path):
                           "--sensor", "B", "--mstep", "full", "--max-iterations", "40")
     # 40 E-steps do not converge: the estimates are reported, never trusted (exit 3)
     assert proc.returncode == 3, proc.stderr[-2000:]
-    assert "centre of mass [mm]" in proc.stdout
+    assert "  centre of mass: c_x " in proc.stdout and "  products of inertia: I_xy " in proc.stdout
     report = json.loads((out / "report.json").read_text())
     est = report["estimates"]
     run = report["runs"][0]

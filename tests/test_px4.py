@@ -433,7 +433,8 @@ def test_measured_flight_without_position_runs_on_velocity(tmp_path):
     log = pinquad.read_log(JANA00)
     path = write_log(replace(log, position=np.full_like(log.position, np.nan), measured=None),
                      tmp_path / "jana00_velocity.csv")
-    fit = pinquad.identify(pinquad.read_log(path))
+    result = pinquad.identify(pinquad.read_log(path))
+    fit = result.run
     assert fit.sensor == "vel,euler,gyro"
     assert np.isfinite(fit.posterior.cov).all()
     published = load_vehicle("crazyflie21").reference.inertia

@@ -103,11 +103,11 @@ def real_export(tmp_path_factory):
     assert JANA00.exists(), f"shared IMRC data missing: {JANA00}"
     log = replace(read_any(JANA00), measured=None)
     path = write_log(log, tmp_path_factory.mktemp("imrc") / "jana00.parquet")
-    return read_log(path), identify(read_log(path))
+    return read_log(path), identify(read_log(path)).run
 
 
 def _changes(log, base) -> np.ndarray:
-    run = identify(log, information=False)
+    run = identify(log, information=False).run
     new = np.r_[run.mass, np.diag(run.inertia)]
     return np.abs(new - np.r_[base.mass, np.diag(base.inertia)]) / np.asarray(base.stderr)
 
@@ -168,7 +168,7 @@ def flightgen_export(tmp_path_factory):
     flight = generate(FlightSpec(duration=6.0, dt=0.001, seed=3, log_rate=100))
     path = write_csv(flight, tmp_path_factory.mktemp("fg") / "fg.csv", mass_guess=0.03)
     log = read_log(path)
-    return log, identify(log)
+    return log, identify(log).run
 
 
 @FEW
@@ -200,7 +200,7 @@ def test_a_flightgen_flights_2_s_gap_is_excluded_and_a_reset(flightgen_export):
                     truth=None if log.truth is None else log.truth[keep])
     obs = observations(holed, "B")
     assert obs.exclude[:-1].sum() == 1 and obs.resets[:-1].sum() == 1
-    assert identify(holed, information=False).failure is None
+    assert identify(holed, information=False).run.failure is None
 
 
 @settings(max_examples=50, deadline=None, derandomize=True, database=None)
@@ -232,7 +232,7 @@ def test_a_real_rotor_speed_logs_2_s_gap_converges_near_the_clean_estimate(real_
     whole log's (measured: at most 0.3 of one, I_yy)."""
     log, base = real_export
     holed = _with_2_s_hole(log)
-    run = identify(holed, information=False)
+    run = identify(holed, information=False).run
     assert run.failure is None and run.converged
     change = (np.abs(np.r_[run.mass, np.diag(run.inertia)]
                      - np.r_[base.mass, np.diag(base.inertia)]) / np.asarray(base.stderr))

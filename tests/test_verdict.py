@@ -210,7 +210,14 @@ def test_untrusted_headline_exits_3_and_still_writes_the_report(noisy_torque_log
     assert code == 3
     printed = capsys.readouterr()
     assert "exit code 3" in printed.err
-    assert "log: thrust/torque commands, simulator truth" in printed.out
+    # the short report: the log's contents, then one line per parameter with its verdict
+    lines = printed.out.splitlines()
+    assert "noisy.csv: thrust/torque commands, simulator truth;" in printed.out
+    report_lines = [line for line in lines
+                    if line.split()[:1] in (["mass"], ["I_xx"], ["I_yy"], ["I_zz"])]
+    assert len(report_lines) == 4
+    assert all(any(w in line for w in ("trusted", "not identifiable", "model not adequate",
+                                       "implausible", "not judged")) for line in report_lines)
     report = json.loads((out / "report.json").read_text())
     # DESIGN 4.3's keys all there, plus base and verdict
     assert set(report) >= {"schema", "source", "estimates", "em", "discovery", "cycles",
@@ -234,12 +241,15 @@ def test_untrusted_headline_exits_3_and_still_writes_the_report(noisy_torque_log
     # the mass is still right; nothing discovered, so the headline is the base fit
     assert report["estimates"]["mass"] == pytest.approx(M, rel=0.01)
     assert report["estimates"]["mass"] == report["base"]["mass"]
-    # the printed table shows the untrusted inertia with its verdict, not an error bar
-    row = next(line for line in printed.out.splitlines() if line.startswith("| B | regressor"))
+    # printed: the untrusted inertia with its verdict and main reason beside it
+    i_xx = next(line for line in report_lines if line.split()[0] == "I_xx")
+    assert "not identifiable: torques explain" in i_xx
+    # the table of runs (report.md, --explain) shows it with its verdict, not an error bar
+    md = (out / "report.md").read_text()
+    row = next(line for line in md.splitlines() if line.startswith("| B | regressor"))
     cells = [c.strip() for c in row.split("|")[1:-1]]
     assert "±" in cells[2] and "(not identifiable: torques explain" in cells[3]
     assert "±" not in cells[3]
-    md = (out / "report.md").read_text()
     assert "verdict: not identifiable" in md
 
 

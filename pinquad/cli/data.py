@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from urllib.parse import urlparse
 
 import requests
 
@@ -68,6 +69,14 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_FAILED if bad else EXIT_OK
     try:
         where_to = fetch_crazyflie(args.cache, base_url=args.base_url, mirror=args.mirror)
+    except requests.ConnectionError as exc:
+        host = urlparse(exc.request.url).netloc if exc.request is not None else "the origin"
+        print(f"error: fetch failed: cannot reach {host} (no network, or a name that does "
+              "not resolve); the files already checked stay in the cache. Run the same "
+              "command where the network reaches it (set HTTPS_PROXY behind a proxy), or "
+              f"download from a copy with --mirror URL. ({type(exc).__name__})",
+              file=sys.stderr)
+        return EXIT_FAILED
     except (requests.RequestException, ValueError, OSError) as exc:
         print(f"error: fetch failed: {exc}", file=sys.stderr)
         return EXIT_FAILED

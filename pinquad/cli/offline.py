@@ -8,7 +8,8 @@ beside ours, bias, std and the Cramer-Rao bound, and writes a run directory.
 
 With ``--log PATH`` it identifies the vehicle of a recorded log (CSV, Parquet or a
 Crazyflie micro-SD binary log) through ``pinquad.pipeline`` (read, check, identify,
-look for unmodelled effects, judge); the run directory holds report.json, report.md, the log
+look for unmodelled effects, judge) and prints one line per parameter and per effect found
+(``--explain``: the whole report); the run directory holds report.json, report.md, the log
 as the E-step saw it (``logs/flight.parquet``), the smoothed state means
 (``logs/flight-smoothed.npy``, (N, 12)) and figures, written whole or not at all. Its
 headline (``estimates``) is the estimate under the final model (discovery's refit when
@@ -132,6 +133,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="--log: seed of the shadow flights")
     p.add_argument("--no-discover", action="store_true",
                    help="with --log: skip the search for unmodelled effects")
+    p.add_argument("--explain", action="store_true",
+                   help="with --log: print the whole report (every run's table, every "
+                        "reason, the error budget, discovery's coefficients, held-out "
+                        "residual RMS and null calibration, exclusions and notes) instead of "
+                        "one line per parameter and per effect; report.md holds it either way")
     p.add_argument("--view", action="store_true", help="open the browser view of the run")
     p.add_argument("--mass", metavar="KG|file", default=None,
                    help="with --log: known-mass mode for a log whose actuation is motor "
@@ -239,11 +245,12 @@ def run_log(args: argparse.Namespace) -> int:
         print(f"vehicle: {log.meta.vehicle}")
     with worker_pool(args.jobs) as pool:
         result = run(log, options, pool, str(args.log), t0)
-    print(result.text())
+    print(result.explain() if args.explain else result.summary())
     with writer:
         result.write(writer)
         final = writer.publish()
-    print(f"run written to {final}")
+    print(f"run written to {final}" + ("" if args.explain else
+                                       " (report.md, report.json; --explain prints it all)"))
     code = 0 if result.trusted else UNTRUSTED
     if code:
         print(f"exit code {UNTRUSTED}: the headline estimate is "

@@ -48,3 +48,24 @@ def missing_data_hint() -> str:
     """What to tell a user whose data directory holds no data: how to fetch or name it."""
     return (f"download the public data set with `{FETCH_COMMAND}` (into {cache_data_dir()}), "
             f"or give its directory with --data DIR or ${ENV_VAR}")
+
+
+FLIGHT_FOLDERS = ("imrc_brushed", "imrc_brushless")
+"""The data directory's folders of flight logs (brushed Crazyflie 2.1 ``jana*``, the
+brushless prototype ``eckart*``)."""
+
+
+def crazyflie_log(name: str, data: Path | None = None) -> Path:
+    """The path of the public Crazyflie flight ``name`` (``"jana00"``, ``"eckart00"`` or
+    ``"imrc_brushed/jana00"``) in ``data`` (default: ``default_data_dir()``: the copy
+    ``python -m pinquad.data fetch crazyflie`` downloads, unless $PINQUAD_CRAZYFLIE_DATA or
+    a checkout's ``../shared`` says otherwise). Raises FileNotFoundError naming where it
+    looked and how to fetch the data when the file is not there."""
+    base = default_data_dir() if data is None else Path(data)
+    candidates = ([base / name] if "/" in name
+                  else [base / folder / name for folder in FLIGHT_FOLDERS])
+    for path in candidates:
+        if path.is_file():
+            return path
+    raise FileNotFoundError(f"{name}: no such Crazyflie flight in {base}; "
+                            f"{missing_data_hint()}")

@@ -47,6 +47,7 @@ from pinquad.io.logs import LogFormatError
 from pinquad.io.runs import atomic_write_bytes
 from pinquad.pipeline.single import PipelineOptions, Result, run_path
 from pinquad.realdata.consistency import FlightScatter
+from pinquad.report.batch import batch_counts, batch_table
 
 
 @dataclass(frozen=True)
@@ -88,7 +89,7 @@ def run_log_task(task: LogTask) -> LogOutcome:
               f", M-step(s) {', '.join(task.options.identification.msteps)}")
         try:
             result = run_path(task.log, task.options)
-            print(result.text())
+            print(result.explain())
             report = _save(result, task)
         except (LogFormatError, FileExistsError, FileNotFoundError, ValueError) as exc:
             error = str(exc)
@@ -124,6 +125,11 @@ class Batch:
     rows: tuple[BatchRow, ...]
     scatters: tuple[FlightScatter, ...]
     exit_code: int
+
+    def summary(self) -> str:
+        """What ``offline --log A B C`` prints at the end: the counts and the table (one
+        row per log: mass, inertia, verdicts, effects or the error)."""
+        return f"{batch_counts(self.rows)}\n\n{batch_table(self.rows, self.scatters)}"
 
 
 def as_executor(executor: Any) -> Executor:

@@ -28,29 +28,27 @@ from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from pinquad.discovery.calibrated import (
-    DiscoveryOutcome,
-    discover_calibrated,
-    discovery_config,
-    discovery_start,
-)
+import numpy as np
+from numpy.typing import NDArray
+
+from pinquad.discovery.calibrated import DiscoveryOutcome
 from pinquad.discovery.null import NullSettings
-from pinquad.discovery.result import DiscoveryConfig
+from pinquad.discovery.result import DiscoveryResult
 from pinquad.experiments.discovery_report import discovery_section
-from pinquad.experiments.headline import Headline, headline, run_verdict
+from pinquad.experiments.headline import Estimate, Headline, headline, run_verdict
 from pinquad.experiments.recorded import (
     LogOptions,
     LogResult,
     identify_log,
-    input_reading,
-    log_kind,
     run_discovery,
 )
 from pinquad.identification.identify import Identification
+from pinquad.identification.verdict import EstimateVerdict
 from pinquad.io.logs import FlightLog
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.runs import RunWriter
 from pinquad.io.sanity import check_log
+from pinquad.report.console import console_summary
 from pinquad.report.discovery import discovery_figure_name, draw_discovery_figures
 from pinquad.report.recorded import (
     discovery_summary,
@@ -140,18 +138,14 @@ def discover(identified: LogResult, null: NullSettings | None = None,
     return run_discovery(identified, null, executor)
 
 
-def discover_from(log: FlightLog, run: Identification, config: DiscoveryConfig | None = None,
-                  null: NullSettings | None = None) -> DiscoveryOutcome:
-    """Effect discovery from any diagonal-model run of ``log`` (the API's ``discover``),
-    with ``config`` (default: the settings for the log's kind). Raises ValueError for a
-    ten-parameter run or one that kept no posterior."""
-    if run.mstep == "full":
-        raise ValueError("effect discovery works on the diagonal model: identify with "
-                         "mstep='regressor' first")
-    kind = log_kind(log)
-    reading = input_reading(kind, log)
-    config = discovery_config(kind, reading) if config is None else config
-    return discover_calibrated(discovery_start(run), config, null, reading)
+def discovered(identified: LogResult, null: NullSettings | None = None,
+               executor: Executor | None = None) -> tuple[DiscoveryOutcome | None, str | None]:
+    """(discovery's outcome, why it was not run): ``discover`` on a diagonal-model fit;
+    (None, ``FULL_NOT_DISCOVERED``) for a ten-parameter one. The one discovery step of
+    ``run`` and ``with_discovery``."""
+    if identified.runs[0].mstep == "full":
+        return None, FULL_NOT_DISCOVERED
+    return discover(identified, null, executor), None
 
 
 def judge(identified: LogResult, outcome: DiscoveryOutcome | None) -> Headline:
@@ -184,6 +178,83 @@ class Result:
         """Whether the headline estimate's verdict is ``trusted``."""
         return self.headline.final.verdict.trusted
 
+    @property
+    def estimate(self) -> Estimate:
+        """The headline estimate: under the final model (discovery's refit when it
+        selected effects, else the base fit), with its error budget and verdict."""
+        return self.headline.final
+
+    @property
+    def mass(self) -> float:
+        """The headline mass [kg]."""
+        return float(self.headline.final.mass)
+
+    @property
+    def inertia(self) -> NDArray[np.float64]:
+        """The headline inertia (3, 3) [kg m^2]."""
+        return np.asarray(self.headline.final.inertia)
+
+    @property
+    def inertia_diag(self) -> NDArray[np.float64]:
+        """The headline inertia's diagonal (3,) [kg m^2]."""
+        return np.diag(self.inertia).copy()
+
+    @property
+    def stderr(self) -> NDArray[np.float64]:
+        """Total standard errors (4,) of [m (kg), I_xx, I_yy, I_zz (kg m^2)]: the root sum
+        of squares of the error budget's parts (``estimate.budget``; statistical, thrust
+        calibration, ...), as report.json's ``estimates.stderr``."""
+        return np.asarray(self.headline.final.stderr, dtype=float)
+
+    @property
+    def verdict(self) -> EstimateVerdict:
+        """The headline's verdict: ``overall``, per parameter ``get(name)``, ``reasons``."""
+        return self.headline.final.verdict
+
+    @property
+    def run(self) -> Identification:
+        """The reported EM run (the base fit): its EM history, the smoothed posterior,
+        the observations its E-step saw, its statistical standard errors."""
+        return self.identified.runs[0]
+
+    @property
+    def effects(self) -> DiscoveryResult | None:
+        """Effect discovery's result (selected effects, coefficients with standard errors,
+        held-out scores, the refit); None when discovery was not run or found it could
+        not run (``discovery_note`` says why)."""
+        return None if self.outcome is None else self.outcome.result
+
+    @property
+    def selected(self) -> tuple[str, ...]:
+        """The unmodelled effects discovery kept (empty: none, or not run)."""
+        found = self.effects
+        return () if found is None else tuple(found.selected)
+
+    @property
+    def discovery_note(self) -> str | None:
+        """Why discovery was not run or stopped (an unconverged or unphysical base fit, a
+        ten-parameter fit, a numerical failure), else None."""
+        if self.discovery_skipped is not None:
+            return self.discovery_skipped
+        if self.outcome is None:
+            return None
+        return self.outcome.not_run or self.outcome.error or None
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """What the reading and the fit noted (the thrust coefficient's source, clock
+        repairs, the vehicle's range), the log's first."""
+        seen = tuple(self.identified.notes)
+        return seen + tuple(n for n in self.run.notes if n not in seen)
+
+    def summary(self) -> str:
+        """What ``python -m pinquad.offline --log`` prints about the run: one line per
+        parameter (value ± total standard error, unit, verdict, the main reason), the
+        vehicle's reference values, one line per effect found, warnings
+        (``pinquad.report.console``)."""
+        return console_summary(self.identified, self.headline, self.source, self.seconds,
+                               self.discovery(), self.discovery_skipped)
+
     def discovery(self) -> dict | None:
         """report.json's ``discovery`` section (None: not run), its figures named as
         ``save`` draws them (``figures/discovery_<effect>.png``)."""
@@ -196,9 +267,11 @@ class Result:
                                              for ev in found.evidence))
         return discovery_section(replace(self.outcome, result=named))
 
-    def text(self) -> str:
-        """What the command line prints about the run: the log, exclusions and notes, the
-        EM time, discovery's summary, the table of runs and the headline with its verdict."""
+    def explain(self) -> str:
+        """The whole printed report (``offline --log --explain``): the log, exclusions and
+        notes, the EM time, discovery's selection with its coefficients, held-out residual
+        RMS and null calibration, the table of runs, the headline with every reason and
+        its error budget."""
         ident = self.identified
         lines = [f"log: {ident.contents}; {ident.obs.n} steps of {ident.obs.dt * 1e3:.0f} ms",
                  f"initial guess: {ident.guess}",
@@ -254,14 +327,22 @@ def run(log: FlightLog, options: PipelineOptions | None = None,
     t0 = time.perf_counter() if started is None else started
     identified = identify(log, options.identification, executor)
     seconds = time.perf_counter() - t0
-    outcome, skipped = None, None
-    if options.discover and identified.runs[0].mstep == "full":
-        skipped = FULL_NOT_DISCOVERED
-    elif options.discover:
-        outcome = discover(identified, options.null, executor)
+    outcome, skipped = (discovered(identified, options.null, executor) if options.discover
+                        else (None, None))
     return Result(str(log.meta.source) if source is None else source,
                   options.identification.estep, identified, outcome, skipped,
                   judge(identified, outcome), seconds)
+
+
+def with_discovery(result: Result, null: NullSettings | None = None,
+                   executor: Executor | None = None) -> Result:
+    """``result`` with effect discovery run on its reported run and the headline judged
+    again: the step ``run`` takes when asked to discover (the same guards: an unconverged
+    base fit, one outside the physical set, a ten-parameter fit), on an identification
+    made without it. A discovery already run is run again with ``null``."""
+    outcome, skipped = discovered(result.identified, null, executor)
+    return replace(result, outcome=outcome, discovery_skipped=skipped,
+                   headline=judge(result.identified, outcome))
 
 
 def run_path(path: str | Path, options: PipelineOptions | None = None,

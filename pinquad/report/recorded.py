@@ -179,22 +179,30 @@ def log_table(result: LogResult, headline: Headline | None = None) -> str:
                         f"({100 * (own / scale - 1):+.2f} %)")
     for r, v in zip(result.runs, verdicts, strict=True):
         if r.full is not None:
-            full = r.full
-            # standard errors computed (the mass's is finite) but not the CoM's: the data
-            # leave it undetermined (identification.fisher.determined_covariance)
-            asked = np.isfinite(full.stderr_mass)
-            lines.append(f"\n{r.sensor}, full M-step: centre of mass [mm] "
-                         + ", ".join(f"c_{'xyz'[i]} " + (
-                             pm(full.com[i], full.stderr_com[i], 1e3, ".3f")
-                             if np.isfinite(full.stderr_com[i]) or not asked
-                             else f"{full.com[i] * 1e3:.3f} (not identifiable: the likelihood "
-                                  "is flat along it)") for i in range(3)))
-            lines.append(f"{r.sensor}, full M-step: products of inertia [1e-6 kg m^2] "
-                         + ", ".join(f"{name} " + judged(
-                             full.inertia[i, j], full.stderr_inertia[i, j], 1e6, ".2f",
-                             None if v is None else v.get(name))
-                             for name, i, j in PRODUCTS))
+            lines.append("")
+            lines += full_model_lines(r, v)
     return "\n".join(lines)
+
+
+def full_model_lines(r: Identification, verdict: EstimateVerdict | None) -> list[str]:
+    """A ten-parameter run's centre of mass [mm] and products of inertia [1e-6 kg m^2],
+    each with its standard error or why it has none / its verdict."""
+    full = r.full
+    assert full is not None
+    # standard errors computed (the mass's is finite) but not the CoM's: the data
+    # leave it undetermined (identification.fisher.determined_covariance)
+    asked = np.isfinite(full.stderr_mass)
+    return [f"{r.sensor}, full M-step: centre of mass [mm] "
+            + ", ".join(f"c_{'xyz'[i]} " + (
+                pm(full.com[i], full.stderr_com[i], 1e3, ".3f")
+                if np.isfinite(full.stderr_com[i]) or not asked
+                else f"{full.com[i] * 1e3:.3f} (not identifiable: the likelihood "
+                     "is flat along it)") for i in range(3)),
+            f"{r.sensor}, full M-step: products of inertia [1e-6 kg m^2] "
+            + ", ".join(f"{name} " + judged(
+                full.inertia[i, j], full.stderr_inertia[i, j], 1e6, ".2f",
+                None if verdict is None else verdict.get(name))
+                for name, i, j in PRODUCTS)]
 
 
 def plot_residuals(obs: Observations, smoothed: Array, path: Path) -> None:
