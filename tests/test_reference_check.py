@@ -120,6 +120,14 @@ def test_a_reference_without_its_uncertainty_is_judged_with_the_stated_default(t
     assert "21.4 combined standard errors" in why and "other.toml" in why
     assert "another vehicle" in why and "load" in why and "payload_mass" in why
     assert "other.toml" in verdict.get("I_xx").reasons[0]
+    # an inertia alone off its reference (the mass agreeing) is the model's, not a load's
+    pendulum = reference_values(load_vehicle(_file(
+        tmp_path, "mass = 0.0665\ninertia = [32.6e-6, 33.3e-6, 45e-6]\ninertia_rel_se = 0.05\n",
+        "pendulum")))
+    alone = judge(mass, inertia, stderr, VerdictEvidence(reference=pendulum), None)
+    assert [p.name for p in alone.parameters if not p.trusted] == ["I_zz"]
+    assert "does not hold on this log" in alone.get("I_zz").reasons[0]
+    assert "payload_mass" not in alone.get("I_zz").reasons[0]
     # the same estimate against its own vehicle's file (66.5 g stated) is trusted
     own = reference_values(load_vehicle(_file(tmp_path, "mass = 0.0665\n", "own")))
     assert judge(mass, inertia, stderr, VerdictEvidence(reference=own), None).trusted

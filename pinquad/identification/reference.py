@@ -120,7 +120,13 @@ def log_reference(meta: LogMeta) -> ReferenceValues | None:
 READINGS = ("either the vehicle file describes another vehicle, or the vehicle carries a "
             "load the file does not hold (declare it: sidecar \"payload_mass\" or "
             "--payload-mass, in kg)")
-"""The two readings of a disagreement with the vehicle's reference."""
+"""The two readings of a mass that disagrees with the vehicle's reference."""
+INERTIA_READINGS = ("the flight's model, or what it assumed, does not hold on this log about "
+                    "that axis (where the mass agrees with the file, neither another "
+                    "vehicle's thrust map nor a load explains it), or the file's inertia is "
+                    "not this vehicle's")
+"""The readings of an inertia that disagrees with the vehicle's reference (the mass's
+readings are named by :func:`vehicle_mismatch` when the mass disagrees too)."""
 
 
 def reference_gap(index: int, value: float, se: float, reference: ReferenceValues | None
@@ -151,7 +157,7 @@ def reference_check(name: str, index: int, value: float, se: float,
     ref, ref_se, z = gap
     return [f"{value * scale:.4g} {unit} is {z:.1f} combined standard errors "
             f"{REFERENCE_MARK} {ref * scale:.4g} +- {ref_se * scale:.2g} {unit} "
-            f"({reference.source}): {READINGS}"]
+            f"({reference.source}): {READINGS if index == 0 else INERTIA_READINGS}"]
 
 
 def vehicle_mismatch(mass: float, se: float, reference: ReferenceValues | None) -> list[str]:
