@@ -29,11 +29,12 @@ inertia then disagrees with the file's reference and says so.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.vehicle_file import VehicleSpec
+from pinquad.core.vehicle_file import SHIPPED, VehicleSpec, shipped_path
 from pinquad.identification.budget import named_vehicle, vehicle_spec
 from pinquad.io.logs import LogMeta
 
@@ -102,8 +103,16 @@ def reference_values(spec: VehicleSpec | None, payload_mass: float = 0.0
                                                        if ref.inertia_rel_se is None else ""))
     if not np.isfinite(values).any():
         return None
-    where = f"{spec.name}'s [reference] in {spec.source}"
+    where = f"{spec.name}'s [reference] " + (
+        "(shipped with pinquad)" if _is_shipped(spec) else f"in {spec.source}")
     return ReferenceValues(values, stderr, f"{where}, {', '.join(words)}", where)
+
+
+def _is_shipped(spec: VehicleSpec) -> bool:
+    """Whether the file is one pinquad ships (named by its name, not a path on this
+    machine)."""
+    return spec.name in SHIPPED and Path(str(spec.source)).resolve() == \
+        shipped_path(spec.name).resolve()
 
 
 def vehicle_reference(vehicle: str | None) -> ReferenceValues | None:
