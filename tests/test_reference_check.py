@@ -35,7 +35,7 @@ def test_an_estimate_far_from_the_reference_is_not_trusted():
     # I_zz: |15 - 29.26| = 14.3 against sqrt(5.7^2 + 2.9^2) = 6.4: 2.2 combined errors
     assert verdict.get("I_zz").verdict == NOT_ADEQUATE
     assert "reference 29.26" in verdict.get("I_zz").reasons[0]
-    assert "crazyflie21.toml" in verdict.get("I_zz").reasons[0]
+    assert "crazyflie21's [reference] (shipped with pinquad)" in verdict.get("I_zz").reasons[0]
     assert all(verdict.get(n).verdict == TRUSTED for n in ("mass", "I_xx", "I_yy"))
     # the same estimate with an error bar that covers the difference is trusted
     wide = np.r_[stderr[:3], 7.5e-6]
