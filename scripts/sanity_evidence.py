@@ -3,7 +3,7 @@
 flights of the paper's offline experiment (the default ``python -m pinquad.offline``:
 20 cycles x sensors A, B, C, its flight seeds), and whether any check fires.
 
-    PYTHONPATH=$PWD python scripts/sanity_evidence.py [CYCLES]
+    PYTHONPATH=$PWD python scripts/sanity_evidence.py [CYCLES] [--flightgen N]
 
 CYCLES: simulated cycles per sensor (default 20; about 1.5 s per flight). Prints one
 row per log and a summary; exits 1 if any check fires on any of them.
@@ -13,6 +13,11 @@ A second table covers the single-column tests (``pinquad.io.units_check``,
 the PX4 data-driven-dynamics sample (its kinematics; the ULog sample never arms) and
 six flightgen flights, and ends with each test's weakest statistic against its
 threshold (the margin).
+
+A third table runs every check (``findings``) on N flights of the independent generator
+``flightgen`` (default 60; about 2 s each): both of its vehicles, log rates 100, 250 and
+500 Hz, gentle and aggressive, sums of sines and minimum-snap, clean and with each effect
+(``flightgen_flights``), each written as its CSV and sidecar and read as a user reads it.
 """
 
 from __future__ import annotations
@@ -24,7 +29,10 @@ from pathlib import Path
 import numpy as np
 
 from flightgen import CRAZYFLIE, QUAD_250, Effects, FlightSpec, generate, write_csv
+from flightgen.trajectory import excursion
+from flightgen.vehicle import Vehicle
 from pinquad.core.params import PAPER_VEHICLE
+from pinquad.experiments.discovery_mc_flightgen import LOWEST_PASS, flightgen_effects
 from pinquad.experiments.offline_mc import flight_seed
 from pinquad.io import actuation_check, units_check
 from pinquad.io.read import read_command_log, read_log, with_vehicle
@@ -159,7 +167,110 @@ def unit_table(real: list[Path], cycles: int) -> int:
     return fired
 
 
+FG_CONDITIONS = ("none", "drag", "ground_effect", "ground_effect_floor", "com_offset", "wind",
+                 "motor_lag", "gyro_bias", "floor_strikes", "all")
+"""flightgen conditions: no effect; one effect (``ground_effect`` with the reference's
+lowest point 7 cm above a ground plane it cannot touch, as the discovery Monte Carlo
+flies it; ``ground_effect_floor`` taking off from the floor and landing on it);
+``floor_strikes``: no effect, take-off, two strikes 5 cm into the floor and landing;
+``all``: every effect at once, in free space."""
+
+FG_SEED = 7000
+
+
+def _fg_effects(condition: str, vehicle: Vehicle) -> Effects:
+    """The discovery Monte Carlo's values (``pinquad.sim.effects``' Crazyflie-class
+    defaults); the forces (drag [N s/m], wind [N]) scaled by mass for the 0.5 kg quad."""
+    names = ("drag", "ground_effect", "com_offset", "wind", "motor_lag", "gyro_bias")
+    if condition == "all":
+        chosen = names
+    elif condition == "ground_effect_floor":
+        chosen = ("ground_effect",)
+    else:
+        chosen = tuple(n for n in names if n == condition)
+    scale = vehicle.mass / CRAZYFLIE.mass
+    values = {}
+    for name in chosen:
+        value = getattr(flightgen_effects(name), name)
+        values[name] = (tuple(scale * v for v in value) if name in ("drag", "wind")
+                        else value)
+    return Effects(**values)
+
+
+def flightgen_flights(n: int) -> list[tuple[str, FlightSpec]]:
+    """n seeded flights (label, spec), 20 s each, RK4 and controller at 1 ms: flight k has
+    condition FG_CONDITIONS[(k // 6) % 10], vehicle CRAZYFLIE for k % 6 < 3 else
+    QUAD_250, log rate (100, 250, 500)[k % 3], seed FG_SEED + k; aggressive and the
+    trajectory (sines, minsnap) cycle over the four pairs with k // 6 + k % 6, so each
+    vehicle and rate flies all four across the conditions."""
+    out = []
+    for k in range(n):
+        condition = FG_CONDITIONS[(k // 6) % len(FG_CONDITIONS)]
+        vehicle = (CRAZYFLIE, QUAD_250)[(k % 6) // 3]
+        rate = (100, 250, 500)[k % 3]
+        phase = k // 6 + k % 6
+        aggressive, kind = phase % 2 == 0, ("sines", "minsnap")[(phase // 2) % 2]
+        seed, duration, dt = FG_SEED + k, 20.0, 0.001
+        common = dict(duration=duration, trajectory=kind, aggressive=aggressive,
+                      log_rate=rate, dt=dt, seed=seed, vehicle=vehicle,
+                      effects=_fg_effects(condition, vehicle))
+        if condition in ("floor_strikes", "ground_effect_floor"):
+            spec = FlightSpec(**common, start_on_floor=True, land=True,
+                              floor_strikes=2 if condition == "floor_strikes" else 0)
+        elif condition == "ground_effect":
+            # the reference's excursion is generate's first draw from the seed's generator
+            t = np.arange(int(round(duration / dt)) + 1) * dt
+            lowest = float(excursion(t, kind, aggressive,
+                                     np.random.default_rng(seed))[0, :, 2].min())
+            spec = FlightSpec(**common, hover_height=LOWEST_PASS - lowest, floor=None)
+        else:
+            spec = FlightSpec(**common, floor=None)
+        out.append((f"flightgen {vehicle.name} {rate} Hz {'aggressive' if aggressive else 'gentle'}"
+                    f" {kind} {condition} seed {seed}", spec))
+    return out
+
+
+def _vehicle_file(path: Path) -> Path:
+    """QUAD_250 as its user's vehicle file: its mass and inertia, x layout at its arm."""
+    j = [float(v) for v in np.diag(QUAD_250.inertia_matrix)]
+    path.write_text(f'name = "quad250"\n[body]\nmass = {QUAD_250.mass!r}\ninertia = {j!r}\n'
+                    f"[reference]\nmass = {QUAD_250.mass!r}\ninertia = {j!r}\n"
+                    f'[geometry]\narm = {QUAD_250.arm!r}\nlayout = "x"\nspin = [1, -1, 1, -1]\n')
+    return path
+
+
+def flightgen_table(n: int) -> int:
+    """Every check on ``flightgen_flights(n)``; returns how many fired. The Crazyflie's
+    CSV is read as written (its sidecar names ``crazyflie21``, as in the discovery Monte
+    Carlo); the 0.5 kg quad's sidecar carries its mass and inertia (no shipped name is
+    its) and the log is read with its vehicle file, as ``--vehicle`` reads it."""
+    print("\n| flightgen flight | rows | checks fired |")
+    print("|---|---|---|")
+    fired = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        toml = _vehicle_file(Path(tmp) / "quad250.toml")
+        for k, (name, spec) in enumerate(flightgen_flights(n)):
+            flight = generate(spec)
+            if spec.vehicle is CRAZYFLIE:
+                log = read_log(write_csv(flight, Path(tmp) / f"fg{k}.csv"))
+            else:
+                path = write_csv(flight, Path(tmp) / f"fg{k}.csv", mass_guess=QUAD_250.mass,
+                                 inertia_guess=QUAD_250.inertia_matrix)
+                log = with_vehicle(read_log(path), str(toml), Path(tmp), "--vehicle")
+            found = findings(log)
+            fired += len(found)
+            words = "; ".join(f"{f.check}: {f.message}" for f in found) or "none"
+            print(f"| {name} | {log.n} | {words} |", flush=True)
+    print(f"\n{n} flightgen flights: {fired} check(s) fired")
+    return fired
+
+
 def main(argv: list[str]) -> int:
+    n_flightgen = 60
+    if "--flightgen" in argv:
+        at = argv.index("--flightgen")
+        n_flightgen = int(argv[at + 1])
+        argv = argv[:at] + argv[at + 2:]
     cycles = int(argv[0]) if argv else 20
     print("| log | rows | dt [ms] | gyro / attitude | position / velocity | "
           "99 % accel from pos [m/s^2] | from vel | median abs(acc) [m/s^2] | "
@@ -187,7 +298,8 @@ def main(argv: list[str]) -> int:
     print(f"single-column tests: {unit_fired} fired on {total + 19} logs (the above, 6 "
           "Neural-Swarm flights read as they are and with their vehicle, the PX4 sample, 6 "
           "flightgen flights)")
-    return 1 if fired or unit_fired else 0
+    fg_fired = flightgen_table(n_flightgen)
+    return 1 if fired or unit_fired or fg_fired else 0
 
 
 if __name__ == "__main__":
