@@ -10,14 +10,16 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.cli.yaw import main
+from pinquad.core.vehicle_file import load_vehicle
 from pinquad.realdata.yaw_candidates import (
     DT,
-    GEOMETRY_ROTOR_INERTIA,
     Candidate,
     YawSignals,
     band_passed,
     fit_candidate,
+    geometric_rotor_inertia,
     held_out_unexplained,
+    rotor_parts,
     tilt_offset,
     yaw_signals,
 )
@@ -72,9 +74,10 @@ def test_tilt_offset_is_measured_on_roll_and_pitch():
 
 def test_geometry_rotor_inertia_explains_a_held_out_yaw_sweep():
     assert (DATA / "imrc_brushed").is_dir(), f"the Crazyflie data are missing: {DATA}"
+    spec = load_vehicle("crazyflie21")
     sig = band_passed(yaw_signals(DATA / "imrc_brushed" / "jana05", 2.0043e-8, 0.006,
-                                  [-1, 1, -1, 1]))
-    jr = GEOMETRY_ROTOR_INERTIA[0]
+                                  [-1, 1, -1, 1], 10000.0, spec.arm))
+    jr = geometric_rotor_inertia(rotor_parts(spec.aero.rotor_radius))[0]
     without = held_out_unexplained(sig, np.zeros(7))
     with_jr = held_out_unexplained(sig, np.array([jr] + [0.0] * 6))
     assert without > 0.8 and with_jr < 0.3, (without, with_jr)

@@ -25,9 +25,9 @@ from pinquad.realdata.yaw_candidates import (
     GAIN_BANDS,
     HELD_OUT_FLIGHTS,
     INERTIA_BAND,
-    ROTOR_PARTS,
     YawStudy,
     geometric_rotor_inertia,
+    rotor_parts,
     tilt_offset,
     yaw_signals,
     yaw_study,
@@ -144,18 +144,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         signals = {n: yaw_signals(flights / n, kf.kf, act.yaw_ratio, spec.spin,
                                   spec.faults.flight_rpm or 10000.0, spec.arm)
                    for n in dict.fromkeys([*args.fit, *args.held_out])}
-        study = yaw_study(signals, args.fit, args.held_out, tuple(args.band))
+        if spec.aero.rotor_radius is None:
+            raise ValueError(f"{spec.source}: no [aero] rotor_radius; the rotor inertia from "
+                             "the rotor's geometry needs the propeller's radius")
+        parts = rotor_parts(spec.aero.rotor_radius)
+        jr, jr_se = geometric_rotor_inertia(parts)
+        study = yaw_study(signals, jr, args.fit, args.held_out, tuple(args.band))
     except (LogFormatError, ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    jr, jr_se = geometric_rotor_inertia()
     print(f"yaw torque candidates: fitted on {', '.join(study.fit)}; judged on "
           f"{', '.join(study.held_out)}; band {study.band[0]:g}-{study.band[1]:g} Hz; kf "
           f"{kf.kf:.4g} "
           f"N/(rad/s)^2, yaw ratio {act.yaw_ratio:g} m\n")
     print(f"rotor inertia from geometry: J_r = {1e9 * jr:.1f} ± {1e9 * jr_se:.1f} e-9 kg m^2 "
           "(one standard uncertainty), the sum of")
-    for part in ROTOR_PARTS:
+    for part in parts:
         print(f"- {part.name}: {part.shape:g} x {1e3 * part.mass:.2g} g x "
               f"({1e3 * part.radius:g} mm)^2 = {1e9 * part.inertia:.1f} ± "
               f"{1e9 * part.inertia_se:.1f} e-9 ({part.source})")

@@ -116,7 +116,7 @@ X_LAYOUT = np.array([[1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0], [1.0, 1.0]]) / math
 
 
 def yaw_signals(path: Path, kf: float, yaw_ratio: float, spin: Sequence[float],
-                flight_rpm: float = 10000.0, arm: float = 0.046) -> YawSignals:
+                flight_rpm: float, arm: float) -> YawSignals:
     """:class:`YawSignals` of a micro-SD log (``io.sdlog``) with thrust coefficient kf
     [N/(rad/s)^2], yaw ratio gamma [m], spin signs (4,) and arm [m] of an X-layout
     quadcopter. Raises ValueError without
@@ -414,34 +414,31 @@ class RotorPart:
         return self.inertia * math.hypot(self.mass_se / self.mass, self.shape_se / self.shape)
 
 
-ROTOR_PARTS = (
-    RotorPart("propeller", 0.30e-3, 0.10e-3, 0.0235, 0.15, 0.05,
-              "radius: the vehicle file's rotor_radius (47 mm stock propeller); mass "
-              "0.2-0.4 g, not weighed (the data set does not give it); shape: a uniform "
-              "blade from the axis gives 1/3, a chord narrowing to the tip and the hub's "
-              "mass near the axis lower it to 0.1-0.2"),
-    RotorPart("motor rotor", 0.8e-3, 0.3e-3, 0.0030, 1.0, 0.0,
-              "7 x 16 mm coreless motor: the winding cup, shaft and commutator turn, the "
-              "magnet inside stands; cup radius about 3 mm, its mass 0.5-1.1 g of the "
-              "motor's (not weighed); a thin shell"),
-)
-"""The rotor's turning parts, with assumed masses (no weighing of these parts exists in
-the data set): the geometry fixes J_r only to about 40 %."""
+def rotor_parts(propeller_radius: float) -> tuple[RotorPart, ...]:
+    """The rotor's turning parts, the propeller of radius ``propeller_radius`` [m] (the
+    vehicle file's ``[aero] rotor_radius``), with assumed masses (no weighing of these
+    parts exists in the data set): the geometry fixes J_r only to about 40 %."""
+    return (
+        RotorPart("propeller", 0.30e-3, 0.10e-3, propeller_radius, 0.15, 0.05,
+                  f"radius: the vehicle file's rotor_radius ({2e3 * propeller_radius:.0f} mm "
+                  "propeller); mass 0.2-0.4 g, not weighed (the data set does not give it); "
+                  "shape: a uniform blade from the axis gives 1/3, a chord narrowing to the "
+                  "tip and the hub's mass near the axis lower it to 0.1-0.2"),
+        RotorPart("motor rotor", 0.8e-3, 0.3e-3, 0.0030, 1.0, 0.0,
+                  "7 x 16 mm coreless motor: the winding cup, shaft and commutator turn, the "
+                  "magnet inside stands; cup radius about 3 mm, its mass 0.5-1.1 g of the "
+                  "motor's (not weighed); a thin shell"),
+    )
 
 
-def geometric_rotor_inertia(parts: Sequence[RotorPart] = ROTOR_PARTS) -> tuple[float, float]:
+def geometric_rotor_inertia(parts: Sequence[RotorPart]) -> tuple[float, float]:
     """(J_r, its standard uncertainty) [kg m^2]: the parts' inertias summed, their
     uncertainties added in quadrature."""
     return (float(sum(p.inertia for p in parts)),
             float(math.sqrt(sum(p.inertia_se**2 for p in parts))))
 
 
-GEOMETRY_ROTOR_INERTIA = geometric_rotor_inertia()
-"""(J_r, its standard uncertainty) [kg m^2] of one rotor from its geometry and masses."""
-
-
-def candidates(tilt_delta: float, geometry_jr: float = GEOMETRY_ROTOR_INERTIA[0]
-               ) -> tuple[Candidate, ...]:
+def candidates(tilt_delta: float, geometry_jr: float) -> tuple[Candidate, ...]:
     """The hypotheses judged by :func:`evaluate` (module docstring), each with what it
     predicts for the frequency response; tilt_delta [s]: the time offset measured on the
     roll and pitch axes of the fit flights (:func:`tilt_offset`)."""
@@ -523,12 +520,14 @@ class YawStudy:
     results: tuple[CandidateResult, ...]
 
 
-def yaw_study(signals: dict[str, YawSignals], fit: Sequence[str] = FIT_FLIGHTS,
-              held_out: Sequence[str] = HELD_OUT_FLIGHTS, band: tuple[float, float] = BAND
-              ) -> YawStudy:
+def yaw_study(signals: dict[str, YawSignals], geometry_jr: float,
+              fit: Sequence[str] = FIT_FLIGHTS, held_out: Sequence[str] = HELD_OUT_FLIGHTS,
+              band: tuple[float, float] = BAND) -> YawStudy:
     """Fit every candidate on the ``fit`` flights of ``signals`` and judge it on all of
     them (the held-out ones are those the table reads), everything band-passed to
-    ``band`` [Hz]. Raises ValueError if a flight is in both roles or missing."""
+    ``band`` [Hz]; geometry_jr [kg m^2]: the rotor inertia from the rotor's geometry
+    (:func:`geometric_rotor_inertia`). Raises ValueError if a flight is in both roles or
+    missing."""
     if set(fit) & set(held_out):
         raise ValueError(f"flights both fitted on and held out: {sorted(set(fit) & set(held_out))}")
     missing = [n for n in (*fit, *held_out) if n not in signals]
@@ -538,6 +537,6 @@ def yaw_study(signals: dict[str, YawSignals], fit: Sequence[str] = FIT_FLIGHTS,
     delta, shares = tilt_offset([signals[n] for n in fit], band)
     check, _ = tilt_offset([signals[n] for n in held_out], band)
     judged = [bps[n] for n in (*held_out, *fit)]
-    results = tuple(evaluate(c, [bps[n] for n in fit], judged) for c in candidates(delta))
+    results = tuple(evaluate(c, [bps[n] for n in fit], judged) for c in candidates(delta, geometry_jr))
     return YawStudy(fit=tuple(fit), held_out=tuple(held_out), band=band, tilt_delta=delta,
                     tilt_shares=shares, tilt_held_out=check, results=results)
