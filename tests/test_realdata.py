@@ -317,7 +317,8 @@ def test_offline_cli_identifies_a_real_log(tmp_path):
     assert set(report["em"]) >= {"iterations", "loglik", "converged"}
     assert report["discovery"] == {"selected": [], "residual_rms_before": {},
                                    "residual_rms_after": {}, "validation": "not run",
-                                   "not_run": "not asked for", "note": None, "unphysical": []}
+                                   "not_run": "not asked for", "note": None, "unphysical": [],
+                                   "ground_effect_floor": None}
     assert report["cycles"] == [] and report["excluded"]
     # the model-free mass check rides along: within 0.5 % of EM's mass on this clean log,
     # and with every rotor measured the measured motors carry all of it
