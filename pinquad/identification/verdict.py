@@ -363,7 +363,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         ident = [] if vrange is None else _range_check(
             name, stderr[i + 1], vrange.inertia_lo[i], vrange.inertia_hi[i], 1e6, "e-6 kg m^2", th)
         ident += _input_check(name, i + 1, value, stderr[i + 1], evidence, 1e6, "e-6 kg m^2", th)
-        ident += _fit_checks(name, evidence) + ([] if face is None else [face])
+        ident += ([] if face is None else [face]) + _fit_checks(name, evidence)  # the cause first
         if missing_stderr and not np.isfinite(stderr[i + 1]):
             ident.append(missing_stderr)
         if np.isfinite(excitation[i]) and excitation[i] < th.min_torque_excitation:
@@ -389,7 +389,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
             if vrange is not None:  # |I_ij| <= I_kk / 2 for any rigid body
                 half = 0.5 * vrange.inertia_hi[k]
                 ident = _range_check(name, se, -half, half, 1e6, "e-6 kg m^2", th)
-            ident += _fit_checks(name, evidence) + ([] if face is None else [face])
+            ident += ([] if face is None else [face]) + _fit_checks(name, evidence)  # the cause first
             quiet = [a for a in (i, j) if np.isfinite(excitation[a])
                      and excitation[a] < th.min_torque_excitation]
             if quiet:
