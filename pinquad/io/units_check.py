@@ -49,7 +49,8 @@ from scipy.spatial.transform import Rotation
 
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.params import VEHICLES
-from pinquad.core.vehicle_file import VehicleFileError, is_vehicle_file, load_vehicle
+from pinquad.core.vehicle_file import VehicleFileError, VehicleSpec, is_vehicle_file, load_vehicle
+from pinquad.io.conventions_check import smooth
 from pinquad.io.logs import FlightLog
 
 Array = NDArray[np.float64]
@@ -155,20 +156,25 @@ def check_gyro_axes(log: FlightLog) -> Problem | None:
 
 # ------------------------------------------------------------------ 2. torque scale
 
+def _named_file(log: FlightLog) -> VehicleSpec | None:
+    """The vehicle file (``.toml``) the log names, or None (none named, a shipped
+    vehicle's name, or a file that does not read: its own check names that)."""
+    if not log.meta.vehicle_named or not is_vehicle_file(log.meta.vehicle):
+        return None
+    try:
+        return load_vehicle(log.meta.vehicle)
+    except VehicleFileError:
+        return None
+
+
 def named_inertia(log: FlightLog) -> Array | None:
     """(3, 3) [kg m^2] inertia of the vehicle the log names (a shipped vehicle, or a
     vehicle file's [reference] inertia, else its body's); None when the log names none
     (a sidecar's guess is not a reference)."""
-    if not log.meta.vehicle_named:
-        return None
-    vehicle = log.meta.vehicle
-    if vehicle in VEHICLES:
-        return np.asarray(VEHICLES[vehicle].inertia, dtype=float)
-    if not is_vehicle_file(vehicle):
-        return None
-    try:
-        spec = load_vehicle(vehicle)
-    except VehicleFileError:
+    if log.meta.vehicle_named and log.meta.vehicle in VEHICLES:
+        return np.asarray(VEHICLES[log.meta.vehicle].inertia, dtype=float)
+    spec = _named_file(log)
+    if spec is None:
         return None
     ref = spec.reference.inertia
     if ref is None:
@@ -179,23 +185,12 @@ def named_inertia(log: FlightLog) -> Array | None:
 def named_mass(log: FlightLog) -> float | None:
     """Mass [kg] of the vehicle the log names (its [reference] mass, else its body's),
     or None."""
-    if not log.meta.vehicle_named:
-        return None
-    vehicle = log.meta.vehicle
-    if vehicle in VEHICLES:
-        return float(VEHICLES[vehicle].mass)
-    if not is_vehicle_file(vehicle):
-        return None
-    try:
-        spec = load_vehicle(vehicle)
-    except VehicleFileError:
+    if log.meta.vehicle_named and log.meta.vehicle in VEHICLES:
+        return float(VEHICLES[log.meta.vehicle].mass)
+    spec = _named_file(log)
+    if spec is None:
         return None
     return float(spec.reference.mass if spec.reference.mass is not None else spec.mass)
-
-
-def _smooth(x: Array, width: int) -> Array:
-    kernel = np.ones(width) / width
-    return np.column_stack([np.convolve(x[:, i], kernel, mode="same") for i in range(x.shape[1])])
 
 
 def torque_scales(log: FlightLog, inertia: Array
@@ -208,13 +203,13 @@ def torque_scales(log: FlightLog, inertia: Array
     grid = np.arange(log.t[0], log.t[-1], GRID_S)
     width = max(int(round(SMOOTH_S / GRID_S)), 1)
     wide = max(int(round(DETREND_S / GRID_S)), 1)
-    rate = _smooth(np.column_stack([np.interp(grid, log.t, gyro[:, i]) for i in range(3)]), width)
-    tau = _smooth(np.column_stack([np.interp(grid, log.t, log.torque[:, i]) for i in range(3)]),
+    rate = smooth(np.column_stack([np.interp(grid, log.t, gyro[:, i]) for i in range(3)]), width)
+    tau = smooth(np.column_stack([np.interp(grid, log.t, log.torque[:, i]) for i in range(3)]),
                   width)
     accel = np.gradient(rate, GRID_S, axis=0)
     pred = np.linalg.solve(inertia, (tau - np.cross(rate, rate @ inertia.T)).T).T
-    accel = (accel - _smooth(accel, wide))[wide:-wide]
-    pred = (pred - _smooth(pred, wide))[wide:-wide]
+    accel = (accel - smooth(accel, wide))[wide:-wide]
+    pred = (pred - smooth(pred, wide))[wide:-wide]
     out = []
     for k in range(3):
         x, y = pred[:, k], accel[:, k]
