@@ -35,6 +35,7 @@ import tempfile
 from pathlib import Path
 
 from pinquad.core.actuator_curve import read_curve_vehicle
+from pinquad.core.vehicle_file import load_vehicle
 from pinquad.identification.excitation import segments_of
 from pinquad.identification.known_mass import (
     Estimate,
@@ -45,6 +46,9 @@ from pinquad.identification.known_mass import (
 from pinquad.identification.verdict import NOT_ADEQUATE, NOT_IDENTIFIABLE, TRUSTED
 from pinquad.io.datadir import checkout_data_dir
 from pinquad.io.read import read_command_log
+
+CF21 = load_vehicle("crazyflie21").actuators
+"""The shipped Crazyflie 2.1 file's actuators (its yaw ratio, given for the real geometry)."""
 
 MASS = 0.027
 """sysid.tools' assumed mass [kg] (the Crazyflie 2.x nominal take-off mass)."""
@@ -154,7 +158,8 @@ def main(data: Path | None = None) -> None:
         row(f"{name} [1e-6 kg m^2] (log15)", f"{SYSID[name] * 1e6:.2f}",
             cell(get(a["log15"], name), 1e6), cell(get(b["log15"], name), 1e6))
     row("yaw K_tau [1e-3 m] (log16)", f"{SYSID['K_tau'] * 1e3:.2f}",
-        cell(yaw_coefficient(a["log15"], a["log16"]), 1e3), "0.006 +- 0.0005 m (given)")
+        cell(yaw_coefficient(a["log15"], a["log16"]), 1e3),
+        f"{CF21.yaw_ratio * 1e3:g} +- {CF21.yaw_ratio_se * 1e3:g} (given: crazyflie21.toml)")
     row("I_zz [1e-6 kg m^2] (log16)", f"{SYSID['I_zz'] * 1e6:.2f} (set)",
         f"{INERTIA_RATIO} x mean(I_xx, I_yy) (set)", cell(get(b["log16"], "I_zz"), 1e6))
     print("\n".join(lines))
