@@ -314,31 +314,19 @@ def test_bad_px4_input_named(tmp_path):
 def test_ulog_nan_motor_output_named(tmp_path):
     """A motor output that is not a number inside the armed segment: the reader names
     the field and when, instead of interpolating NaN into the commands."""
-    n = 300
-    ts = (T0_US + 10_000 * np.arange(n, dtype=float))[:, None]
-    pwm = np.full((n, 4), 1500.0)
+    pwm = np.full((300, 4), 1500.0)
     pwm[250, 2] = np.nan
-    write_ulog(tmp_path / "nan.ulg", {
-        "vehicle_status": ([("uint8_t", "arming_state", 1)], np.array([[T0_US, 2.0]])),
-        "vehicle_attitude": ([("float", "q", 4)], np.hstack([ts, np.tile([1.0, 0, 0, 0], (n, 1))])),
-        "vehicle_angular_velocity": ([("float", "xyz", 3)], np.hstack([ts, np.zeros((n, 3))])),
-        "vehicle_acceleration": ([("float", "xyz", 3)],
-                                 np.hstack([ts, np.tile([0.0, 0.0, -9.81], (n, 1))])),
-        "vehicle_local_position": ([("float", "vx", 1), ("float", "vy", 1), ("float", "vz", 1)],
-                                   np.hstack([ts, np.zeros((n, 3))])),
-        "actuator_outputs": ([("float", "output", 4)], np.hstack([ts, pwm])),
-    }, {"PWM_MAIN_MIN": 1000, "PWM_MAIN_MAX": 2000})
+    _rest_ulog(tmp_path / "nan.ulg", pwm, {"PWM_MAIN_MIN": 1000, "PWM_MAIN_MAX": 2000})
     with pytest.raises(LogFormatError, match=r"nan.ulg: motor output output\[2\] is not a "
                                              r"number 2.500 s into the armed segment"):
         read_command_log(tmp_path / "nan.ulg")
 
 
-def _pwm_ulog(path: Path, params: dict[str, int]) -> Path:
-    """A 3 s armed ULog at rest whose four motor outputs hold 1260, 1420, 1580, 1740 us
-    (exact in float32), with the PWM parameters ``params``."""
-    n = 300
+def _rest_ulog(path: Path, pwm: np.ndarray, params: dict[str, int]) -> Path:
+    """An armed ULog at rest, one row per 10 ms, whose motor outputs are ``pwm`` (n, 4)
+    [us], with the PWM parameters ``params``."""
+    n = pwm.shape[0]
     ts = (T0_US + 10_000 * np.arange(n, dtype=float))[:, None]
-    pwm = np.tile([1260.0, 1420.0, 1580.0, 1740.0], (n, 1))
     write_ulog(path, {
         "vehicle_status": ([("uint8_t", "arming_state", 1)], np.array([[T0_US, 2.0]])),
         "vehicle_attitude": ([("float", "q", 4)], np.hstack([ts, np.tile([1.0, 0, 0, 0], (n, 1))])),
@@ -350,6 +338,12 @@ def _pwm_ulog(path: Path, params: dict[str, int]) -> Path:
         "actuator_outputs": ([("float", "output", 4)], np.hstack([ts, pwm])),
     }, params)
     return path
+
+
+def _pwm_ulog(path: Path, params: dict[str, int]) -> Path:
+    """A 3 s armed ULog at rest whose four motor outputs hold 1260, 1420, 1580, 1740 us
+    (exact in float32), with the PWM parameters ``params``."""
+    return _rest_ulog(path, np.tile([1260.0, 1420.0, 1580.0, 1740.0], (300, 1)), params)
 
 
 def test_ulog_pwm_range_is_the_logs_own(tmp_path):
