@@ -30,11 +30,11 @@ _EXPORTS = {
     "discover": "pinquad.api",
     "simulate": "pinquad.api",
     "crazyflie_log": "pinquad.io.datadir",
-    "identify_many": "pinquad.pipeline.batch",
-    "Result": "pinquad.pipeline.single",
-    "Batch": "pinquad.pipeline.batch",
+    "identify_many": "pinquad.results.batch",
+    "Result": "pinquad.results.result",
+    "Batch": "pinquad.results.batch",
     "PipelineOptions": "pinquad.pipeline.single",
-    "LogOptions": "pinquad.experiments.recorded",
+    "LogOptions": "pinquad.pipeline.identify",
     "NullSettings": "pinquad.discovery.null",
     "FlightLog": "pinquad.io.logs",
     "LogFormatError": "pinquad.io.logs",
@@ -80,7 +80,6 @@ if TYPE_CHECKING:
     from pinquad.core.actuator_curve import ActuatorCurve, CurveVehicle, read_curve_vehicle
     from pinquad.core.params import Vehicle
     from pinquad.discovery.null import NullSettings
-    from pinquad.experiments.recorded import LogOptions
     from pinquad.identification.known_mass import (
         KnownMassResult,
         KnownMassSettings,
@@ -91,8 +90,10 @@ if TYPE_CHECKING:
     from pinquad.io.datadir import crazyflie_log
     from pinquad.io.logs import FlightLog, LogFormatError
     from pinquad.io.read import read_command_log
-    from pinquad.pipeline.batch import Batch, identify_many
-    from pinquad.pipeline.single import PipelineOptions, Result
+    from pinquad.pipeline.identify import LogOptions
+    from pinquad.pipeline.single import PipelineOptions
+    from pinquad.results.batch import Batch, identify_many
+    from pinquad.results.result import Result
     from pinquad.sim.simulator import SimConfig
 
 

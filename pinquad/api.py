@@ -23,17 +23,17 @@ import numpy as np
 
 from pinquad.core.params import VEHICLES, Vehicle
 from pinquad.discovery.null import NullSettings
-from pinquad.experiments.recorded import LogOptions
 from pinquad.io.logs import FlightLog
+from pinquad.pipeline.identify import LogOptions
 from pinquad.pipeline.single import (
     LOG_MAX_ITERATIONS,
     PipelineOptions,
-    Result,
     read,
     run,
     with_discovery,
 )
 from pinquad.report.console import warning_lines
+from pinquad.results.result import Result
 from pinquad.sim.simulator import SimConfig, flight_log
 from pinquad.sim.simulator import simulate as simulate_flight
 
@@ -72,7 +72,7 @@ def identify(log: FlightLog, *, mstep: str = "regressor", sensor: str | None = N
     """
     options = LogOptions(sensors=() if sensor is None else (sensor,), msteps=(mstep,),
                          estep=estep, max_iterations=max_iterations, information=information)
-    result = run(log, PipelineOptions(options, discover=False))
+    result = Result.of(run(log, PipelineOptions(options, discover=False)))
     for line in warning_lines(result.identified):
         warnings.warn(line.removeprefix("warning: "), UserWarning, stacklevel=2)
     return result
@@ -98,7 +98,7 @@ def discover(log: FlightLog, fit: Result | None = None, *,
         fit = identify(log)
     elif not _same_flight(log, fit):
         raise ValueError(f"discover: the fit is of {fit.source}, not of {log.meta.source}")
-    return with_discovery(fit, null)
+    return Result.of(with_discovery(fit, null))
 
 
 def _same_flight(log: FlightLog, fit: Result) -> bool:

@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from flightgen import FlightSpec, Noise, generate, write_csv
-from pinquad.experiments.recorded import default_sensor, initial_guess
 from pinquad.identification.identify import identify
 from pinquad.io.read import read_log
 from pinquad.models.sources import interval_inputs, observations
+from pinquad.pipeline.identify import default_sensor, initial_guess
 
 TRUTH = np.array([35.0, 16.6, 16.7, 29.3])
 

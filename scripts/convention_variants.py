@@ -32,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from pinquad.experiments.recorded import LogOptions, identify_log, plausible_range
 from pinquad.io.declared import Conventions
 from pinquad.io.foreign import write_foreign
 from pinquad.io.logs import FlightLog, LogFormatError, read_log, write_log
 from pinquad.io.read import read_log as read_any
 from pinquad.io.read import with_vehicle
+from pinquad.pipeline.identify import LogOptions, identify_log, plausible_range
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushed"

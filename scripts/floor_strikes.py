@@ -17,8 +17,9 @@ from pinquad.experiments.discovery_mc_flightgen import (
     found_contact_transitions,
     true_contact_transitions,
 )
-from pinquad.experiments.recorded import LogOptions, identify_log, run_discovery
 from pinquad.io.read import read_log
+from pinquad.pipeline.discover import run_discovery
+from pinquad.pipeline.identify import LogOptions, identify_log
 
 SEEDS = (1, 2, 3, 4)
 RATE = 100

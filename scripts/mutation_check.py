@@ -293,7 +293,7 @@ BREAKS: tuple[Break, ...] = (
           "an unconverged EM counts as settled when any one parameter has settled"),
     Break("balance-total", "mass balance against the unshared error",
           "tests/test_trust_bites.py::test_the_headline_compares_the_balance_with_the_unshared_mass_error",
-          "pinquad/experiments/headline.py",
+          "pinquad/pipeline/judge.py",
           "balance_stderr=float(budget.unshared_with_thrust()[0]),",
           "balance_stderr=float(budget.total[0]),",
           "the headline compares the model-free mass balance with the mass's total error"),

@@ -18,10 +18,10 @@ import numpy as np
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.logs import write_log
 from pinquad.io.read import read_log
 from pinquad.pipeline import LOG_MAX_ITERATIONS
+from pinquad.pipeline.identify import LogOptions, identify_log
 
 ROOT = Path(__file__).resolve().parents[1]
 OPTIONS = LogOptions(msteps=("regressor",), max_iterations=LOG_MAX_ITERATIONS)

@@ -35,10 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.logs import FlightLog, LogFormatError, write_log
 from pinquad.io.read import read_log
 from pinquad.io.timebase import clock_times
+from pinquad.pipeline.identify import LogOptions, identify_log
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie"
 FOLDERS = {"jana": SHARED / "imrc_brushed", "eckart": SHARED / "imrc_brushless"}

@@ -22,10 +22,10 @@ import numpy as np
 from flightgen import CRAZYFLIE, generate, write_csv
 from pinquad.discovery.calibrated import discovery_start
 from pinquad.experiments.discovery_mc_flightgen import case_seed, flight_spec
-from pinquad.experiments.headline import run_verdict
-from pinquad.experiments.recorded import LogOptions, identify_log, input_reading
 from pinquad.identification.verdict import torque_excitation
 from pinquad.io.read import read_log
+from pinquad.pipeline.identify import LogOptions, identify_log, input_reading
+from pinquad.pipeline.judge import run_verdict
 
 
 def main() -> None:

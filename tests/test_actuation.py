@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from flightgen import FlightSpec, generate, write_csv
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.identification.verdict import NOT_IDENTIFIABLE, TRUSTED, VerdictEvidence, judge
 from pinquad.io.logs import LogFormatError, LogMeta, read_log, sidecar
 from pinquad.models.sources import interval_inputs
+from pinquad.pipeline.identify import LogOptions, identify_log
 
 TRUE_INERTIA = np.array([16.6e-6, 16.7e-6, 29.3e-6])
 

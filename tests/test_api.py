@@ -55,7 +55,7 @@ def test_public_names_resolve_to_the_implementations():
     import pinquad
     from pinquad import api
     from pinquad.io.logs import FlightLog
-    from pinquad.pipeline.single import Result
+    from pinquad.results.result import Result
 
     assert pinquad.read_log is api.read_log
     assert pinquad.identify is api.identify
@@ -168,7 +168,7 @@ def test_api_discover_is_the_command_lines_guarded_step_on_the_same_flight(tmp_p
     import json
 
     import pinquad
-    from pinquad.experiments.recorded import LogOptions
+    from pinquad.pipeline.identify import LogOptions
     from pinquad.pipeline.single import LOG_MAX_ITERATIONS, PipelineOptions, run
 
     log = pinquad.simulate(sensor="B", seed=0).slice(0, 800)

@@ -18,9 +18,10 @@ import distributed
 import numpy as np
 from conftest import write_with_paper_guess
 
-from pinquad.experiments.recorded import LogOptions
 from pinquad.io.runs import without_wall_times
-from pinquad.pipeline import PipelineOptions, identify_many
+from pinquad.pipeline import PipelineOptions
+from pinquad.pipeline.identify import LogOptions
+from pinquad.results.batch import identify_many
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 # short EM runs: the point is the batch's mechanics under a worker's death, not accuracy

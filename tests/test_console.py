@@ -60,12 +60,12 @@ def test_explain_is_an_option_of_the_log_command():
 def short_result():
     """A 8 s simulated sensor-B flight through the pipeline (no null calibration)."""
     import pinquad
-    from pinquad.experiments.recorded import LogOptions
+    from pinquad.pipeline.identify import LogOptions
     from pinquad.pipeline.single import PipelineOptions, run
 
     log = pinquad.simulate(sensor="B", seed=0).slice(0, 800)
-    return run(log, PipelineOptions(LogOptions(msteps=("regressor",)),
-                                    pinquad.NullSettings(replicates=0)))
+    return pinquad.Result.of(run(log, PipelineOptions(LogOptions(msteps=("regressor",)),
+                                                      pinquad.NullSettings(replicates=0))))
 
 
 def test_the_default_report_is_a_few_short_lines_and_explain_has_the_rest(short_result):

@@ -169,7 +169,7 @@ def test_a_bad_declaration_names_the_sidecar_and_key(raw, words):
 
 
 def test_a_rotor_speed_log_without_a_sidecar_is_judged_against_no_vehicle(real, tmp_path):
-    from pinquad.experiments.recorded import LogOptions, identify_log, plausible_range
+    from pinquad.pipeline.identify import LogOptions, identify_log, plausible_range
 
     path = write_log(real, tmp_path / "bare.parquet")
     Path(str(path) + ".json").unlink()

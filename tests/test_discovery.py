@@ -382,7 +382,7 @@ def test_ground_effect_coefficient_converges_in_the_joint_refinement():
 def test_real_circle_flight_names_drag():
     """The measured circle flight (jana10) names drag with a lateral coefficient between
     the rotor-drag value (0.006 N s/m) and five times it; fails if the data are missing."""
-    from pinquad.pipeline.measured import flight_fit
+    from pinquad.experiments.realdiscovery import flight_fit
 
     path = FLIGHTS / "jana10"
     assert path.is_file(), f"the Crazyflie data are missing: expected {path}"

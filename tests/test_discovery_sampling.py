@@ -8,8 +8,8 @@ from dataclasses import replace
 from flightgen import CRAZYFLIE, FlightSpec, generate, write_csv
 from pinquad.discovery.calibrated import discovery_config, discovery_start
 from pinquad.discovery.discover import discover
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.read import read_log
+from pinquad.pipeline.identify import LogOptions, identify_log
 
 
 def test_a_clean_100_hz_flightgen_flight_selects_nothing(tmp_path):

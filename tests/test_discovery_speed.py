@@ -19,11 +19,11 @@ from pinquad.discovery.refit import effect_mstep
 from pinquad.discovery.residuals import block_grams, compute_residuals, group_sums, step_blocks
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.estep import fast_smoother
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.identification import verdict
 from pinquad.io.read import read_log
 from pinquad.mstep.stats import transition_mask
 from pinquad.mstep.updates import regressor_mstep, regressor_stats
+from pinquad.pipeline.identify import LogOptions, identify_log
 
 CFG = DiscoveryConfig()
 

@@ -27,7 +27,6 @@ from pinquad.discovery.library import TransitionData, wrench_features
 from pinquad.discovery.result import CandidateScore, DiscoveryResult
 from pinquad.discovery.selection import profiled_fit
 from pinquad.discovery.uncertainty import projected_newton
-from pinquad.experiments.discovery_report import discovery_section
 from pinquad.io.logs import write_log
 from pinquad.io.read import read_log
 from pinquad.models.contact import FloorLevel
@@ -112,7 +111,7 @@ def test_a_coefficient_on_the_edge_is_reported_as_such():
     its free fit and domain, and the printed line says so; D_x inside is printed as
     before."""
     found = _found([0.012, 0.013, 0.0], [0.012, 0.013, -0.0040], [0.001, 0.001, 0.0026])
-    section = discovery_section(DiscoveryOutcome(found, floor=FloorLevel(0.064, "contact", 78)))
+    section = DiscoveryOutcome(found, floor=FloorLevel(0.064, "contact", 78)).to_report()
     entry = section["selected"][0]
     assert entry["on_domain_edge"] == ["D_z"]
     assert entry["domain"] == {"D_x": ">= 0", "D_y": ">= 0", "D_z": ">= 0"}
@@ -122,8 +121,8 @@ def test_a_coefficient_on_the_edge_is_reported_as_such():
     assert ("D_z = 0 ± 0.0026 N s/m (on the edge of its domain D_z >= 0; without it -0.004)"
             in text)
     assert "D_x = 0.012 ± 0.001 N s/m," in text
-    inside = discovery_section(DiscoveryOutcome(_found([0.012, 0.013, 0.002], None,
-                                                       [0.001, 0.001, 0.0026])))
+    inside = DiscoveryOutcome(_found([0.012, 0.013, 0.002], None,
+                                     [0.001, 0.001, 0.0026])).to_report()
     assert inside["selected"][0]["on_domain_edge"] == []
     assert inside["selected"][0]["coefficients_without_domain"] is None
 

@@ -213,9 +213,9 @@ def test_a_recorded_logs_base_em_over_relaxes_per_parameter(tmp_path):
     runs its 100 without converging and ends lower (31.7 nats measured), at the same mass
     and inertia within 0.05 standard errors (0.02 measured)."""
     from flightgen import CRAZYFLIE, FlightSpec, generate, write_csv
-    from pinquad.experiments.recorded import LogOptions, identify_log, initial_guess
     from pinquad.identification.identify import identify
     from pinquad.io.read import read_log
+    from pinquad.pipeline.identify import LogOptions, identify_log, initial_guess
 
     spec = FlightSpec(duration=20.0, trajectory="sines", aggressive=True, log_rate=250,
                       seed=1, vehicle=CRAZYFLIE, floor=None)

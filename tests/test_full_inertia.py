@@ -303,8 +303,8 @@ def test_ten_parameter_em_converges_on_a_continuous_flight(tmp_path):
     be left undetermined (``fisher.determined_covariance``)."""
     from flightgen import CRAZYFLIE, generate, write_csv
     from pinquad.experiments.discovery_mc_flightgen import flight_spec
-    from pinquad.experiments.recorded import LogOptions, identify_log
     from pinquad.io.read import read_log
+    from pinquad.pipeline.identify import LogOptions, identify_log
 
     log = read_log(write_csv(generate(flight_spec("none", 2, 2, 100)), tmp_path / "f.csv"))
     run = identify_log(log, LogOptions(msteps=("full",), estep="rts", max_iterations=60,

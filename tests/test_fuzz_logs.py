@@ -33,10 +33,10 @@ from hypothesis import strategies as st
 
 import pinquad
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_SCENARIO
-from pinquad.experiments.recorded import initial_guess
 from pinquad.io.logs import LogFormatError, log_columns, sidecar
 from pinquad.io.read import read_log
 from pinquad.io.sanity import check_log, implied_mass
+from pinquad.pipeline.identify import initial_guess
 from pinquad.realdata.observations import build_observations
 from pinquad.realdata.raw import raw_flight
 from pinquad.sim.simulator import SimConfig

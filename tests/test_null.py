@@ -15,9 +15,9 @@ from pinquad.discovery.null import NullSettings, calibrate, plausible_base_fit
 from pinquad.discovery.residuals import compute_residuals
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import score_candidate
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.identification.identify import identify
 from pinquad.io.read import read_log
+from pinquad.pipeline.identify import LogOptions, identify_log
 from pinquad.sim.shadow import second_difference_var, shadow_flight
 
 CFG = DiscoveryConfig()

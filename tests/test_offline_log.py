@@ -11,11 +11,11 @@ import pytest
 from conftest import offline_on_csv
 
 from pinquad.core.params import PAPER_INITIAL_INERTIA, PAPER_INITIAL_MASS, PAPER_VEHICLE
-from pinquad.experiments.recorded import RECORDED_PER_PARAMETER
 from pinquad.identification.identify import identify
 from pinquad.identification.search_range import search_range
 from pinquad.io.read import read_log
 from pinquad.models.sources import observations
+from pinquad.pipeline.identify import RECORDED_PER_PARAMETER
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 

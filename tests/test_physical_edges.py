@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pinquad.experiments.headline import error_failures
 from pinquad.identification.edges import collapsed_errors, triangle_face
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import NOT_IDENTIFIABLE, TRUSTED, VerdictEvidence, judge
 from pinquad.mstep.band import profiled_inertia
+from pinquad.pipeline.judge import error_failures
 from pinquad.realdata.identify import MeasuredFit
 
 # The flipped-yaw-spin fit of a Crazyflie 2.1 flight: I_zz at I_xx + I_yy, 2-3x the

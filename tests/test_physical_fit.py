@@ -15,8 +15,6 @@ import numpy as np
 import pytest
 
 from pinquad.discovery.domain import outside_domain
-from pinquad.experiments.headline import headline
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.identification.budget import (
     DEFAULT_COMMANDED_THRUST,
     calibration_of,
@@ -25,6 +23,8 @@ from pinquad.identification.budget import (
 from pinquad.identification.mass_balance import balance_mass
 from pinquad.identification.search_range import generic_range, search_range
 from pinquad.io.logs import LogMeta
+from pinquad.pipeline.identify import LogOptions, identify_log
+from pinquad.pipeline.judge import headline
 from pinquad.realdata.consistency import model_error
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 

@@ -15,9 +15,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.logs import write_log
 from pinquad.io.read import read_log
+from pinquad.pipeline.identify import LogOptions, identify_log
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie" / "imrc_brushed"
 OPTIONS = LogOptions(msteps=("regressor",), information=False, max_iterations=30)

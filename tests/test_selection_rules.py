@@ -27,8 +27,8 @@ from pinquad.discovery.null import NullSettings
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import shortest_lag
 from pinquad.experiments.discovery_mc_flightgen import flight_spec
-from pinquad.experiments.recorded import LogOptions, identify_log, input_reading
 from pinquad.io.read import read_log
+from pinquad.pipeline.identify import LogOptions, identify_log, input_reading
 
 
 def _start(tmp_path_factory, condition: str, seed: int, index: int):

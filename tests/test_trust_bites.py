@@ -20,7 +20,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pinquad.experiments.headline import fit_evidence, with_budget
 from pinquad.identification.budget import Calibration, calibration_of, error_budget
 from pinquad.identification.identify import Identification, unconverged
 from pinquad.identification.verdict import (
@@ -33,6 +32,7 @@ from pinquad.identification.verdict import (
 )
 from pinquad.io.logs import LogMeta
 from pinquad.io.runs import RunWriter
+from pinquad.pipeline.judge import fit_evidence, with_budget
 
 REPO = Path(__file__).resolve().parents[1]
 CRAZYFLIE_FILE = REPO / "pinquad" / "data" / "crazyflie21.toml"

@@ -19,9 +19,9 @@ from pinquad.core.vehicle_file import (
     load_vehicle,
     parse_vehicle,
 )
-from pinquad.experiments.recorded import LogOptions, identify_log
 from pinquad.io.logs import write_log
 from pinquad.io.read import read_log, with_vehicle
+from pinquad.pipeline.identify import LogOptions, identify_log
 from pinquad.realdata.vehicle_check import measured_vehicle
 from pinquad.vehicle.actuators import KF_CRAZYFLIE, ActuatorModel, motor_positions
 from pinquad.vehicle.steady_thrust import fit_steady_thrust

@@ -15,15 +15,15 @@ from pinquad.cli import axis_inertia, offline, realdata, realdiscovery, response
 from pinquad.core.paper_results import OFFLINE_INERTIA_BOUND, OFFLINE_MASS_BOUND
 from pinquad.core.params import vehicle_from_spec
 from pinquad.core.vehicle_file import load_vehicle
-from pinquad.experiments.recorded import LogOptions
 from pinquad.experiments.vehicle_file_mc import (
     FILE_VEHICLE_BAND,
     fly_vehicle_file,
     short_scenario,
+    vehicle_file_cycle,
 )
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.read import read_log, with_vehicle
-from pinquad.pipeline.vehicle_file import vehicle_file_cycle
+from pinquad.pipeline.identify import LogOptions
 from pinquad.realdata.identify import identify_real, measured_fit
 from pinquad.realdata.observations import (
     RealDataOptions,

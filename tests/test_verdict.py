@@ -258,7 +258,7 @@ def test_innovation_consistency_flags_understated_noise(noisy_torque_log):
     (ratio near 1, EM fits the noise); with the position noise variance understated
     100x the position innovations are far larger than predicted."""
     from pinquad.discovery.calibrated import discovery_start
-    from pinquad.experiments.recorded import LogOptions, identify_log
+    from pinquad.pipeline.identify import LogOptions, identify_log
 
     run = identify_log(noisy_torque_log, LogOptions(msteps=("regressor",), information=False,
                                                     max_iterations=10)).runs[0]

@@ -25,8 +25,9 @@ from pathlib import Path
 
 from pinquad.core.execution import Backend, open_executor
 from pinquad.io.runs import RunWriter, new_run_dir
-from pinquad.pipeline import PipelineOptions, identify_many
+from pinquad.pipeline import PipelineOptions
 from pinquad.report.batch import batch_counts, batch_json, batch_table
+from pinquad.results.batch import identify_many
 
 GLOB_CHARS = frozenset("*?[")
 

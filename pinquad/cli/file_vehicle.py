@@ -1,6 +1,6 @@
 """``python -m pinquad.offline --vehicle FILE.toml [--cycles N] [--seed S]``: the vehicle
 of a file flown in the simulated world, logged with rotor speeds and identified from its
-log as a user's log is (``pinquad.pipeline.vehicle_file``), over seeded cycles.
+log as a user's log is (``pinquad.experiments.vehicle_file_mc``), over seeded cycles.
 
 Prints the relative mass and inertia errors of each cycle, their RMS and worst value,
 and how many cycles meet the bounds of the paper's offline experiment as pinquad meets
@@ -17,10 +17,9 @@ from pathlib import Path
 
 from pinquad.core.paper_results import OFFLINE_INERTIA_BOUND, OFFLINE_MASS_BOUND
 from pinquad.core.vehicle_file import VehicleFileError, load_vehicle
-from pinquad.experiments.recorded import LogOptions
-from pinquad.experiments.vehicle_file_mc import FILE_VEHICLE_BAND, cycle_lines, rms_errors
+from pinquad.experiments.vehicle_file_mc import FILE_VEHICLE_BAND, cycle_lines, rms_errors, vehicle_file_cycle
 from pinquad.io.runs import RunWriter, atomic_write_bytes, atomic_write_json, new_run_dir
-from pinquad.pipeline.vehicle_file import vehicle_file_cycle
+from pinquad.pipeline.identify import LogOptions
 
 
 def run_file_vehicle(args: argparse.Namespace) -> int:

@@ -43,11 +43,12 @@ from pinquad.core.params import PAPER_SCENARIO
 from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.offline_mc import CycleJob, run_cycles
-from pinquad.experiments.recorded import LogOptions, worker_pool
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.pipeline import LOG_MAX_ITERATIONS, PipelineOptions, read, run
+from pinquad.pipeline.identify import LogOptions, worker_pool
 from pinquad.realdata.observations import FAULT_MODES
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
+from pinquad.results.result import Result
 
 UNTRUSTED = 3
 """Exit code of a run whose report is written but whose headline estimate is not
@@ -244,7 +245,7 @@ def run_log(args: argparse.Namespace) -> int:
     if args.vehicle is not None:
         print(f"vehicle: {log.meta.vehicle}")
     with worker_pool(args.jobs) as pool:
-        result = run(log, options, pool, str(args.log), t0)
+        result = Result.of(run(log, options, pool, str(args.log), t0))
     print(result.explain() if args.explain else result.summary())
     with writer:
         result.write(writer)

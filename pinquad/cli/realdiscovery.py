@@ -1,6 +1,6 @@
 """``python -m pinquad.realdiscovery``: effect discovery on the measured Crazyflie flights,
 trained on some logs and tested on others: each log read, checked and fitted by the
-pipeline (``pinquad.pipeline.measured.flight_fit``), the splits by
+pipeline (``pinquad.experiments.realdiscovery.flight_fit``), the splits by
 ``pinquad.experiments.realdiscovery``, the table by ``pinquad.report.realdiscovery``."""
 
 from __future__ import annotations
@@ -11,11 +11,10 @@ import time
 from pathlib import Path
 
 from pinquad.cli.common import output_problem
-from pinquad.experiments.realdiscovery import POOLED, SPLITS, FlightFit, run_split
+from pinquad.experiments.realdiscovery import POOLED, SPLITS, FlightFit, flight_fit, run_split
 from pinquad.io.datadir import default_data_dir, missing_data_hint
 from pinquad.io.logs import LogFormatError, vehicle_file_named
 from pinquad.io.runs import atomic_write_json
-from pinquad.pipeline.measured import flight_fit
 from pinquad.report.realdiscovery import realdiscovery_markdown
 
 

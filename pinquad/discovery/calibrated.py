@@ -7,13 +7,14 @@ It starts from a ``DiscoveryStart`` (observations, parameters, smoothed posterio
 fit: ``discovery_start`` of a run) with the settings for the kind of log
 (``discovery_config``) and gives a ``DiscoveryOutcome`` (the result, or why there is
 none); the recorded-log pipeline (``pinquad.pipeline``) and the API call it through
-``pinquad.experiments.recorded.run_discovery``.
+``pinquad.pipeline.identify.run_discovery``.
 """
 
 from __future__ import annotations
 
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -78,6 +79,35 @@ class DiscoveryOutcome:
     not_run: str | None = None
     note: str | None = None
     floor: FloorLevel | None = None
+
+    def to_report(self) -> dict:
+        """The ``discovery`` section of report.json; figure paths (if drawn) named
+        relative to the run directory (``figures/<name>``); ``ground_effect_floor``: where
+        the ground-effect law put the floor ({'height' [m], 'source', 'note'}; None when
+        discovery did not reach the log)."""
+        floor = None if self.floor is None else {
+            "height": self.floor.height, "source": self.floor.source,
+            "note": self.floor.describe()}
+        if self.result is None:
+            return {"selected": [], "residual_rms_before": {}, "residual_rms_after": {},
+                    "validation": "not run", "error": self.error, "not_run": self.not_run,
+                    "note": self.note, "unphysical": list(self.unphysical),
+                    "ground_effect_floor": floor}
+        section = self.result.to_report()
+        section["ground_effect_floor"] = floor
+        section["unphysical"] = list(self.unphysical)
+        section["note"] = self.note
+        section["not_run"] = None
+        section["figures"] = [f"figures/{Path(f).name}" for f in section["figures"]]
+        if self.null is not None:
+            section["null_calibration"] = self.null.to_report()
+            for entry in section["selected"]:
+                entry["evidence"]["null_p_value"] = self.null.p_value.get(entry["effect"])
+        else:
+            section["null_calibration"] = {"replicates": 0, "note": (
+                "nothing selected: no calibration needed" if not section["selected"]
+                else "not calibrated against the null (--null-replicates 0)")}
+        return section
 
 
 DISCOVERY_SETTINGS: dict[str, dict] = {"sdlog": {"refit_em": False},

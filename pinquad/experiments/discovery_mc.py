@@ -8,8 +8,8 @@ coefficient from ``pinquad.sim.effects``, and drag + wind together) and each see
    B, a 40 rad/s attitude-rate loop) with the effect injected into the true vehicle;
 2. write its log to CSV (the log does not mention the effect; ``true_*`` columns are
    never read by estimators) and read it back with ``pinquad.io.logs.read_log``;
-3. identify it exactly as ``python -m pinquad.offline --log`` does (``pinquad.experiments.recorded``,
-   regressor M-step) and run discovery (``recorded.run_discovery``);
+3. identify it exactly as ``python -m pinquad.offline --log`` does (``pinquad.pipeline.identify``,
+   regressor M-step) and run discovery (``pipeline.discover.run_discovery``);
 4. score: the names selected; the coefficients against the injected ones (relative
    error per coefficient, ``|c - c0| / |c0|``); mass and inertia after the refit against
    the truth; the held-out residual RMS per affected axis before and after.
@@ -46,9 +46,9 @@ from numpy.typing import NDArray
 from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO
 from pinquad.discovery.calibrated import discovery_start
 from pinquad.discovery.discover import base_heldout_rms
-from pinquad.experiments.discovery_report import discovery_section
-from pinquad.experiments.recorded import LogOptions, identify_log, run_discovery
 from pinquad.io.logs import read_log, write_log
+from pinquad.pipeline.discover import run_discovery
+from pinquad.pipeline.identify import LogOptions, identify_log
 from pinquad.sim import effects
 from pinquad.sim.control import design_gains
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
@@ -165,7 +165,7 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
     options = LogOptions(msteps=("regressor",), estep="rts", max_iterations=100,
                          information=False)
     result = identify_log(back, options)
-    section = discovery_section(run_discovery(result))
+    section = run_discovery(result).to_report()
     truth = np.r_[CRAZYFLIE21.mass, np.diag(CRAZYFLIE21.inertia)]
     refit = section.get("refit", {})
     main = result.runs[0]

@@ -11,7 +11,7 @@ the realistic Crazyflie-class value of ``pinquad.sim.effects``' defaults) and se
 2. write its CSV with ``flightgen.write_csv`` (the log does not mention the effect),
    read it with ``pinquad.io.read.read_log``;
 3. identify and discover exactly as ``python -m pinquad.offline --log`` does
-   (``pinquad.experiments.recorded``, regressor M-step);
+   (``pinquad.pipeline.identify``, regressor M-step);
 4. score: the names selected, each injected effect's coefficients against the truth
    (``|c - c0| / |c0|``, max over its coefficients), the held-out gain of the round that
    selected it, and the base EM's and the final mass / inertia against the truth; on
@@ -40,19 +40,18 @@ from flightgen import CRAZYFLIE, Effects, Flight, FlightSpec, generate, write_cs
 from flightgen.rotation import quats_to_rots
 from flightgen.trajectory import excursion
 from pinquad.experiments.discovery_mc import in_order
-from pinquad.experiments.discovery_report import discovery_section
-from pinquad.experiments.headline import headline
-from pinquad.experiments.recorded import (
-    LogOptions,
-    identify_log,
-    initial_guess,
-    run_discovery,
-)
 from pinquad.io.logs import FlightLog
 from pinquad.io.read import read_log
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.contact import touching_transitions
 from pinquad.models.sources import floor_contact
+from pinquad.pipeline.discover import run_discovery
+from pinquad.pipeline.identify import (
+    LogOptions,
+    identify_log,
+    initial_guess,
+)
+from pinquad.pipeline.judge import headline
 from pinquad.sim import effects as sim_effects
 
 FG_CONDITIONS: tuple[str, ...] = ("none", "drag", "ground_effect", "com_offset", "wind",
@@ -229,7 +228,7 @@ def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
     truth_contact = true_contact_transitions(flight, result.obs.n)
     found = found_contact_transitions(log)
     singular = near_euler_singularity(log.t, log.euler).transitions()
-    section = discovery_section(outcome)
+    section = outcome.to_report()
     truth = np.r_[CRAZYFLIE.mass, np.diag(CRAZYFLIE.inertia_matrix)]
     run = result.runs[0]
     base = np.r_[run.mass, np.diag(run.inertia)]

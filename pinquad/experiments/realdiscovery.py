@@ -4,7 +4,7 @@
 table ``pinquad.report.realdiscovery``):
 
 1. every flight of the split is read and checked by the pipeline
-   (``pinquad.pipeline.measured.flight_fit``) and identified as ``offline --log`` does
+   (:func:`flight_fit`, ``pinquad.pipeline.measured``) and identified as ``offline --log`` does
    (``realdata``: 100 Hz observations, band-limited inertia M-step with the nuisance
    air-speed moment; :func:`fit_flight`), and discovery
    (``pinquad.discovery.discover.discover``, effects fitted on the base posterior) is
@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,6 +45,7 @@ from pinquad.discovery.residuals import (
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.discovery.selection import ProfiledFit, profiled_fit
 from pinquad.models.ssm import corrected
+from pinquad.pipeline.measured import measured_log
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real
 from pinquad.realdata.observations import RealObservations
@@ -197,3 +199,14 @@ def run_split(name: str, fits: Mapping[str, FlightFit],
         entry["test_rms"][f.name] = {"before": before, "after": after,
                                      "min_height_m": f.min_height, "max_speed_m_s": f.max_speed}
     return entry
+
+
+def flight_fit(path: Path, vehicle: str = "crazyflie21") -> FlightFit:
+    """One flight of ``python -m pinquad.realdiscovery``: the log's observations
+    (:func:`measured_log`, the vehicle's own kf) with base EM from the vehicle's [guess]
+    and the flight's own effect discovery (``fit_flight``). Raises FileNotFoundError when
+    there is no such file, LogFormatError / ValueError as :func:`measured_log`."""
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: flight log not found (expected the shared "
+                                "Crazyflie data, imrc_brushed/, or --data DIR)")
+    return fit_flight(path.name, measured_log(path, vehicle), vehicle=vehicle)

@@ -24,10 +24,10 @@ from numpy.typing import NDArray
 from estimators.protocol import Posterior
 from pinquad.discovery.calibrated import DiscoveryOutcome, discovery_config, discovery_start
 from pinquad.discovery.library import TransitionData, lag_wrench, wrench_features
-from pinquad.experiments.recorded import LogResult
 from pinquad.models.ssm import Observations
 from pinquad.mstep.stats import transition_mask
 from pinquad.mstep.updates import body_regressor
+from pinquad.pipeline.identify import LogResult
 
 Array = NDArray[np.float64]
 

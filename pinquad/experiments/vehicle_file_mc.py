@@ -1,6 +1,6 @@
 """A vehicle from a file, flown in the simulated world and identified from its rotor speeds.
 
-One cycle (``pinquad.pipeline.vehicle_file.vehicle_file_cycle``): the simulator flies
+One cycle (:func:`vehicle_file_cycle`): the simulator flies
 the file's rigid body (``core.params.vehicle_from_spec``; process noise scaled to it by
 ``core.params.process_noise_for``) through the scenario with sensor B (motion capture,
 velocity, attitude, gyro); the flight is logged with rotor speeds ``rpm_1..rpm_n``
@@ -25,7 +25,9 @@ from numpy.typing import NDArray
 from pinquad.core.paper_results import OFFLINE_INERTIA_BOUND, OFFLINE_MASS_BOUND
 from pinquad.core.params import PAPER_SCENARIO, Scenario, vehicle_from_spec
 from pinquad.core.vehicle_file import VehicleSpec
-from pinquad.io.logs import FlightLog
+from pinquad.io.logs import FlightLog, write_log
+from pinquad.pipeline.identify import LogOptions
+from pinquad.pipeline.single import identify_run, read
 from pinquad.sim.rotor_log import rotor_speed_log
 from pinquad.sim.simulator import SimConfig, simulate, waypoint_report
 from pinquad.vehicle.actuators import ActuatorModel
@@ -131,3 +133,22 @@ def cycle_lines(spec: VehicleSpec, cycles: list[FileVehicleCycle]) -> list[str]:
     if not math.isfinite(float(rms.sum())):
         lines.append("some errors are not finite")
     return lines
+
+
+def vehicle_file_cycle(spec: VehicleSpec, seed: int, log_path: Path,
+                       scenario: Scenario = PAPER_SCENARIO,
+                       options: LogOptions | None = None) -> FileVehicleCycle:
+    """One cycle (module docstring): fly with generator seed ``seed``, write ``log_path``
+    (CSV + sidecar), read it back, identify it with ``options`` (default: regressor
+    M-step, the file vehicle's band ``FILE_VEHICLE_BAND``) and judge the reported run."""
+    options = options or LogOptions(msteps=("regressor",), band=FILE_VEHICLE_BAND)
+    log, flown = fly_vehicle_file(spec, seed, scenario)
+    write_log(log, log_path)
+    run = identify_run(read(log_path), options)
+    assert run.verdict is not None  # identify_run judges the run
+    return FileVehicleCycle(
+        seed=seed, log=log_path, truth=np.concatenate([[spec.mass], np.diag(spec.inertia)]),
+        estimate=np.concatenate([[run.mass], np.diag(run.inertia)]),
+        stderr=np.asarray(run.stderr, dtype=float), converged=bool(run.converged),
+        e_steps=int(run.e_steps or 0), verdict=run.verdict.overall,
+        max_miss=float(flown["max_miss_m"]), crashed=bool(flown["crashed"]))

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pinquad.experiments.realdiscovery import FlightFit, fit_flight
 from pinquad.pipeline.single import check, read
 from pinquad.realdata.observations import RealObservations
 from pinquad.realdata.thrust import ThrustCoefficient
@@ -26,14 +25,3 @@ def measured_log(path: str | Path, vehicle: str | None = None,
     LogFormatError (unreadable, implausible or without rotor speeds) or ValueError (the
     vehicle contradicts the log, nothing usable remains), the file named."""
     return measured_observations(check(read(path, vehicle)), kf=kf)
-
-
-def flight_fit(path: Path, vehicle: str = "crazyflie21") -> FlightFit:
-    """One flight of ``python -m pinquad.realdiscovery``: the log's observations
-    (:func:`measured_log`, the vehicle's own kf) with base EM from the vehicle's [guess]
-    and the flight's own effect discovery (``fit_flight``). Raises FileNotFoundError when
-    there is no such file, LogFormatError / ValueError as :func:`measured_log`."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: flight log not found (expected the shared "
-                                "Crazyflie data, imrc_brushed/, or --data DIR)")
-    return fit_flight(path.name, measured_log(path, vehicle), vehicle=vehicle)

@@ -2,7 +2,7 @@
 per job in worker processes: read -> check (the pipeline's steps,
 ``pinquad.pipeline.single``) -> observations with the table's channels, fault handling
 and kf -> identify (``realdata.identify_real``, with the rotor inertia J_r pooled over
-the flights or fitted per flight) -> discover (``experiments.discovery_report
+the flights or fitted per flight) -> discover (``pipeline.discover
 .measured_effects``) -> judge against the vehicle's range and reference.
 
 The identification is not the pipeline's ``identify`` of one log: J_r comes from the
@@ -20,8 +20,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.discovery.null import NullSettings
-from pinquad.experiments.discovery_report import measured_effects
-from pinquad.experiments.headline import error_failures
 from pinquad.identification.identify import Identification
 from pinquad.identification.reference import vehicle_reference
 from pinquad.identification.verdict import (
@@ -32,6 +30,8 @@ from pinquad.identification.verdict import (
 )
 from pinquad.io.logs import LogFormatError
 from pinquad.models.ssm import corrected
+from pinquad.pipeline.discover import measured_effects
+from pinquad.pipeline.judge import error_failures
 from pinquad.pipeline.single import check, read
 from pinquad.realdata.consistency import FlightRow
 from pinquad.realdata.dataset import default_guess

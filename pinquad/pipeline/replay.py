@@ -6,8 +6,8 @@ read -> check -> observations, the pipeline's read and check steps
 A Crazyflie micro-SD log is a measured flight: its rotor speeds through its vehicle's
 mixer and kf on the 100 Hz grid (``realdata.vehicle_check.measured_observations``, as
 the offline identification reads it). Every log starts EM from the offline
-identification's initial guess (``experiments.recorded.initial_guess``) and is judged
-on its plausible range (``recorded.plausible_range``). Any other log is
+identification's initial guess (``pipeline.identify.initial_guess``) and is judged
+on its plausible range (``identify.plausible_range``). Any other log is
 observed through the paper's sources (``models.sources.observations``; the sensor asked
 for, else B when it has attitude samples, else C).
 """
@@ -21,11 +21,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.params import VehicleRange
-from pinquad.experiments.recorded import initial_guess, plausible_range
 from pinquad.identification.search_range import search_range
 from pinquad.io.logs import FlightLog
 from pinquad.models.sources import observations
 from pinquad.models.ssm import Observations
+from pinquad.pipeline.identify import initial_guess, plausible_range
 from pinquad.pipeline.single import check, read
 from pinquad.realdata.vehicle_check import measured_observations, measured_search_range
 

@@ -1,24 +1,23 @@
 """One recorded log through pinquad: read -> check -> identify -> discover -> judge ->
-``Result``, and ``Result.save(run_dir)``.
+``PipelineResult``.
 
 Every step is a function of the previous step's output (the data flows one way):
 
 - read: the log file (CSV, Parquet or Crazyflie micro-SD binary, ``pinquad.io.read``),
   with the vehicle named by the caller, if any, overriding its sidecar's;
 - check: its columns against physics (``pinquad.io.sanity.check_log``: units, impossible
-  values) before any EM;
+  values, declared conventions) before any EM;
 - identify: mass [kg] and inertia (3, 3) [kg m^2] by EM, every run asked for
-  (``pinquad.experiments.recorded.identify_log``);
+  (``pinquad.pipeline.identify``);
 - discover: the unmodelled effects of the reported run, calibrated against shadow
-  flights of the base fit (``recorded.run_discovery``);
+  flights of the base fit, behind the guard every caller gets (``pinquad.pipeline.discover``);
 - judge: the headline estimate under the final model with its error budget and verdict
-  (``pinquad.experiments.headline``);
-- ``Result``: all of it, with the report it makes; ``Result.save(run_dir)`` writes the
-  run directory whole or not at all (a staging directory renamed into place, with the
-  permissions any new folder of the user gets).
+  (``pinquad.pipeline.judge``).
 
-The command line (``python -m pinquad.offline --log``), the Python API (``pinquad.api``)
-and the batch (``pinquad.pipeline.batch.identify_many``) all run these functions.
+The pipeline computes; it writes nothing and prints nothing. The report it makes (the
+terminal summary, the run directory) is ``pinquad.Result``'s (``pinquad.results``), which
+the command line (``python -m pinquad.offline --log``), the Python API and the batch
+(``pinquad.identify_many``) return or write.
 """
 
 from __future__ import annotations
@@ -34,30 +33,14 @@ from numpy.typing import NDArray
 from pinquad.discovery.calibrated import DiscoveryOutcome
 from pinquad.discovery.null import NullSettings
 from pinquad.discovery.result import DiscoveryResult
-from pinquad.experiments.discovery_report import discovery_section
-from pinquad.experiments.headline import Estimate, Headline, headline, run_verdict
-from pinquad.experiments.recorded import (
-    LogOptions,
-    LogResult,
-    identify_log,
-    run_discovery,
-)
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import EstimateVerdict
 from pinquad.io.logs import FlightLog
 from pinquad.io.read import read_log, with_vehicle
-from pinquad.io.runs import RunWriter
 from pinquad.io.sanity import check_log
-from pinquad.report.console import console_summary
-from pinquad.report.discovery import discovery_figure_name, draw_discovery_figures
-from pinquad.report.recorded import (
-    discovery_summary,
-    headline_summary,
-    log_table,
-    report_json,
-    report_markdown,
-    write_log_run,
-)
+from pinquad.pipeline.discover import run_discovery
+from pinquad.pipeline.identify import LogOptions, LogResult, identify_log
+from pinquad.pipeline.judge import Estimate, Headline, headline, run_verdict
 
 LOG_MAX_ITERATIONS = 200
 """E-steps at most per EM run of a recorded log from the command line and the API: a
@@ -155,8 +138,8 @@ def judge(identified: LogResult, outcome: DiscoveryOutcome | None) -> Headline:
 
 
 @dataclass(frozen=True)
-class Result:
-    """One log's way through the pipeline.
+class PipelineResult:
+    """One log's way through the pipeline (``pinquad.Result`` adds the report it makes).
 
     source: the log's path as given (report.json's ``source.path``); estep: the E-step
     smoother; identified: the EM runs (``LogResult``; ``runs[0]`` the reported one);
@@ -247,77 +230,10 @@ class Result:
         seen = tuple(self.identified.notes)
         return seen + tuple(n for n in self.run.notes if n not in seen)
 
-    def summary(self) -> str:
-        """What ``python -m pinquad.offline --log`` prints about the run: one line per
-        parameter (value ± total standard error, unit, verdict, the main reason), the
-        vehicle's reference values, one line per effect found, warnings
-        (``pinquad.report.console``)."""
-        return console_summary(self.identified, self.headline, self.source, self.seconds,
-                               self.discovery(), self.discovery_skipped)
-
-    def discovery(self) -> dict | None:
-        """report.json's ``discovery`` section (None: not run), its figures named as
-        ``save`` draws them (``figures/discovery_<effect>.png``)."""
-        if self.outcome is None:
-            return None
-        found = self.outcome.result
-        if found is None:
-            return discovery_section(self.outcome)
-        named = replace(found, figures=tuple(discovery_figure_name(ev.effect)
-                                             for ev in found.evidence))
-        return discovery_section(replace(self.outcome, result=named))
-
-    def explain(self) -> str:
-        """The whole printed report (``offline --log --explain``): the log, exclusions and
-        notes, the EM time, discovery's selection with its coefficients, held-out residual
-        RMS and null calibration, the table of runs, the headline with every reason and
-        its error budget."""
-        ident = self.identified
-        lines = [f"log: {ident.contents}; {ident.obs.n} steps of {ident.obs.dt * 1e3:.0f} ms",
-                 f"initial guess: {ident.guess}",
-                 *(f"excluded: {line}" for line in ident.excluded),
-                 *(f"note: {note}" for note in ident.notes),
-                 *(f"note: {r.sensor}, {r.mstep} M-step: {r.failure}"
-                   for r in ident.runs if r.failure),
-                 f"\nEM: {self.seconds:.1f} s"]
-        if self.discovery_skipped is not None:
-            lines.append(f"\n{self.discovery_skipped}")
-        section = self.discovery()
-        if section is not None:
-            lines += ["", discovery_summary(section)]
-        lines += ["", log_table(ident, self.headline), "", headline_summary(self.headline)]
-        return "\n".join(lines)
-
-    def write(self, writer: RunWriter) -> None:
-        """The run directory's files into ``writer``'s staging directory (the caller
-        publishes): report.json, report.md, the log as the E-step saw it, the smoothed
-        means, figures and the viewer's tables."""
-        outcome = self.outcome
-        if outcome is not None and outcome.result is not None:
-            outcome = replace(outcome, result=draw_discovery_figures(
-                outcome.result, writer.path("figures")))
-        section = self.discovery()
-        report = report_json(self.identified, self.source, self.estep, self.seconds,
-                             section, self.headline)
-        markdown = report_markdown(self.identified, self.source, section, self.headline)
-        write_log_run(writer, self.identified, report, markdown, outcome)
-
-    def save(self, run_dir: str | Path, *, replace: bool = False) -> Path:
-        """Write the run directory ``run_dir`` whole or not at all and return it.
-
-        replace=False: ``run_dir`` must be absent or empty (``OutputError`` otherwise);
-        True: it is this run's own earlier output (a task run again) and is replaced,
-        whatever an interrupted attempt left half written.
-        """
-        writer = RunWriter(run_dir, replace=replace)
-        with writer:
-            self.write(writer)
-            return writer.publish()
-
 
 def run(log: FlightLog, options: PipelineOptions | None = None,
         executor: Executor | None = None, source: str | None = None,
-        started: float | None = None) -> Result:
+        started: float | None = None) -> PipelineResult:
     """identify -> discover -> judge on a read log (module docstring). executor: worker
     processes for the log's EM runs beyond the reported one and discovery's shadow
     flights (None: all here; the same answer); source: the log's path for the report
@@ -329,13 +245,13 @@ def run(log: FlightLog, options: PipelineOptions | None = None,
     seconds = time.perf_counter() - t0
     outcome, skipped = (discovered(identified, options.null, executor) if options.discover
                         else (None, None))
-    return Result(str(log.meta.source) if source is None else source,
+    return PipelineResult(str(log.meta.source) if source is None else source,
                   options.identification.estep, identified, outcome, skipped,
                   judge(identified, outcome), seconds)
 
 
-def with_discovery(result: Result, null: NullSettings | None = None,
-                   executor: Executor | None = None) -> Result:
+def with_discovery(result: PipelineResult, null: NullSettings | None = None,
+                   executor: Executor | None = None) -> PipelineResult:
     """``result`` with effect discovery run on its reported run and the headline judged
     again: the step ``run`` takes when asked to discover (the same guards: an unconverged
     base fit, one outside the physical set, a ten-parameter fit), on an identification
@@ -346,7 +262,7 @@ def with_discovery(result: Result, null: NullSettings | None = None,
 
 
 def run_path(path: str | Path, options: PipelineOptions | None = None,
-             executor: Executor | None = None) -> Result:
+             executor: Executor | None = None) -> PipelineResult:
     """read -> check -> identify -> discover -> judge for the log at ``path``."""
     options = options or PipelineOptions()
     started = time.perf_counter()

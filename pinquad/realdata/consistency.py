@@ -62,7 +62,7 @@ class FlightRow:
     ``realdata.identify_real``'s, with its ``MeasuredFit``; its stderr and verdict as the
     table judges them) and what the table adds. rotor_source: how J_r was obtained, in
     words; effects: the effects found on the flight with their evidence against the null
-    (``experiments.discovery_report.measured_effects``; None: discovery not run);
+    (``pipeline.discover.measured_effects``; None: discovery not run);
     evidence: what the verdict was judged on besides the errors (so that
     :func:`between_flights` can judge again); vehicle: the vehicle whose range it was
     judged against; scatter_scale (4,): the between-flight scale factors S that multiply

@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
-from pinquad.experiments.headline import Estimate, Headline
-from pinquad.experiments.recorded import LogResult
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import PRODUCTS, EstimateVerdict
 from pinquad.io.datadir import FETCH_COMMAND
+from pinquad.pipeline.identify import LogResult
+from pinquad.pipeline.judge import Estimate, Headline
 
 WIDTH = 120
 """The longest printed line [characters]: a reason is shortened to fit."""

@@ -12,14 +12,14 @@ from numpy.typing import NDArray
 from pinquad.core.conventions import wrap_angle
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.discovery.calibrated import DiscoveryOutcome
-from pinquad.experiments.headline import Headline
-from pinquad.experiments.recorded import LogResult
 from pinquad.identification.budget import ErrorBudget
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import PRODUCTS, EstimateVerdict, ParameterVerdict
 from pinquad.io.logs import write_log
 from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 from pinquad.models.ssm import Observations
+from pinquad.pipeline.identify import LogResult
+from pinquad.pipeline.judge import Headline
 from pinquad.report.discovery import discovery_markdown
 from pinquad.report.offline import plot_trajectory
 from pinquad.report.run_tables import write_run_tables

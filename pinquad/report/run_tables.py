@@ -26,11 +26,11 @@ from numpy.typing import NDArray
 
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.discovery.calibrated import DiscoveryOutcome
-from pinquad.experiments.recorded import LogResult
 from pinquad.experiments.step_residuals import StepResiduals, step_residuals
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog
 from pinquad.io.runs import RunWriter, atomic_write_bytes
+from pinquad.pipeline.identify import LogResult
 
 Array = NDArray[np.float64]
 

@@ -31,19 +31,11 @@ from numpy.typing import NDArray
 
 from pinquad.core.execution import Backend, open_executor
 from pinquad.core.vehicle_file import is_vehicle_file
-from pinquad.discovery.calibrated import (
-    DiscoveryOutcome,
-    discover_calibrated,
-    discovery_config,
-    discovery_start,
-)
-from pinquad.discovery.domain import FORCE_EFFECTS
-from pinquad.discovery.null import NullSettings
 from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.full_inertia import identify_full
-from pinquad.identification.identify import Identification, identify, unconverged
-from pinquad.identification.search_range import outside_range, search_range
+from pinquad.identification.identify import Identification, identify
+from pinquad.identification.search_range import search_range
 from pinquad.identification.verdict import VehicleRange, vehicle_range
 from pinquad.io.logs import FlightLog, log_contents
 from pinquad.io.sanity import check_log
@@ -354,54 +346,6 @@ def plausible_range(log: FlightLog) -> VehicleRange | None:
     meta = log.meta
     name = meta.vehicle if meta.vehicle_named else ""
     return vehicle_range(name, meta.mass_guess, meta.inertia_guess)
-
-
-def run_discovery(result: LogResult, null: NullSettings | None = None,
-                  executor: Executor | None = None) -> DiscoveryOutcome:
-    """Effect discovery on the reported run (``discover_calibrated``) with the settings
-    for the log's kind (``DISCOVERY_SETTINGS``); default ``NullSettings()``; executor
-    (``worker_pool``): where the null calibration's shadow flights are scored and the
-    refit runs beside them (None: all in this process; the answer is the same)."""
-    try:
-        start = discovery_start(result.runs[0])
-    except ValueError as exc:
-        return DiscoveryOutcome(None, str(exc))
-    vrange = plausible_range(result.log)
-    base = result.runs[0]
-    if unconverged(base) is not None:
-        return DiscoveryOutcome(None, not_run=unconverged(base))
-    actuation = input_reading(result.kind, result.log)
-    bounds = None if vrange is None else (vrange.inertia_lo, vrange.inertia_hi)
-    cfg = replace(discovery_config(result.kind, actuation), search=result.search)
-    outcome = discover_calibrated(start, cfg, null, actuation, executor, bounds)
-    # a base fit outside the physical set is kept for discovery only when a selected
-    # effect brings the refit inside it (a missing effect can push the base fit out);
-    # else, with the mass sound, only the effects of the force rows, which rest on it
-    values = np.r_[base.mass, np.diag(base.inertia)]
-    odd = outside_range(values, result.search, vrange)
-    found = outcome.result
-    if odd is None or found is None:
-        return outcome
-    still = (outside_range(np.r_[found.mass, np.diag(found.inertia)], result.search, vrange)
-             if found.selected else odd)
-    if still is None:
-        return outcome
-    if outside_range(values, result.search, vrange, ("mass",)) is None:
-        cfg = replace(cfg, candidates=tuple(c for c in cfg.candidates if c in FORCE_EFFECTS))
-        forces = discover_calibrated(start, cfg, null, actuation, executor, bounds)
-        kept = forces.result
-        if kept is None or outside_range(np.r_[kept.mass, np.diag(kept.inertia)],
-                                         result.search, vrange, ("mass",)) is None:
-            return replace(forces, note=(
-                f"the base fit's {odd}: only effects on the force rows "
-                f"({', '.join(FORCE_EFFECTS)}), which rest on the mass, were looked for"))
-    return DiscoveryOutcome(None, not_run=(
-        f"the base fit's {odd}, and "
-        + (f"the refit with {', '.join(found.selected)} still has {still}"
-           if found.selected else "no effect explains why")
-        + ": the log does not determine the fit, and effects read from its residual "
-        "would not be there"))
-
 
 
 def input_reading(kind: str, log: FlightLog) -> str:

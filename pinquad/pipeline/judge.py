@@ -13,7 +13,6 @@ from pinquad.discovery.calibrated import DiscoveryOutcome, discovery_config, dis
 from pinquad.discovery.refit import corrected_observations, model_factory
 from pinquad.discovery.result import DiscoveryResult
 from pinquad.estep.fast_smoother import loglik_quad
-from pinquad.experiments.recorded import LogResult, input_reading, plausible_range
 from pinquad.identification.budget import ErrorBudget, calibration_of, error_budget
 from pinquad.identification.edges import collapsed_errors
 from pinquad.identification.fisher import (
@@ -32,6 +31,7 @@ from pinquad.identification.verdict import (
     judge,
 )
 from pinquad.models.full import FullQuadSSM
+from pinquad.pipeline.identify import LogResult, input_reading, plausible_range
 
 Array = NDArray[np.float64]
 

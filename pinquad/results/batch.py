@@ -45,9 +45,10 @@ from pinquad.experiments.batch import (
 )
 from pinquad.io.logs import LogFormatError
 from pinquad.io.runs import atomic_write_bytes
-from pinquad.pipeline.single import PipelineOptions, Result, run_path
+from pinquad.pipeline.single import PipelineOptions, run_path
 from pinquad.realdata.consistency import FlightScatter
 from pinquad.report.batch import batch_counts, batch_table
+from pinquad.results.result import Result
 
 
 @dataclass(frozen=True)
@@ -88,7 +89,7 @@ def run_log_task(task: LogTask) -> LogOutcome:
         print(f"pinquad offline --log {task.log}: E-step {task.options.identification.estep}"
               f", M-step(s) {', '.join(task.options.identification.msteps)}")
         try:
-            result = run_path(task.log, task.options)
+            result = Result.of(run_path(task.log, task.options))
             print(result.explain())
             report = _save(result, task)
         except (LogFormatError, FileExistsError, FileNotFoundError, ValueError) as exc:
