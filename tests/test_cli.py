@@ -16,7 +16,7 @@ from pinquad.cli import realdiscovery as cli_realdiscovery
 from pinquad.pipeline.realdata import TableJob, run_table_job
 from pinquad.realdata.consistency import FlightRow
 from pinquad.realdata.dataset import SCALE_MASS
-from pinquad.realdata.observations import RealDataOptions
+from pinquad.realdata.observation_options import RealDataOptions
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "crazyflie"

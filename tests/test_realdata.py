@@ -23,7 +23,8 @@ from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS, default_gues
 from pinquad.realdata.identify import identify_real, measured_fit
 from pinquad.realdata.load import load_real
 from pinquad.realdata.mass_balance import quasi_static_mass
-from pinquad.realdata.observations import RealDataOptions, build_observations
+from pinquad.realdata.observation_options import RealDataOptions
+from pinquad.realdata.observations import build_observations
 from pinquad.realdata.raw import RawFlight
 from pinquad.realdata.thrust import thrust_coefficient
 from pinquad.vehicle.actuators import ActuatorModel
@@ -358,7 +359,7 @@ def test_truncated_real_log_exits_2_with_file_and_offset(tmp_path):
 
 def test_rotor_acceleration_signs_and_gaps():
     """sum_i spin_i omega_i' [rad/s^2] from rpm, NaN next to a log gap."""
-    from pinquad.realdata.observations import rotor_acceleration
+    from pinquad.realdata.rotor_acceleration import rotor_acceleration
 
     t = np.arange(0.0, 1.0, 0.002)
     t[300:] += 0.05  # a 50 ms gap between rows 299 and 300

@@ -27,7 +27,8 @@ from pinquad.realdata.faults import (
     diagonal_partners,
     reconstruct_rpm,
 )
-from pinquad.realdata.observations import build_observations, options_for_vehicle
+from pinquad.realdata.observation_options import options_for_vehicle
+from pinquad.realdata.observations import build_observations
 from pinquad.realdata.raw import RawFlight, raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient
 from pinquad.realdata.vehicle_check import measured_vehicle

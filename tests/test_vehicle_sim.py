@@ -25,11 +25,8 @@ from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.pipeline.identify import LogOptions
 from pinquad.realdata.identify import identify_real, measured_fit
-from pinquad.realdata.observations import (
-    RealDataOptions,
-    build_observations,
-    options_for_vehicle,
-)
+from pinquad.realdata.observation_options import RealDataOptions, options_for_vehicle
+from pinquad.realdata.observations import build_observations
 from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.vehicle_check import measured_vehicle, over_max_thrust
 from pinquad.sim.rotor_log import rotor_speeds

@@ -46,7 +46,7 @@ from pinquad.experiments.offline_mc import CycleJob, run_cycles
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.pipeline import LOG_MAX_ITERATIONS, PipelineOptions, read, run
 from pinquad.pipeline.identify import LogOptions, worker_pool
-from pinquad.realdata.observations import FAULT_MODES
+from pinquad.realdata.observation_options import FAULT_MODES
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
 from pinquad.results.result import Result
 

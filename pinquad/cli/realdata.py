@@ -27,7 +27,7 @@ from pinquad.io.read import is_flight_log
 from pinquad.pipeline.realdata import TableJob, run_jobs
 from pinquad.realdata.consistency import between_flights
 from pinquad.realdata.dataset import POOL_FLIGHTS, flights_dir, stand_dir
-from pinquad.realdata.observations import RealDataOptions, options_for_vehicle
+from pinquad.realdata.observation_options import RealDataOptions, options_for_vehicle
 from pinquad.realdata.rotor_inertia import pooled_rotor_inertia
 from pinquad.realdata.thrust import thrust_coefficient, vehicle_thrust_coefficient
 from pinquad.report.realdata import format_table

@@ -143,7 +143,7 @@ def upright(log: FlightLog, rot: Array | None = None) -> Upright | None:
 
 def flight_speed(spec: VehicleSpec) -> float:
     """[rev/min] the file's flight speed, else half the hover speed of its reference (else
-    body) mass, sqrt(m g / (n kf)) (``realdata.observations.options_for_vehicle``)."""
+    body) mass, sqrt(m g / (n kf)) (``realdata.observation_options.options_for_vehicle``)."""
     if spec.faults.flight_rpm is not None:
         return float(spec.faults.flight_rpm)
     mass = spec.reference.mass if spec.reference.mass is not None else spec.mass

@@ -45,7 +45,7 @@ from pinquad.models.sources import floor_contact, interval_inputs, observations
 from pinquad.models.ssm import Observations, corrected
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real
-from pinquad.realdata.observations import FAULT_MODES
+from pinquad.realdata.observation_options import FAULT_MODES
 from pinquad.realdata.thrust import ThrustCoefficient
 from pinquad.realdata.vehicle_check import (
     measured_observations,

@@ -36,7 +36,8 @@ from pinquad.pipeline.single import check, read
 from pinquad.realdata.consistency import FlightRow
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real, measured_fit
-from pinquad.realdata.observations import RealDataOptions, build_observations
+from pinquad.realdata.observation_options import RealDataOptions
+from pinquad.realdata.observations import build_observations
 from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
 

@@ -6,7 +6,8 @@ from pathlib import Path
 
 from pinquad.io.logs import LogFormatError, read_log
 from pinquad.io.sdlog import is_sdlog, read_sdflight
-from pinquad.realdata.observations import RealDataOptions, RealObservations, build_observations
+from pinquad.realdata.observation_options import RealDataOptions
+from pinquad.realdata.observations import RealObservations, build_observations
 from pinquad.realdata.raw import RawFlight, raw_from_sdflight
 from pinquad.realdata.thrust import ThrustCoefficient
 

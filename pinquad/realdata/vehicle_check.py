@@ -14,13 +14,8 @@ from pinquad.core.params import VehicleRange
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.identification.verdict import vehicle_range
 from pinquad.io.logs import FlightLog, LogFormatError
-from pinquad.realdata.observations import (
-    RealDataOptions,
-    RealObservations,
-    build_observations,
-    options_for_sensor,
-    options_for_vehicle,
-)
+from pinquad.realdata.observation_options import RealDataOptions, options_for_sensor, options_for_vehicle
+from pinquad.realdata.observations import RealObservations, build_observations
 from pinquad.realdata.raw import raw_flight
 from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
 
