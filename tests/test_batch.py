@@ -17,11 +17,14 @@ from pinquad.experiments.batch import (
     ALL_TRUSTED,
     SOME_FAILED,
     SOME_UNTRUSTED,
+    BatchRow,
     batch_exit_code,
+    compare_flights,
     failed_row,
-    row_from_report,
+    flight_group,
     unique_names,
 )
+from pinquad.report.batch import batch_json, batch_table
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 # a cheap run: the point is the batch's mechanics and that each log goes through the
@@ -85,13 +88,27 @@ def test_which_arguments_make_a_batch(tmp_path: Path):
     assert unique_names(["d1/jana00", "d2/jana00", "jana01"]) == ["jana00", "jana00-2", "jana01"]
 
 
+PARAMETER_NAMES = ("mass", "I_xx", "I_yy", "I_zz")
+
+
+def _row(name: str, overall: str = "trusted", params=(0.03, 1e-5, 1e-5, 2e-5),
+         total=(1e-4, 1e-7, 1e-7, 1e-7), stat=(np.nan,) * 4, vehicle: str = "crazyflie21",
+         named: bool = True, rebuilt: tuple[int, ...] = ()) -> BatchRow:
+    """The row of an identified log, as ``row_from_result`` builds it: every parameter
+    judged ``overall``."""
+    return BatchRow(
+        name=name, path=name, status="trusted" if overall == "trusted" else "not trusted",
+        mass=float(params[0]), mass_se=float(total[0]),
+        inertia_diag=tuple(float(v) for v in params[1:]),
+        inertia_se=tuple(float(v) for v in total[1:]), overall=overall,
+        verdicts=dict.fromkeys(PARAMETER_NAMES, overall), effects=(), seconds=1.0, error="",
+        vehicle=vehicle, group=flight_group(name, vehicle, named, rebuilt),
+        stat_se=tuple(float(v) for v in stat))
+
+
 def test_batch_exit_code_orders_failed_over_untrusted():
-    report = {"estimates": {"mass": 0.03, "inertia": np.eye(3).tolist(),
-                            "stderr": {"mass": 1e-4, "inertia_diag": [1e-7] * 3},
-                            "verdict": {"overall": "trusted", "parameters": {}}}}
-    ok = row_from_report("a", "a", report, 1.0)
-    report["estimates"]["verdict"]["overall"] = "not identifiable"
-    weak = row_from_report("b", "b", report, 1.0)
+    ok = _row("a")
+    weak = _row("b", overall="not identifiable")
     bad = failed_row("c", "c", "c: no such file", 0.0)
     assert (ok.status, weak.status) == ("trusted", "not trusted")
     assert batch_exit_code([ok]) == ALL_TRUSTED
@@ -99,24 +116,22 @@ def test_batch_exit_code_orders_failed_over_untrusted():
     assert batch_exit_code([ok, weak, bad]) == SOME_FAILED
 
 
-def _measured_report(izz: float, izz_stat: float, vehicle: str = "crazyflie21",
-                     rebuilt: tuple[int, ...] = ()) -> dict:
-    """A report.json as a measured Crazyflie flight writes it: every parameter trusted,
-    mass and roll/pitch alike on every flight, I_zz ``izz`` +- ``izz_stat``
-    (statistical) inside a total with kf's 4.8 % and the yaw ratio's 8.3 %."""
+def test_the_flights_compared_are_one_named_vehicle_with_the_same_rebuilt_motors():
+    assert flight_group("a", "crazyflie21", True, ()) == "crazyflie21"
+    assert flight_group("a", "crazyflie21", True, (0, 2)) == \
+        "crazyflie21, motor(s) M1, M3 rebuilt from PWM"
+    assert flight_group("a", "crazyflie21", False, ()) == "a (no vehicle named)"
+
+
+def _measured_row(name: str, izz: float, izz_stat: float, vehicle: str = "crazyflie21",
+                  rebuilt: tuple[int, ...] = (), named: bool = True) -> BatchRow:
+    """The row of a measured Crazyflie flight: every parameter trusted, mass and
+    roll/pitch alike on every flight, I_zz ``izz`` +- ``izz_stat`` (statistical) inside a
+    total with kf's 4.8 % and the yaw ratio's 8.3 %."""
     params = np.array([0.0347, 16.6e-6, 16.7e-6, izz])
     stat = np.array([5e-5, 0.5e-6, 0.5e-6, izz_stat])
     total = np.hypot(stat, params * np.array([0.048, 0.048, 0.048, np.hypot(0.048, 0.083)]))
-    trusted = {"verdict": "trusted", "reasons": []}
-    return {
-        "source": {"vehicle": vehicle},
-        "estimates": {"mass": params[0], "inertia": np.diag(params[1:]).tolist(),
-                      "stderr": {"mass": total[0], "inertia_diag": total[1:].tolist()},
-                      "verdict": {"overall": "trusted",
-                                  "parameters": {k: trusted for k in ("mass", "I_xx", "I_yy",
-                                                                      "I_zz")}}},
-        "runs": [{"stderr_statistical": {"mass": stat[0], "inertia_diag": stat[1:].tolist()},
-                  "motor_split": {"rebuilt_motors": list(rebuilt)}}]}
+    return _row(name, "trusted", params, total, stat, vehicle, named, rebuilt)
 
 
 def test_batch_compares_the_flights_of_one_vehicle():
@@ -125,13 +140,10 @@ def test_batch_compares_the_flights_of_one_vehicle():
     the two whose scaled error covers too much of the range to not identifiable (the
     batch's exit code with them), leaves mass and roll/pitch (which agree) as they were,
     and does not mix in a flight with a rebuilt motor or one that failed."""
-    from pinquad.experiments.batch import compare_flights
-    from pinquad.report.batch import batch_json, batch_table
-
     values = {"a": (26.9e-6, 0.8e-6), "b": (15.8e-6, 2.0e-6), "c": (13.2e-6, 1.3e-6),
               "d": (17.7e-6, 0.6e-6)}
-    rows = [row_from_report(n, n, _measured_report(*v), 1.0) for n, v in values.items()]
-    rows.append(row_from_report("e", "e", _measured_report(40e-6, 0.5e-6, rebuilt=(0,)), 1.0))
+    rows = [_measured_row(n, *v) for n, v in values.items()]
+    rows.append(_measured_row("e", 40e-6, 0.5e-6, rebuilt=(0,)))
     rows.append(failed_row("f", "f", "f: no such file", 0.0))
     assert batch_exit_code(rows) == SOME_FAILED
     assert all(r.status == "trusted" for r in rows[:5])
@@ -157,10 +169,6 @@ def test_batch_compares_the_flights_of_one_vehicle():
     alone, none = compare_flights(rows[:1])
     assert alone == rows[:1] and none == []
     # logs that name no vehicle are not taken for one vehicle
-    unnamed = []
-    for n, v in values.items():
-        report = _measured_report(*v)
-        report["source"]["vehicle_named"] = False
-        unnamed.append(row_from_report(n, n, report, 1.0))
+    unnamed = [_measured_row(n, *v, named=False) for n, v in values.items()]
     same, nothing = compare_flights(unnamed)
     assert same == unnamed and nothing == []
