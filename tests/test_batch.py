@@ -5,11 +5,12 @@ table; a broken file is its row's error and does not stop the others; exit codes
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import write_with_paper_guess
+from conftest import DATA, row_from_written_report, write_with_paper_guess
 
 from pinquad.cli.batch import expand_logs, is_batch
 from pinquad.cli.offline import main as offline_main
@@ -24,7 +25,10 @@ from pinquad.experiments.batch import (
     flight_group,
     unique_names,
 )
+from pinquad.pipeline import PipelineOptions
+from pinquad.pipeline.identify import LogOptions
 from pinquad.report.batch import batch_json, batch_table
+from pinquad.results.batch import identify_many
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 # a cheap run: the point is the batch's mechanics and that each log goes through the
@@ -68,6 +72,29 @@ def test_batch_rows_equal_single_runs_and_a_broken_file_does_not_stop_it(
     assert rows["flight.csv"]["status"] == ("trusted" if single_code == 0 else "not trusted")
     assert f"{alone['mass'] * 1e3:.3f}" in table
     assert "1 failed" in capsys.readouterr().out
+
+
+def test_rows_of_measured_flights_hold_what_their_reports_say(tmp_path: Path):
+    """A row is built from its log's Result, not read back from the report.json the run
+    wrote, and holds the same: on a repaired IMRC flight (its statistical errors, motor 1
+    rebuilt from PWM, hence a group of its own) and a Neural-Swarm flight that names no
+    vehicle (compared with no other), three EM iterations each."""
+    logs = [DATA / "crazyflie" / "imrc_brushed" / "jana20",
+            DATA / "neural_swarm" / "flights" / "takeoff_s_cf50_00"]
+    options = PipelineOptions(LogOptions(msteps=("regressor",), max_iterations=3),
+                              discover=False)
+    batch = identify_many(logs, None, options, tmp_path)
+    assert [r.status for r in batch.rows] == ["not trusted", "not trusted"], batch.summary()
+    measured, unnamed = batch.rows
+    assert measured.group == "crazyflie21, motor(s) M1 rebuilt from PWM"
+    assert np.all(np.isfinite(measured.stat_se)) and np.all(np.isnan(unnamed.stat_se))
+    assert unnamed.group == "takeoff_s_cf50_00 (no vehicle named)"
+    for row, result in zip(batch.rows, batch.results, strict=True):
+        written = row_from_written_report(
+            row.name, row.path, json.loads((tmp_path / row.name / "report.json").read_text()),
+            row.seconds)
+        assert json.dumps(asdict(row)) == json.dumps(asdict(written))
+        assert row.mass == result.mass and row.overall == result.verdict.overall
 
 
 def test_a_pattern_that_matches_nothing_is_bad_input(tmp_path: Path,

@@ -18,11 +18,11 @@ from pathlib import Path
 import distributed
 import numpy as np
 import pytest
-from conftest import write_with_paper_guess
+from conftest import row_from_written_report, write_with_paper_guess
 from threadpoolctl import threadpool_limits
 
 import pinquad
-from pinquad.experiments.batch import NAN3, BatchRow, compare_flights
+from pinquad.experiments.batch import compare_flights
 from pinquad.io.runs import without_wall_times
 from pinquad.pipeline import PipelineOptions
 from pinquad.pipeline.identify import LogOptions
@@ -69,39 +69,6 @@ def _reports(logs_dir: Path) -> dict[str, object]:
             for path in sorted(logs_dir.glob("*/report.json"))}
 
 
-def _row_from_written_report(name: str, path: str, report: dict, seconds: float) -> BatchRow:
-    """A batch row read back from the report.json its log's run wrote: the rows as the
-    batch built them before it carried the numbers themselves, kept here to show the two
-    agree."""
-    def number(value: object) -> float:
-        return float("nan") if value is None else float(value)
-
-    est = report["estimates"]
-    verdict = est.get("verdict") or report.get("verdict") or {}
-    se = est.get("stderr") or {}
-    run = (report.get("runs") or [{}])[0]
-    stat = run.get("stderr_statistical") or {}
-    rebuilt = (run.get("motor_split") or {}).get("rebuilt_motors") or []
-    source = report.get("source") or {}
-    vehicle = str(source.get("vehicle") or "")
-    named = source.get("vehicle_named", True) is not False
-    return BatchRow(
-        name=name, path=path,
-        status="trusted" if verdict.get("overall", "") == "trusted" else "not trusted",
-        mass=float(est["mass"]), mass_se=number(se.get("mass")),
-        inertia_diag=tuple(float(v) for v in np.diag(np.asarray(est["inertia"], dtype=float))),
-        inertia_se=tuple(number(v) for v in (se.get("inertia_diag") or NAN3)),
-        overall=verdict.get("overall", ""),
-        verdicts={k: v.get("verdict", "") for k, v in verdict.get("parameters", {}).items()},
-        effects=tuple(s["effect"] for s in (report.get("discovery") or {}).get("selected", [])),
-        seconds=seconds, error="", vehicle=vehicle,
-        group=(vehicle if named else f"{name} (no vehicle named)") + (
-            "" if not rebuilt else ", motor(s) " + ", ".join(f"M{int(i)}" for i in rebuilt)
-            + " rebuilt from PWM"),
-        stat_se=(number(stat.get("mass")),
-                 *(number(v) for v in (stat.get("inertia_diag") or NAN3))))
-
-
 def test_identify_many_returns_the_results_of_identify_and_the_rows_of_their_reports(
         logs: list[Path], undisturbed: tuple[Batch, Path], tmp_path: Path):
     batch, out = undisturbed
@@ -122,7 +89,7 @@ def test_identify_many_returns_the_results_of_identify_and_the_rows_of_their_rep
     # the rows hold what each log's report.json says: those the batch built from the
     # written reports, compared between flights the same way
     from_reports, _ = compare_flights([
-        _row_from_written_report(r.name, r.path,
+        row_from_written_report(r.name, r.path,
                                  json.loads((out / r.name / "report.json").read_text()),
                                  r.seconds) for r in batch.rows])
     assert [_comparable(r) for r in batch.rows] == [_comparable(r) for r in from_reports]
