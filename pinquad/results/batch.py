@@ -20,11 +20,12 @@ The executor is anything with ``concurrent.futures.Executor``'s ``map`` (a proce
 ``get_executor(pure=False)``: every task is run, none taken from an earlier identical
 call). Each task runs with one BLAS thread, on every backend the same bits.
 
-A Result travels back from a worker whole, smoothed posterior included, so that
-``save()`` and ``summary()`` on it give what the worker wrote: about 5 MB pickled for a
-40 s Crazyflie flight (jana00, discovery run; the reported run's posterior, shared with
-discovery's refit, is 2.2 MB of it), growing with the log's length. ``keep_results=False``
-returns the rows only (the command line's batch, whose runs are on disk).
+A Result travels back from a worker whole, smoothed posteriors included, so that
+``save()`` and ``summary()`` on it give what the worker wrote: 4.8 MB pickled for the
+Crazyflie flight jana00 with discovery (its two EM runs' posteriors, 919 steps of means
+(12,), covariances and lag-one covariances (12, 12), 2.2 MB each; discovery's refit shares
+the reported run's), in proportion to the log's length. ``keep_results=False`` returns
+the rows only (the command line's batch, whose runs are on disk).
 """
 
 from __future__ import annotations
