@@ -4,8 +4,8 @@ its judged headline, its reported run, discovery's selection) or, when the log c
 be identified, its error message; and the batch's exit code.
 
 Each log goes through exactly the single ``--log`` pipeline (``pinquad.pipeline``); this
-module only summarises what those runs found, from the numbers themselves (a row's
-fields hold what that log's report.json says, read from the same values).
+module only summarises what those runs found. A row holds the numbers of that log's
+report.json, taken from the values the report is written from, never read back from it.
 """
 
 from __future__ import annotations
