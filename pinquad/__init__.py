@@ -8,7 +8,8 @@ identified model still gets wrong.
                                                 # fit.stderr, fit.verdict, fit.summary()
     found = pinquad.discover(log, fit)          # a Result: found.selected, the refit
     found.save("runs/flight")                   # report.json, report.md, figures
-    batch = pinquad.identify_many(paths, executor=pool)  # one row per log, any executor
+    batch = pinquad.identify_many(paths, executor=pool)  # any executor: batch.results, a
+                                                # Result per log; batch.summary(), its table
     path = pinquad.crazyflie_log("jana00")      # a public flight, once fetched
     px4 = pinquad.read_command_log("flight.ulg")  # a PX4 log: motor commands, no thrust
     # with the mass known: pinquad.identify_known_mass(px4, 1.5, positions, spins)

@@ -24,6 +24,7 @@ import pytest
 import requests
 
 from estimators.linear import LinearGaussianModel
+from pinquad.experiments.batch import NAN3, BatchRow
 from pinquad.io.crazyflie_files import COMMIT, REPOSITORY
 from pinquad.io.datafetch import fetch_crazyflie
 
@@ -128,3 +129,36 @@ def offline_on_csv(log, path: Path, out: Path, *options: str) -> subprocess.Comp
     return subprocess.run(
         [sys.executable, "-m", "pinquad.offline", "--log", str(written), "--out", str(out),
          *options], capture_output=True, text=True, timeout=900)
+
+
+def row_from_written_report(name: str, path: str, report: dict, seconds: float) -> BatchRow:
+    """A batch row (``experiments.batch.BatchRow``) read back from the report.json its
+    log's run wrote: the rows as the batch built them before it carried the numbers
+    themselves, kept here to show the two agree."""
+    def number(value: object) -> float:
+        return float("nan") if value is None else float(value)
+
+    est = report["estimates"]
+    verdict = est.get("verdict") or report.get("verdict") or {}
+    se = est.get("stderr") or {}
+    run = (report.get("runs") or [{}])[0]
+    stat = run.get("stderr_statistical") or {}
+    rebuilt = (run.get("motor_split") or {}).get("rebuilt_motors") or []
+    source = report.get("source") or {}
+    vehicle = str(source.get("vehicle") or "")
+    named = source.get("vehicle_named", True) is not False
+    return BatchRow(
+        name=name, path=path,
+        status="trusted" if verdict.get("overall", "") == "trusted" else "not trusted",
+        mass=float(est["mass"]), mass_se=number(se.get("mass")),
+        inertia_diag=tuple(float(v) for v in np.diag(np.asarray(est["inertia"], dtype=float))),
+        inertia_se=tuple(number(v) for v in (se.get("inertia_diag") or NAN3)),
+        overall=verdict.get("overall", ""),
+        verdicts={k: v.get("verdict", "") for k, v in verdict.get("parameters", {}).items()},
+        effects=tuple(s["effect"] for s in (report.get("discovery") or {}).get("selected", [])),
+        seconds=seconds, error="", vehicle=vehicle,
+        group=(vehicle if named else f"{name} (no vehicle named)") + (
+            "" if not rebuilt else ", motor(s) " + ", ".join(f"M{int(i)}" for i in rebuilt)
+            + " rebuilt from PWM"),
+        stat_se=(number(stat.get("mass")),
+                 *(number(v) for v in (stat.get("inertia_diag") or NAN3))))

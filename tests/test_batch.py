@@ -5,11 +5,12 @@ table; a broken file is its row's error and does not stop the others; exit codes
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import write_with_paper_guess
+from conftest import DATA, row_from_written_report, write_with_paper_guess
 
 from pinquad.cli.batch import expand_logs, is_batch
 from pinquad.cli.offline import main as offline_main
@@ -17,11 +18,17 @@ from pinquad.experiments.batch import (
     ALL_TRUSTED,
     SOME_FAILED,
     SOME_UNTRUSTED,
+    BatchRow,
     batch_exit_code,
+    compare_flights,
     failed_row,
-    row_from_report,
+    flight_group,
     unique_names,
 )
+from pinquad.pipeline import PipelineOptions
+from pinquad.pipeline.identify import LogOptions
+from pinquad.report.batch import batch_json, batch_table
+from pinquad.results.batch import identify_many
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 # a cheap run: the point is the batch's mechanics and that each log goes through the
@@ -67,6 +74,29 @@ def test_batch_rows_equal_single_runs_and_a_broken_file_does_not_stop_it(
     assert "1 failed" in capsys.readouterr().out
 
 
+def test_rows_of_measured_flights_hold_what_their_reports_say(tmp_path: Path):
+    """A row is built from its log's Result, not read back from the report.json the run
+    wrote, and holds the same: on a repaired IMRC flight (its statistical errors, motor 1
+    rebuilt from PWM, hence a group of its own) and a Neural-Swarm flight that names no
+    vehicle (compared with no other), three EM iterations each."""
+    logs = [DATA / "crazyflie" / "imrc_brushed" / "jana20",
+            DATA / "neural_swarm" / "flights" / "takeoff_s_cf50_00"]
+    options = PipelineOptions(LogOptions(msteps=("regressor",), max_iterations=3),
+                              discover=False)
+    batch = identify_many(logs, None, options, tmp_path)
+    assert [r.status for r in batch.rows] == ["not trusted", "not trusted"], batch.summary()
+    measured, unnamed = batch.rows
+    assert measured.group == "crazyflie21, motor(s) M1 rebuilt from PWM"
+    assert np.all(np.isfinite(measured.stat_se)) and np.all(np.isnan(unnamed.stat_se))
+    assert unnamed.group == "takeoff_s_cf50_00 (no vehicle named)"
+    for row, result in zip(batch.rows, batch.results, strict=True):
+        written = row_from_written_report(
+            row.name, row.path, json.loads((tmp_path / row.name / "report.json").read_text()),
+            row.seconds)
+        assert json.dumps(asdict(row)) == json.dumps(asdict(written))
+        assert row.mass == result.mass and row.overall == result.verdict.overall
+
+
 def test_a_pattern_that_matches_nothing_is_bad_input(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]):
     out = tmp_path / "batch"
@@ -85,13 +115,27 @@ def test_which_arguments_make_a_batch(tmp_path: Path):
     assert unique_names(["d1/jana00", "d2/jana00", "jana01"]) == ["jana00", "jana00-2", "jana01"]
 
 
+PARAMETER_NAMES = ("mass", "I_xx", "I_yy", "I_zz")
+
+
+def _row(name: str, overall: str = "trusted", params=(0.03, 1e-5, 1e-5, 2e-5),
+         total=(1e-4, 1e-7, 1e-7, 1e-7), stat=(np.nan,) * 4, vehicle: str = "crazyflie21",
+         named: bool = True, rebuilt: tuple[int, ...] = ()) -> BatchRow:
+    """The row of an identified log, as ``row_from_result`` builds it: every parameter
+    judged ``overall``."""
+    return BatchRow(
+        name=name, path=name, status="trusted" if overall == "trusted" else "not trusted",
+        mass=float(params[0]), mass_se=float(total[0]),
+        inertia_diag=tuple(float(v) for v in params[1:]),
+        inertia_se=tuple(float(v) for v in total[1:]), overall=overall,
+        verdicts=dict.fromkeys(PARAMETER_NAMES, overall), effects=(), seconds=1.0, error="",
+        vehicle=vehicle, group=flight_group(name, vehicle, named, rebuilt),
+        stat_se=tuple(float(v) for v in stat))
+
+
 def test_batch_exit_code_orders_failed_over_untrusted():
-    report = {"estimates": {"mass": 0.03, "inertia": np.eye(3).tolist(),
-                            "stderr": {"mass": 1e-4, "inertia_diag": [1e-7] * 3},
-                            "verdict": {"overall": "trusted", "parameters": {}}}}
-    ok = row_from_report("a", "a", report, 1.0)
-    report["estimates"]["verdict"]["overall"] = "not identifiable"
-    weak = row_from_report("b", "b", report, 1.0)
+    ok = _row("a")
+    weak = _row("b", overall="not identifiable")
     bad = failed_row("c", "c", "c: no such file", 0.0)
     assert (ok.status, weak.status) == ("trusted", "not trusted")
     assert batch_exit_code([ok]) == ALL_TRUSTED
@@ -99,24 +143,22 @@ def test_batch_exit_code_orders_failed_over_untrusted():
     assert batch_exit_code([ok, weak, bad]) == SOME_FAILED
 
 
-def _measured_report(izz: float, izz_stat: float, vehicle: str = "crazyflie21",
-                     rebuilt: tuple[int, ...] = ()) -> dict:
-    """A report.json as a measured Crazyflie flight writes it: every parameter trusted,
-    mass and roll/pitch alike on every flight, I_zz ``izz`` +- ``izz_stat``
-    (statistical) inside a total with kf's 4.8 % and the yaw ratio's 8.3 %."""
+def test_the_flights_compared_are_one_named_vehicle_with_the_same_rebuilt_motors():
+    assert flight_group("a", "crazyflie21", True, ()) == "crazyflie21"
+    assert flight_group("a", "crazyflie21", True, (0, 2)) == \
+        "crazyflie21, motor(s) M1, M3 rebuilt from PWM"
+    assert flight_group("a", "crazyflie21", False, ()) == "a (no vehicle named)"
+
+
+def _measured_row(name: str, izz: float, izz_stat: float, vehicle: str = "crazyflie21",
+                  rebuilt: tuple[int, ...] = (), named: bool = True) -> BatchRow:
+    """The row of a measured Crazyflie flight: every parameter trusted, mass and
+    roll/pitch alike on every flight, I_zz ``izz`` +- ``izz_stat`` (statistical) inside a
+    total with kf's 4.8 % and the yaw ratio's 8.3 %."""
     params = np.array([0.0347, 16.6e-6, 16.7e-6, izz])
     stat = np.array([5e-5, 0.5e-6, 0.5e-6, izz_stat])
     total = np.hypot(stat, params * np.array([0.048, 0.048, 0.048, np.hypot(0.048, 0.083)]))
-    trusted = {"verdict": "trusted", "reasons": []}
-    return {
-        "source": {"vehicle": vehicle},
-        "estimates": {"mass": params[0], "inertia": np.diag(params[1:]).tolist(),
-                      "stderr": {"mass": total[0], "inertia_diag": total[1:].tolist()},
-                      "verdict": {"overall": "trusted",
-                                  "parameters": {k: trusted for k in ("mass", "I_xx", "I_yy",
-                                                                      "I_zz")}}},
-        "runs": [{"stderr_statistical": {"mass": stat[0], "inertia_diag": stat[1:].tolist()},
-                  "motor_split": {"rebuilt_motors": list(rebuilt)}}]}
+    return _row(name, "trusted", params, total, stat, vehicle, named, rebuilt)
 
 
 def test_batch_compares_the_flights_of_one_vehicle():
@@ -125,13 +167,10 @@ def test_batch_compares_the_flights_of_one_vehicle():
     the two whose scaled error covers too much of the range to not identifiable (the
     batch's exit code with them), leaves mass and roll/pitch (which agree) as they were,
     and does not mix in a flight with a rebuilt motor or one that failed."""
-    from pinquad.experiments.batch import compare_flights
-    from pinquad.report.batch import batch_json, batch_table
-
     values = {"a": (26.9e-6, 0.8e-6), "b": (15.8e-6, 2.0e-6), "c": (13.2e-6, 1.3e-6),
               "d": (17.7e-6, 0.6e-6)}
-    rows = [row_from_report(n, n, _measured_report(*v), 1.0) for n, v in values.items()]
-    rows.append(row_from_report("e", "e", _measured_report(40e-6, 0.5e-6, rebuilt=(0,)), 1.0))
+    rows = [_measured_row(n, *v) for n, v in values.items()]
+    rows.append(_measured_row("e", 40e-6, 0.5e-6, rebuilt=(0,)))
     rows.append(failed_row("f", "f", "f: no such file", 0.0))
     assert batch_exit_code(rows) == SOME_FAILED
     assert all(r.status == "trusted" for r in rows[:5])
@@ -157,10 +196,6 @@ def test_batch_compares_the_flights_of_one_vehicle():
     alone, none = compare_flights(rows[:1])
     assert alone == rows[:1] and none == []
     # logs that name no vehicle are not taken for one vehicle
-    unnamed = []
-    for n, v in values.items():
-        report = _measured_report(*v)
-        report["source"]["vehicle_named"] = False
-        unnamed.append(row_from_report(n, n, report, 1.0))
+    unnamed = [_measured_row(n, *v, named=False) for n, v in values.items()]
     same, nothing = compare_flights(unnamed)
     assert same == unnamed and nothing == []

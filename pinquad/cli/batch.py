@@ -1,6 +1,6 @@
 """``python -m pinquad.offline --log A B C`` (several paths after one ``--log``, or a glob
 pattern): batch identification. Each log goes through the one pipeline
-(``pinquad.pipeline.identify_many``, the same options as a single ``--log``) as a task of
+(``pinquad.identify_many``, the same options as a single ``--log``) as a task of
 its own and writes its run directory under ``logs/<name>/`` of one batch run directory,
 with what it printed in ``logs/<name>.txt``; a log that fails (bad file, numerical
 failure) is a row with its error message and does not stop the others. A task run again
@@ -67,7 +67,7 @@ def expand_logs(logs: Sequence[Path]) -> list[Path]:
 def run_batch(args: argparse.Namespace, options: PipelineOptions, backend: Backend,
               argv: Sequence[str] = ()) -> int:
     """Identify every log of ``args.log`` (module docstring) through
-    ``pinquad.pipeline.identify_many`` on ``backend`` (the process pool or a Dask
+    ``pinquad.identify_many`` on ``backend`` (the process pool or a Dask
     cluster: the same tasks, the same rows) and write the batch run directory; returns
     the batch exit code. Raises ValueError / OutputError on bad arguments, BackendError
     when the backend cannot be had, before any work."""
@@ -77,7 +77,8 @@ def run_batch(args: argparse.Namespace, options: PipelineOptions, backend: Backe
     print(f"pinquad offline batch: {len(logs)} logs, {backend.describe()}, E-step "
           f"{args.estep}, M-step(s) {args.mstep}{', no discovery' if args.no_discover else ''}")
     with open_executor(backend, len(logs)) as pool, writer:
-        batch = identify_many(logs, pool, options, writer.path("logs"))
+        # the rows only: each log's run is on disk, its Result need not travel back
+        batch = identify_many(logs, pool, options, writer.path("logs"), keep_results=False)
         rows = batch.rows
         for row in rows:
             print(f"  {row.name}: {row.status}" + (f" ({row.error})" if row.error else ""))

@@ -1,9 +1,11 @@
 """Batch identification of many recorded logs (``python -m pinquad.offline --log A B C``):
-one row per log, read from the log's own report.json (``io.runs.REPORT_SCHEMA``) or, when the log could
-not be identified, its error message; and the batch's exit code.
+one row per log, built from the log's pipeline result (``pipeline.single.PipelineResult``:
+its judged headline, its reported run, discovery's selection) or, when the log could not
+be identified, its error message; and the batch's exit code.
 
-Each log goes through exactly the single ``--log`` pipeline (``pinquad.pipeline``) in its
-own subdirectory; this module only summarises what those runs wrote.
+Each log goes through exactly the single ``--log`` pipeline (``pinquad.pipeline``); this
+module only summarises what those runs found. A row holds the numbers of that log's
+report.json, taken from the values the report is written from, never read back from it.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pinquad.identification.verdict import (
     range_reasons,
     vehicle_range,
 )
+from pinquad.pipeline.single import PipelineResult
 from pinquad.realdata.consistency import (
     PARAMETERS,
     FlightEstimate,
@@ -78,41 +81,53 @@ class BatchRow:
 NAN3 = (float("nan"),) * 3
 
 
-def _number(value: object) -> float:
-    """A report's number, nan where it has none (null: e.g. no standard errors asked for)."""
-    return float("nan") if value is None else float(value)
+def _finite(value: object) -> float:
+    """A number of the row, NaN where there is none (not computed, not finite: report.json
+    writes it as null)."""
+    f = float(value)
+    return f if np.isfinite(f) else float("nan")
 
 
-def row_from_report(name: str, path: str, report: dict, seconds: float) -> BatchRow:
-    """The row of a log identified by the single-log pipeline, from its report.json."""
-    est = report["estimates"]
-    verdict = est.get("verdict") or report.get("verdict") or {}
-    overall = verdict.get("overall", "")
-    inertia = np.asarray(est["inertia"], dtype=float)
-    se = est.get("stderr") or {}
-    discovery = report.get("discovery") or {}
-    run = (report.get("runs") or [{}])[0]
-    stat = run.get("stderr_statistical") or {}
-    rebuilt = (run.get("motor_split") or {}).get("rebuilt_motors") or []
-    source = report.get("source") or {}
-    vehicle = str(source.get("vehicle") or "")
-    # a log that names no vehicle is compared with no other: the default it was read as
-    # says nothing about which vehicle flew it
-    named = source.get("vehicle_named", True) is not False
+def flight_group(name: str, vehicle: str, named: bool, rebuilt: Sequence[int]) -> str:
+    """The flights a log is compared with (``compare_flights``): its vehicle, and the
+    motors (0-based ``rebuilt``) whose speeds were rebuilt from PWM; a log that names no
+    vehicle is a group of its own (``name``): the default it was read as says nothing
+    about which vehicle flew it."""
+    group = vehicle if named else f"{name} (no vehicle named)"
+    if rebuilt:
+        group += ", motor(s) " + ", ".join(f"M{int(i) + 1}" for i in rebuilt) + \
+            " rebuilt from PWM"
+    return group
+
+
+def row_from_result(name: str, path: str, result: PipelineResult, seconds: float) -> BatchRow:
+    """The row of a log identified by the single-log pipeline, from its result: the
+    headline (``result.estimate``: mass, inertia, total standard errors, verdicts under
+    the final model), discovery's selected effects, the vehicle the log was read as, and
+    of a measured flight's reported run its statistical standard errors and the motors
+    rebuilt from PWM (report.json's ``runs[0].stderr_statistical`` and ``motor_split``)."""
+    final = result.estimate
+    verdict = final.verdict
+    run = result.run
+    measured = run.measured
+    stat = (np.full(4, np.nan) if measured is None
+            else np.asarray(measured.se_stat, dtype=float))
+    split = None if measured is None else measured.motor_split
+    meta = result.identified.log.meta
+    vehicle = str(meta.vehicle or "")
+    stderr = np.asarray(final.stderr, dtype=float)
     return BatchRow(
-        name=name, path=path, status="trusted" if overall == "trusted" else "not trusted",
-        mass=float(est["mass"]), mass_se=_number(se.get("mass")),
-        inertia_diag=tuple(float(v) for v in np.diag(inertia)),
-        inertia_se=tuple(_number(v) for v in (se.get("inertia_diag") or NAN3)),
-        overall=overall,
-        verdicts={k: v.get("verdict", "") for k, v in verdict.get("parameters", {}).items()},
-        effects=tuple(s["effect"] for s in discovery.get("selected", [])),
+        name=name, path=path, status="trusted" if verdict.overall == TRUSTED else "not trusted",
+        mass=float(final.mass), mass_se=_finite(stderr[0]),
+        inertia_diag=tuple(float(v) for v in np.diag(np.asarray(final.inertia, dtype=float))),
+        inertia_se=tuple(_finite(v) for v in stderr[1:4]),
+        overall=verdict.overall,
+        verdicts={p.name: p.verdict for p in verdict.parameters},
+        effects=tuple(result.selected),
         seconds=seconds, error="", vehicle=vehicle,
-        group=(vehicle if named else f"{name} (no vehicle named)") + (
-            "" if not rebuilt else ", motor(s) " + ", ".join(
-                f"M{int(i)}" for i in rebuilt) + " rebuilt from PWM"),   # report: 1-based
-        stat_se=(_number(stat.get("mass")),
-                 *(_number(v) for v in (stat.get("inertia_diag") or NAN3))))
+        group=flight_group(name, vehicle, bool(meta.vehicle_named),
+                           () if split is None else tuple(split.rebuilt)),
+        stat_se=tuple(_finite(v) for v in stat[:4]))
 
 
 def failed_row(name: str, path: str, error: str, seconds: float) -> BatchRow:
