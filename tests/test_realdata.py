@@ -25,8 +25,8 @@ from pinquad.realdata.identify import identify_real, measured_fit
 from pinquad.realdata.mass_balance import quasi_static_mass
 from pinquad.realdata.observations import RealDataOptions, RealObservations, build_observations
 from pinquad.realdata.raw import RawFlight, raw_flight
-from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
-from pinquad.vehicle.actuators import ActuatorModel
+from pinquad.realdata.thrust import thrust_coefficient
+from pinquad.vehicle.actuators import ActuatorModel, ThrustCoefficient
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "crazyflie"

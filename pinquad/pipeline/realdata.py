@@ -38,7 +38,8 @@ from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real, measured_fit
 from pinquad.realdata.observations import RealDataOptions, build_observations
 from pinquad.realdata.raw import raw_flight
-from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
+from pinquad.realdata.thrust import thrust_coefficient
+from pinquad.vehicle.actuators import ThrustCoefficient
 
 Array = NDArray[np.float64]
 

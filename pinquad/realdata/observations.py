@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 
 from pinquad.core.conventions import GRAVITY, rotation_from_euler
 from pinquad.core.vehicle_file import VehicleSpec
+from pinquad.identification.measured import Exclusion
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.timebase import clock_times, grid_times, sampling_interval
 from pinquad.models.attitude_range import near_euler_singularity
@@ -78,7 +79,7 @@ from pinquad.realdata.rotor_acceleration import (
     held_grid_rotor_acceleration,
     rotor_acceleration,  # noqa: F401  (its per-row form, imported from here by callers)
 )
-from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
+from pinquad.realdata.thrust import thrust_coefficient
 from pinquad.sim.simulator import Flight
 from pinquad.vehicle.actuators import (
     CRAZYFLIE_ARM,
@@ -87,6 +88,7 @@ from pinquad.vehicle.actuators import (
     SPIN_CRAZYFLIE,
     YAW_RATIO_CRAZYFLIE,
     ActuatorModel,
+    ThrustCoefficient,
 )
 
 Array = NDArray[np.float64]
@@ -223,15 +225,6 @@ def options_for_sensor(sensor: str | None, base: RealDataOptions | None = None
 
 
 # ----------------------------------------------------------------------------- result
-
-@dataclass(frozen=True)
-class Exclusion:
-    """One reason for skipping transitions: reason (words) and transitions (count; a
-    transition may have several reasons)."""
-
-    reason: str
-    transitions: int
-
 
 @dataclass(frozen=True)
 class RealObservations:

@@ -22,7 +22,8 @@ from pinquad.realdata.observations import (
     options_for_vehicle,
 )
 from pinquad.realdata.raw import raw_flight
-from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
+from pinquad.realdata.thrust import vehicle_thrust_coefficient
+from pinquad.vehicle.actuators import ThrustCoefficient
 
 VELOCITY_CHANNELS = ("vel", "euler", "gyro")
 """The channels of a measured log without any position sample (``measured_observations``)."""
