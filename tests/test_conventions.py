@@ -170,6 +170,7 @@ def test_a_bad_declaration_names_the_sidecar_and_key(raw, words):
 
 def test_a_rotor_speed_log_without_a_sidecar_is_judged_against_no_vehicle(real, tmp_path):
     from pinquad.pipeline.identify import LogOptions, identify_log, plausible_range
+    from pinquad.report.console import warning_lines
 
     path = write_log(real, tmp_path / "bare.parquet")
     Path(str(path) + ".json").unlink()
@@ -179,3 +180,10 @@ def test_a_rotor_speed_log_without_a_sidecar_is_judged_against_no_vehicle(real, 
                                           max_iterations=2))
     assert plausible_range(result.log) is None
     assert any(n.startswith("no vehicle named") for n in result.notes)
+    # the printed warning reads the result's flag, not its note's words
+    assert result.vehicle_unnamed
+    assert any(w.startswith("warning: no vehicle named") for w in warning_lines(result))
+    named = identify_log(read_table(write_log(real, tmp_path / "named.parquet")),
+                         LogOptions(msteps=("regressor",), information=False, max_iterations=2))
+    assert not named.vehicle_unnamed
+    assert not any(w.startswith("warning: no vehicle named") for w in warning_lines(named))

@@ -175,6 +175,26 @@ def test_per_parameter_over_relaxation_converges_higher_in_fewer_e_steps(clean):
     np.testing.assert_allclose(pi(per), pi(shared), rtol=1e-4)
 
 
+def test_over_relaxation_is_what_the_m_step_declares(clean):
+    """EM over-relaxes an M-step's steps exactly when the M-step declares it
+    (``MStep.over_relaxation``), not by what its function is called: the regressor update
+    undeclared runs plain EM, bit for bit what the declared one gives with ``accelerate``
+    off, and the declared one's iterates differ from them (its relaxed steps)."""
+    from pinquad.estep.fast_smoother import smooth_quad
+    from pinquad.identification.em import initial_theta
+
+    _, log = clean
+    obs = observations(log.slice(0, 600), "B")
+    start = initial_theta(obs, 0.03, np.diag([1.5e-4, 1.5e-4, 2.5e-4]), 9.81)
+    undeclared = run_em(obs, start, smooth_quad, MStep(regressor_mstep), max_iterations=12)
+    off = run_em(obs, start, smooth_quad, REGRESSOR, max_iterations=12, accelerate=False)
+    relaxed = run_em(obs, start, smooth_quad, REGRESSOR, max_iterations=12)
+    np.testing.assert_array_equal(undeclared.mass, off.mass)
+    np.testing.assert_array_equal(undeclared.inertia_diag, off.inertia_diag)
+    assert undeclared.e_steps == off.e_steps
+    assert not np.array_equal(relaxed.mass, off.mass)
+
+
 def test_per_parameter_over_relaxation_follows_a_variance_to_zero(monkeypatch):
     """pinquad's simulator puts no noise on the lateral force, so its maximum-likelihood
     variance is near zero and plain EM steps creep there by a fraction of a percent each.
