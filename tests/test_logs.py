@@ -47,6 +47,23 @@ def test_a_log_that_names_no_vehicle_is_written_naming_none(short_log, tmp_path)
     assert named.meta.vehicle_named is True and named.meta.vehicle == short_log.meta.vehicle
 
 
+def test_read_log_is_the_one_reader_and_takes_the_vehicle_override(short_log, tmp_path):
+    """``pinquad.read_log`` is ``pinquad.io.read.read_log``: a table reads as the table
+    reader reads it, and ``vehicle`` overrides the sidecar's (named, as ``offline --log
+    --vehicle`` does); a vehicle pinquad does not know is refused, named."""
+    import pinquad
+    from pinquad.io.read import read_log
+
+    assert pinquad.read_log is read_log
+    path = write_log(short_log, tmp_path / "flight.csv")
+    _same(read_table(path), read_log(path))
+    over = read_log(path, "crazyflie21")
+    assert over.meta.vehicle == "crazyflie21" and over.meta.vehicle_named
+    assert short_log.meta.vehicle != "crazyflie21"
+    with pytest.raises(LogFormatError, match="--vehicle: vehicle 'boeing'"):
+        read_log(path, "boeing")
+
+
 def _write_csv(path, header, rows):
     path.write_text(",".join(header) + "\n" + "\n".join(",".join(r) for r in rows) + "\n")
     return path
