@@ -26,7 +26,7 @@ import warnings
 from typing import TYPE_CHECKING, Any
 
 _EXPORTS = {
-    "read_log": "pinquad.api",
+    "read_log": "pinquad.io.read",
     "identify": "pinquad.api",
     "discover": "pinquad.api",
     "simulate": "pinquad.api",
@@ -77,7 +77,7 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from pinquad.api import discover, identify, read_log, simulate
+    from pinquad.api import discover, identify, simulate
     from pinquad.core.actuator_curve import ActuatorCurve, CurveVehicle, read_curve_vehicle
     from pinquad.core.params import Vehicle
     from pinquad.discovery.null import NullSettings
@@ -90,7 +90,7 @@ if TYPE_CHECKING:
     from pinquad.io.command_log import CommandLog
     from pinquad.io.datadir import crazyflie_log
     from pinquad.io.logs import FlightLog, LogFormatError
-    from pinquad.io.read import read_command_log
+    from pinquad.io.read import read_command_log, read_log
     from pinquad.pipeline.identify import LogOptions
     from pinquad.pipeline.single import PipelineOptions
     from pinquad.results.batch import Batch, identify_many

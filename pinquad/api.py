@@ -1,7 +1,8 @@
-"""pinquad's Python API: read a flight, identify its mass and inertia, look for what the
+"""pinquad's Python API: identify a flight's mass and inertia, look for what the
 identified model leaves unexplained, simulate flights. Every function runs the pipeline of
 ``python -m pinquad.offline --log`` (``pinquad.pipeline``): the same checks, guards and
-verdicts, the same ``Result``; ``pinquad/__init__.py`` re-exports these names, and
+verdicts, the same ``Result``; ``pinquad/__init__.py`` re-exports these names beside
+``pinquad.read_log`` (``pinquad.io.read.read_log``, the reader of every log format), and
 ``pinquad.identify_many`` identifies many logs on any executor or Dask cluster.
 
     import pinquad
@@ -17,7 +18,6 @@ verdicts, the same ``Result``; ``pinquad/__init__.py`` re-exports these names, a
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -28,7 +28,6 @@ from pinquad.pipeline.identify import LogOptions
 from pinquad.pipeline.single import (
     LOG_MAX_ITERATIONS,
     PipelineOptions,
-    read,
     run,
     with_discovery,
 )
@@ -36,16 +35,6 @@ from pinquad.report.console import warning_lines
 from pinquad.results.result import Result
 from pinquad.sim.simulator import SimConfig, flight_log
 from pinquad.sim.simulator import simulate as simulate_flight
-
-
-def read_log(path: str | Path, vehicle: str | None = None) -> FlightLog:
-    """The flight recorded in ``path``: a Crazyflie micro-SD binary log, or a CSV or
-    Parquet table (the log columns of ``pinquad.io.logs``) with its optional JSON sidecar.
-    vehicle: a shipped vehicle name or a ``.toml`` vehicle file that overrides the log's
-    sidecar (``offline --log PATH --vehicle``). Raises ``pinquad.io.logs.LogFormatError``
-    naming the file and the column, row or byte offset when the file is not a readable
-    log."""
-    return read(path, vehicle)
 
 
 def identify(log: FlightLog, *, mstep: str = "regressor", sensor: str | None = None,

@@ -34,9 +34,8 @@ import numpy as np
 
 from pinquad.io.declared import Conventions
 from pinquad.io.foreign import write_foreign
-from pinquad.io.logs import FlightLog, LogFormatError, read_log, write_log
-from pinquad.io.read import read_log as read_any
-from pinquad.io.read import with_vehicle
+from pinquad.io.logs import FlightLog, LogFormatError, read_table, write_log
+from pinquad.io.read import read_log, with_vehicle
 from pinquad.pipeline.identify import LogOptions, identify_log, plausible_range
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -94,7 +93,7 @@ def outcome(log_path: Path, base: np.ndarray, se: np.ndarray, vehicle: Path | No
             ) -> str:
     """What identify_log does with the log at log_path (read with ``vehicle``), in words."""
     try:
-        log = read_log(log_path)
+        log = read_table(log_path)
         if vehicle is not None:
             log = with_vehicle(log, str(vehicle), ROOT, "--vehicle")
         est, _, converged, failure, result = estimate(log)
@@ -130,7 +129,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         t0 = time.perf_counter()
-        clean = read_log(write_log(replace(read_any(args.log), measured=None),
+        clean = read_table(write_log(replace(read_log(args.log), measured=None),
                                    folder / "flight.parquet"))
         base, se, converged, _, _ = estimate(clean, information=True)
         row("clean export", "as written", f"mass {base[0] * 1e3:.3f} g, inertia "
@@ -151,7 +150,7 @@ def main() -> None:
                 if drop:  # the clean reference for a log without quaternion columns
                     ref = write_foreign(clean, folder / f"ref{len(rows)}.parquet",
                                         Conventions(), False, drop)
-                    b, s, *_ = estimate(read_log(ref), information=True)
+                    b, s, *_ = estimate(read_table(ref), information=True)
                 else:
                     b, s = base, se
                 row(name, side, outcome(path, b, s))
@@ -171,7 +170,7 @@ def main() -> None:
                 outcome(folder / "flight.parquet", base, se, vehicle))
         bare = write_log(clean, folder / "bare.parquet")
         Path(str(bare) + ".json").unlink()
-        est, _, _, _, result = estimate(read_log(bare))
+        est, _, _, _, result = estimate(read_table(bare))
         vrange = plausible_range(result.log)
         note = [n for n in result.notes if n.startswith("no vehicle named")]
         row("no sidecar", "none", f"judged against "

@@ -44,8 +44,7 @@ from pinquad.io.declaration_check import (
 )
 from pinquad.io.declared import Conventions
 from pinquad.io.foreign import write_foreign
-from pinquad.io.logs import read_log as read_table
-from pinquad.io.logs import write_log
+from pinquad.io.logs import read_table, write_log
 from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.sanity import findings
 

@@ -115,9 +115,8 @@ def main(flights: int = 8, lag: float = 0.0, em: bool = False, imu: bool = False
         if imu:
             log = imu_only(log)
         result = identify_known_mass(log, QUAD_250.mass, positions, spin, curve)
-        # the curve's thrust and slope at the fit's mean command u_m (from its note)
-        u_m = float(next(n for n in result.notes if n.startswith("mean command"))
-                    .split("=")[1].split(":")[0])
+        # the curve's thrust and slope at the fit's mean command u_m
+        u_m = result.mean_command
         c1, c2 = CURVE
         truth = (c1, c2, c1 * u_m + c2 * u_m * u_m, c1 + 2.0 * c2 * u_m, *truth[2:])
         print(f"seed {seed}: " + _row(result, names, truth, covered, trusted))

@@ -142,8 +142,7 @@ def main(data: Path | None = None) -> None:
         u = next(n for n in res.notes if n.startswith("mean command"))
         lines.insert(0, f"log10 {tag}: {u}; the curve explains {res.force_share * 100:.1f} % "
                         "of the vertical force")
-    u_m = float(next(n for n in a["log10"].notes if n.startswith("mean command"))
-                .split("=")[1].split(":")[0])
+    u_m = a["log10"].mean_command
     row("thrust c_1 [N] (log10)", f"{c1:.5f}", cell(get(a["log10"], "thrust c_1")),
         cell(get(b["log10"], "thrust c_1")))
     row("thrust c_2 [N] (log10)", f"{c2:.5f}", cell(get(a["log10"], "thrust c_2")),

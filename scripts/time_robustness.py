@@ -63,7 +63,8 @@ def estimate(source: Path | FlightLog,
     run = result.runs[0]
     params = np.r_[run.mass, np.diag(run.inertia)]
     stat = run.measured.se_stat if run.measured is not None else run.stderr
-    gaps = sum(int(line.split(" ")[0]) for line in result.excluded if "log gap" in line)
+    gaps = sum(e.transitions for e in (() if run.measured is None else run.measured.exclusions)
+               if "log gap" in e.reason)
     return params, np.asarray(run.stderr), np.asarray(stat), gaps
 
 

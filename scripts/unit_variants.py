@@ -25,9 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.cli.offline import main as offline
-from pinquad.io.logs import FlightLog, read_log, write_log
-from pinquad.io.read import read_log as read_any
-from pinquad.io.read import with_vehicle
+from pinquad.io.logs import FlightLog, read_table, write_log
+from pinquad.io.read import read_log, with_vehicle
 from pinquad.realdata.vehicle_check import measured_observations
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,16 +61,16 @@ def main() -> None:
     print("|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
-        sd = read_any(JANA00)
-        rpm = read_log(write_log(replace(sd, measured=None, meta=replace(
+        sd = read_log(JANA00)
+        rpm = read_table(write_log(replace(sd, measured=None, meta=replace(
             sd.meta, vehicle="crazyflie21", vehicle_named=True)), d / "jana00.parquet"))
         grid = measured_observations(rpm).log
-        wrench = read_log(write_log(replace(grid, rpm=None, meta=replace(
+        wrench = read_table(write_log(replace(grid, rpm=None, meta=replace(
             grid.meta, wrench_from_rpm=False, vehicle="crazyflie21", vehicle_named=True,
             actuation="sampled")), d / "jana00.csv"))
-        ns = with_vehicle(read_any(PARROT), str(ROOT / "docs" / "vehicles" /
+        ns = with_vehicle(read_log(PARROT), str(ROOT / "docs" / "vehicles" /
                                                   "cf21_parrot_frame.toml"), ROOT, "--vehicle")
-        ns = read_log(write_log(ns, d / "cf102_01.csv"))
+        ns = read_table(write_log(ns, d / "cf102_01.csv"))
         third = 2 * rpm.n // 3
 
         def row(name: str, variant: str, log: FlightLog, suffix: str = ".csv",
@@ -123,7 +122,7 @@ def main() -> None:
         eu.write_text("\n".join([src[0].replace(",", ";")] + [
             ln.replace(",", ";").replace(".", ",") for ln in src[1:]]) + "\n")
         Path(f"{eu}.json").write_text(Path(d / "jana00.csv.json").read_text())
-        a, b = read_log(eu), read_log(d / "jana00.csv")
+        a, b = read_table(eu), read_table(d / "jana00.csv")
         same = all(np.array_equal(x, y, equal_nan=True) for x, y in (
             (a.t, b.t), (a.position, b.position), (a.euler, b.euler), (a.gyro, b.gyro),
             (a.accel, b.accel), (a.thrust, b.thrust), (a.torque, b.torque)))

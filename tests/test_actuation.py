@@ -11,7 +11,7 @@ import pytest
 
 from flightgen import FlightSpec, generate, write_csv
 from pinquad.identification.verdict import NOT_IDENTIFIABLE, TRUSTED, VerdictEvidence, judge
-from pinquad.io.logs import LogFormatError, LogMeta, read_log, sidecar
+from pinquad.io.logs import LogFormatError, LogMeta, read_table, sidecar
 from pinquad.models.sources import interval_inputs
 from pinquad.pipeline.identify import LogOptions, identify_log
 
@@ -31,16 +31,16 @@ def test_sidecar_actuation_is_written_read_and_checked(tmp_path):
     path = tmp_path / "f.csv"
     rows = "\n".join(f"{0.01 * k},{0.35},0,0,0,{k * 1e-3},0,1" for k in range(60))
     path.write_text("t,thrust,torque_x,torque_y,torque_z,pos_x,pos_y,pos_z\n" + rows + "\n")
-    meta = read_log(path).meta
+    meta = read_table(path).meta
     assert meta.actuation == "sampled" and not meta.actuation_declared   # no sidecar
     for value, declared in (("held", True), ("sampled", True)):
         (tmp_path / "f.csv.json").write_text(json.dumps({"vehicle": "crazyflie21",
                                                          "actuation": value}))
-        meta = read_log(path).meta
+        meta = read_table(path).meta
         assert (meta.actuation, meta.actuation_declared) == (value, declared)
     (tmp_path / "f.csv.json").write_text(json.dumps({"actuation": "zoh"}))
     with pytest.raises(LogFormatError, match="'actuation' is 'zoh'"):
-        read_log(path)
+        read_table(path)
 
 
 def test_an_estimate_that_moves_with_the_reading_of_the_input_is_not_identifiable():
@@ -56,7 +56,7 @@ def test_an_estimate_that_moves_with_the_reading_of_the_input_is_not_identifiabl
 
 def test_a_sampled_100hz_log_read_as_the_rows_mean_gets_the_inertia_held_would_miss(tmp_path):
     flight = generate(FlightSpec(duration=12, log_rate=100, seed=2, floor=None))
-    log = read_log(write_csv(flight, tmp_path / "fg.csv"))
+    log = read_table(write_csv(flight, tmp_path / "fg.csv"))
     assert log.meta.actuation == "sampled" and not log.meta.actuation_declared
     result = identify_log(log, LogOptions(msteps=("regressor",), information=False))
     mean_rows = np.diag(result.runs[0].inertia)[:2]

@@ -54,10 +54,11 @@ def test_readme_python_example_runs_and_prints_what_the_readme_says():
 def test_public_names_resolve_to_the_implementations():
     import pinquad
     from pinquad import api
+    from pinquad.io import read
     from pinquad.io.logs import FlightLog
     from pinquad.results.result import Result
 
-    assert pinquad.read_log is api.read_log
+    assert pinquad.read_log is read.read_log
     assert pinquad.identify is api.identify
     assert pinquad.discover is api.discover
     assert pinquad.simulate is api.simulate

@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pinquad.identification.identify import Identification
+from pinquad.identification.measured import MeasuredFit
 from pinquad.identification.verdict import (
     NOT_IDENTIFIABLE,
     TRUSTED,
@@ -20,7 +21,6 @@ from pinquad.identification.verdict import (
     vehicle_range,
 )
 from pinquad.realdata.consistency import FlightRow, between_flights, flight_scatter, scaled_total
-from pinquad.realdata.identify import MeasuredFit
 
 
 def test_scatter_of_known_values():

@@ -19,8 +19,8 @@ from flightgen import FlightSpec, generate, write_csv
 from pinquad.api import identify
 from pinquad.io.declared import Conventions, read_conventions
 from pinquad.io.foreign import write_foreign
-from pinquad.io.logs import LogFormatError, read_log, write_log
-from pinquad.io.read import read_log as read_any
+from pinquad.io.logs import LogFormatError, read_table, write_log
+from pinquad.io.read import read_log
 from pinquad.io.sanity import ImplausibleLogError, check_log
 
 JANA00 = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie" / "imrc_brushed" / "jana00"
@@ -51,15 +51,15 @@ EXACT_ONLY = {  # declared conversions exact; undeclared not told apart on gentl
 def real(tmp_path_factory):
     """jana00 (fails without the shared data) as pinquad's own Parquet log, 4 s of it."""
     assert JANA00.exists(), f"shared IMRC data missing: {JANA00}"
-    log = replace(read_any(JANA00), measured=None)
+    log = replace(read_log(JANA00), measured=None)
     log = log.slice(0, int(np.searchsorted(log.t, 4.0)))
-    return read_log(write_log(log, tmp_path_factory.mktemp("real") / "jana00.parquet"))
+    return read_table(write_log(log, tmp_path_factory.mktemp("real") / "jana00.parquet"))
 
 
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory):
     flight = generate(FlightSpec(duration=4.0, dt=0.001, seed=3, log_rate=100))
-    return read_log(write_csv(flight, tmp_path_factory.mktemp("fg") / "fg.csv", mass_guess=0.03))
+    return read_table(write_csv(flight, tmp_path_factory.mktemp("fg") / "fg.csv", mass_guess=0.03))
 
 
 def _same_columns(a, b) -> None:
@@ -81,14 +81,14 @@ def _estimate(log) -> np.ndarray:
 
 def _write(log, tmp_path: Path, case: tuple, declare: bool):
     conv, drop, _ = case
-    return read_log(write_foreign(log, tmp_path / f"{declare}.parquet", conv, declare, drop))
+    return read_table(write_foreign(log, tmp_path / f"{declare}.parquet", conv, declare, drop))
 
 
 @FEW
 @given(name=st.sampled_from(sorted({**ATTITUDE_CASES, **ROTOR_CASES, **EXACT_ONLY})))
 def test_a_declared_convention_reads_as_the_real_flight_exactly(real, tmp_path_factory, name):
     case = {**ATTITUDE_CASES, **ROTOR_CASES, **EXACT_ONLY}[name]
-    base = read_log(write_foreign(real, tmp_path_factory.mktemp("b") / "b.parquet",
+    base = read_table(write_foreign(real, tmp_path_factory.mktemp("b") / "b.parquet",
                                   Conventions(), False, case[1]))
     back = _write(real, tmp_path_factory.mktemp("d"), case, declare=True)
     _same_columns(base, back)
@@ -100,7 +100,7 @@ def test_a_declared_convention_reads_as_the_real_flight_exactly(real, tmp_path_f
 def test_a_declared_convention_reads_as_the_simulated_flight_exactly(simulated,
                                                                      tmp_path_factory, name):
     case = {**ATTITUDE_CASES, **EXACT_ONLY}[name]
-    base = read_log(write_foreign(simulated, tmp_path_factory.mktemp("b") / "b.parquet",
+    base = read_table(write_foreign(simulated, tmp_path_factory.mktemp("b") / "b.parquet",
                                   Conventions(), False, case[1]))
     back = _write(simulated, tmp_path_factory.mktemp("d"), case, declare=True)
     _same_columns(base, back)
@@ -151,7 +151,7 @@ def test_a_non_unit_quaternion_is_refused_naming_the_columns(real, tmp_path):
     pq.write_table(scaled, path)
     with pytest.raises(LogFormatError, match=r"q\.parquet: columns quat_w, quat_x, quat_y, "
                        r"quat_z have median norm 2"):
-        read_log(path)
+        read_table(path)
 
 
 @pytest.mark.parametrize("raw, words", [
@@ -170,12 +170,20 @@ def test_a_bad_declaration_names_the_sidecar_and_key(raw, words):
 
 def test_a_rotor_speed_log_without_a_sidecar_is_judged_against_no_vehicle(real, tmp_path):
     from pinquad.pipeline.identify import LogOptions, identify_log, plausible_range
+    from pinquad.report.console import warning_lines
 
     path = write_log(real, tmp_path / "bare.parquet")
     Path(str(path) + ".json").unlink()
-    log = read_log(path)
+    log = read_table(path)
     assert not log.meta.vehicle_named and log.meta.vehicle == "paper"
     result = identify_log(log, LogOptions(msteps=("regressor",), information=False,
                                           max_iterations=2))
     assert plausible_range(result.log) is None
     assert any(n.startswith("no vehicle named") for n in result.notes)
+    # the printed warning reads the result's flag, not its note's words
+    assert result.vehicle_unnamed
+    assert any(w.startswith("warning: no vehicle named") for w in warning_lines(result))
+    named = identify_log(read_table(write_log(real, tmp_path / "named.parquet")),
+                         LogOptions(msteps=("regressor",), information=False, max_iterations=2))
+    assert not named.vehicle_unnamed
+    assert not any(w.startswith("warning: no vehicle named") for w in warning_lines(named))

@@ -23,9 +23,8 @@ from pinquad.core.vehicle_file import shipped_path
 from pinquad.io import declaration_check as dc
 from pinquad.io.declared import Conventions
 from pinquad.io.foreign import write_foreign
-from pinquad.io.logs import read_log, write_log
-from pinquad.io.read import read_log as read_any
-from pinquad.io.read import with_vehicle
+from pinquad.io.logs import read_table, write_log
+from pinquad.io.read import read_log, with_vehicle
 from pinquad.io.sanity import findings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,7 +41,7 @@ def folder(tmp_path_factory) -> Path:
 def clean(folder):
     """jana00 (fails without the shared data) as pinquad's own Parquet log, all 9.2 s."""
     assert JANA00.exists(), f"shared IMRC data missing: {JANA00}"
-    return read_log(write_log(replace(read_any(JANA00), measured=None), folder / "jana00.parquet"))
+    return read_table(write_log(replace(read_log(JANA00), measured=None), folder / "jana00.parquet"))
 
 
 def _declared(clean, folder: Path, name: str, keys: dict, written: Conventions | None = None):
@@ -51,7 +50,7 @@ def _declared(clean, folder: Path, name: str, keys: dict, written: Conventions |
     path = write_foreign(clean, folder / f"{name}.parquet", written or Conventions(), False)
     side = Path(str(path) + ".json")
     side.write_text(json.dumps({**json.loads(side.read_text()), **keys}))
-    return read_log(path)
+    return read_table(path)
 
 
 def _only(log) -> dc.Problem:
@@ -66,7 +65,7 @@ def test_true_declarations_pass(clean, folder):
                               Conventions(quaternion_rotation="world_to_body"),
                               Conventions(rotor_speed="rad/s"),
                               Conventions(motor_order=(2, 3, 4, 1)))):
-        log = read_log(write_foreign(clean, folder / f"true{k}.parquet", conv, True))
+        log = read_table(write_foreign(clean, folder / f"true{k}.parquet", conv, True))
         assert findings(log) == (), conv
 
 
@@ -92,7 +91,7 @@ def test_a_false_inverse_rotation_and_a_false_euler_unit_are_named(clean, folder
                          ("quat_w", "quat_x", "quat_y", "quat_z"))
     side = Path(str(path) + ".json")
     side.write_text(json.dumps({**json.loads(side.read_text()), "euler": {"unit": "rad"}}))
-    check, column, msg = _only(read_log(path))
+    check, column, msg = _only(read_table(path))
     assert check == "attitude-declaration" and column == "roll, pitch, yaw"
     assert 'declare "euler": {"order": "ZYX", "unit": "deg"}' in msg
 

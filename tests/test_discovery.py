@@ -30,7 +30,7 @@ from pinquad.identification.identify import get_smoother
 from pinquad.models.effect import EffectSSM
 from pinquad.models.sources import observations
 from pinquad.models.ssm import QuadSSM
-from pinquad.mstep.updates import regressor_mstep
+from pinquad.mstep.protocol import REGRESSOR
 from pinquad.report.discovery import draw_discovery_figures
 from pinquad.sim import effects
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
@@ -49,7 +49,7 @@ def _fit(disturbances, seed):
     cfg = SimConfig(vehicle=v, scenario=_short_scenario(), sensor="B", disturbances=disturbances)
     obs = observations(flight_log(simulate(cfg, np.random.default_rng(seed))), "B")
     th0 = initial_theta(obs, v.mass * PAPER_INITIAL_MASS / 0.18, v.inertia * 0.5, v.gravity)
-    res = run_em(obs, th0, get_smoother("rts"), regressor_mstep, max_iterations=40)
+    res = run_em(obs, th0, get_smoother("rts"), REGRESSOR, max_iterations=40)
     return obs, res
 
 
@@ -277,7 +277,7 @@ def test_gyro_bias_seeded_refit():
     obs = obs_of(log, "B")
     v = CRAZYFLIE21
     th0 = initial_theta(obs, 0.025, 0.5 * v.inertia, v.gravity)
-    res = run_em(obs, th0, get_smoother("rts"), regressor_mstep, max_iterations=60)
+    res = run_em(obs, th0, get_smoother("rts"), REGRESSOR, max_iterations=60)
     out = discover(obs, res.theta, res.posterior)
     assert out.selected == ("gyro_bias",)
     truth = np.array(list(effects.injected_coefficients("gyro_bias").values()))
@@ -368,7 +368,7 @@ def test_ground_effect_coefficient_converges_in_the_joint_refinement():
     obs = observations(log, "B")
     v = CRAZYFLIE21
     th0 = initial_theta(obs, 0.025, 0.5 * v.inertia, v.gravity)
-    res = run_em(obs, th0, get_smoother("rts"), regressor_mstep, max_iterations=100)
+    res = run_em(obs, th0, get_smoother("rts"), REGRESSOR, max_iterations=100)
     passes_only = discover(obs, res.theta, res.posterior, cfg=DiscoveryConfig(joint_iterations=0))
     out = discover(obs, res.theta, res.posterior)
     assert out.selected == passes_only.selected == ("ground_effect",)

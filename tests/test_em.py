@@ -13,6 +13,7 @@ from estimators.rts import smooth
 from pinquad.identification.em import run_em
 from pinquad.models.sources import observations
 from pinquad.models.ssm import NoiseModel, Theta, kinematic_floor
+from pinquad.mstep.protocol import REGRESSOR, MStep
 from pinquad.mstep.updates import body_regressor, regressor_mstep
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
@@ -33,7 +34,7 @@ def test_em_loglik_never_decreases_on_linear_gaussian_model():
     ys[rng.random(ys.shape) < 0.15] = np.nan
     start = LinearGaussianModel(a=0.5 * np.eye(n), c=c, q=np.eye(n), r=np.eye(2),
                                 m0=np.zeros(n), p0=np.eye(n))
-    res = run_em(_Data(ys), start, smooth, linear_em_mstep, max_iterations=40, tol=0.0,
+    res = run_em(_Data(ys), start, smooth, MStep(linear_em_mstep), max_iterations=40, tol=0.0,
                  tol_loglik=0.0, model_factory=lambda data, model: model,
                  distance=linear_change, quadcopter=False)
     ll = res.loglik
@@ -61,7 +62,7 @@ def test_em_stops_at_the_last_good_iterate_when_the_e_step_breaks_down():
             raise np.linalg.LinAlgError("Matrix is not positive definite")
         return smooth(model, data)
 
-    res = run_em(_Data(ys), start, breaking, linear_em_mstep, max_iterations=10, tol=0.0,
+    res = run_em(_Data(ys), start, breaking, MStep(linear_em_mstep), max_iterations=10, tol=0.0,
                  tol_loglik=0.0, model_factory=lambda data, model: model,
                  distance=linear_change, quadcopter=False)
     assert not res.converged
@@ -163,8 +164,8 @@ def test_per_parameter_over_relaxation_converges_higher_in_fewer_e_steps(clean):
     _, log = clean
     obs = observations(log, "B")
     start = initial_theta(obs, 0.03, np.diag([1.5e-4, 1.5e-4, 2.5e-4]), 9.81)
-    shared = run_em(obs, start, smooth_quad, regressor_mstep, max_iterations=300)
-    per = run_em(obs, start, smooth_quad, regressor_mstep, max_iterations=300,
+    shared = run_em(obs, start, smooth_quad, REGRESSOR, max_iterations=300)
+    per = run_em(obs, start, smooth_quad, REGRESSOR, max_iterations=300,
                  per_parameter=True)
     assert shared.converged and per.converged
     assert per.e_steps < 0.8 * shared.e_steps
@@ -172,6 +173,26 @@ def test_per_parameter_over_relaxation_converges_higher_in_fewer_e_steps(clean):
     assert per.decreases == ()
     pi = lambda r: np.r_[r.theta.mass, np.diag(r.theta.inertia)]  # noqa: E731
     np.testing.assert_allclose(pi(per), pi(shared), rtol=1e-4)
+
+
+def test_over_relaxation_is_what_the_m_step_declares(clean):
+    """EM over-relaxes an M-step's steps exactly when the M-step declares it
+    (``MStep.over_relaxation``), not by what its function is called: the regressor update
+    undeclared runs plain EM, bit for bit what the declared one gives with ``accelerate``
+    off, and the declared one's iterates differ from them (its relaxed steps)."""
+    from pinquad.estep.fast_smoother import smooth_quad
+    from pinquad.identification.em import initial_theta
+
+    _, log = clean
+    obs = observations(log.slice(0, 600), "B")
+    start = initial_theta(obs, 0.03, np.diag([1.5e-4, 1.5e-4, 2.5e-4]), 9.81)
+    undeclared = run_em(obs, start, smooth_quad, MStep(regressor_mstep), max_iterations=12)
+    off = run_em(obs, start, smooth_quad, REGRESSOR, max_iterations=12, accelerate=False)
+    relaxed = run_em(obs, start, smooth_quad, REGRESSOR, max_iterations=12)
+    np.testing.assert_array_equal(undeclared.mass, off.mass)
+    np.testing.assert_array_equal(undeclared.inertia_diag, off.inertia_diag)
+    assert undeclared.e_steps == off.e_steps
+    assert not np.array_equal(relaxed.mass, off.mass)
 
 
 def test_per_parameter_over_relaxation_follows_a_variance_to_zero(monkeypatch):
@@ -185,7 +206,6 @@ def test_per_parameter_over_relaxation_follows_a_variance_to_zero(monkeypatch):
     from pinquad.identification import em
     from pinquad.identification.identify import get_smoother
     from pinquad.models.sources import observations
-    from pinquad.mstep.updates import regressor_mstep
     from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
     flight = simulate(SimConfig(sensor="B"), np.random.default_rng(7))
@@ -193,7 +213,7 @@ def test_per_parameter_over_relaxation_follows_a_variance_to_zero(monkeypatch):
     theta0 = em.initial_theta(obs, PAPER_VEHICLE.mass * 0.9, PAPER_VEHICLE.inertia * 1.2, 9.81)
 
     def fit():
-        return em.run_em(obs, theta0, get_smoother("rts"), regressor_mstep, max_iterations=150,
+        return em.run_em(obs, theta0, get_smoother("rts"), REGRESSOR, max_iterations=150,
                          tol=1e-5, tol_loglik=1e-7, per_parameter=True)
 
     fast = fit()

@@ -70,6 +70,7 @@ from pinquad.identification import em, fisher
 from pinquad.models import sources
 from pinquad.models.ssm import NoiseModel, Observations, QuadSSM, Theta
 from pinquad.mstep import updates as identify
+from pinquad.mstep.protocol import REGRESSOR
 from pinquad.sim import simulator as sim
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -240,7 +241,7 @@ def test_em_with_the_gtsam_and_the_rts_e_step_agree(sensor):
     1.1 and 3.3 std (measured: within 0.007 standard error)."""
     obs = _observations(sensor, N_EM)
     theta0 = em.initial_theta(obs, 0.8 * TRUE_MASS, 0.7 * TRUE_INERTIA, GRAVITY)
-    runs = {name: em.run_em(obs, theta0, smoother, identify.regressor_mstep,
+    runs = {name: em.run_em(obs, theta0, smoother, REGRESSOR,
                             max_iterations=EM_ITERATIONS)
             for name, smoother in (("gtsam", fg.smooth), ("rts", smooth_quad))}
     assert runs["gtsam"].e_steps == runs["rts"].e_steps == EM_ITERATIONS

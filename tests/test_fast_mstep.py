@@ -17,7 +17,8 @@ from pinquad.mstep import updates as identify
 from pinquad.mstep.compiled import inertia_newton as fast_inertia_newton
 from pinquad.mstep.compiled import measurement_variances as fast_measurement_variances
 from pinquad.mstep.compiled import physical, regressor_quadratics
-from pinquad.mstep.updates import _inertia_newton, inertia_newton, regressor_mstep, regressor_stats
+from pinquad.mstep.protocol import REGRESSOR
+from pinquad.mstep.updates import _inertia_newton, inertia_newton, regressor_stats
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
 TOL = 1e-11
@@ -43,7 +44,7 @@ def test_quadratics_match_regressor_stats(flight, source, continuous):
     exclude[100:140] = True
     obs = replace(obs, exclude=exclude, continuous=continuous)
     theta0 = initial_theta(obs, PAPER_VEHICLE.mass * 0.9, PAPER_VEHICLE.inertia * 1.2, 9.81)
-    post = run_em(obs, theta0, get_smoother("rts"), regressor_mstep, max_iterations=4).posterior
+    post = run_em(obs, theta0, get_smoother("rts"), REGRESSOR, max_iterations=4).posterior
     ref = regressor_stats(post, obs, 9.81)
     fast = regressor_quadratics(post, obs, 9.81)
     assert fast.n == ref.n
@@ -62,7 +63,7 @@ def _torque_problems(flight):
     for source in "ABC":
         obs = observations(flight_log(flight[source]).slice(0, 900), source)
         theta0 = initial_theta(obs, PAPER_VEHICLE.mass * 0.9, PAPER_VEHICLE.inertia * 1.2, 9.81)
-        post = run_em(obs, theta0, get_smoother("rts"), regressor_mstep, max_iterations=2).posterior
+        post = run_em(obs, theta0, get_smoother("rts"), REGRESSOR, max_iterations=2).posterior
         s = regressor_stats(post, obs, 9.81)
         out.append((float(s.c[2] / s.b[2, 0]), s.a[3:6], s.b[3:6], s.c[3:6]))
     return out

@@ -273,12 +273,13 @@ def test_full_force_rows_equal_the_diagonal_m_steps(continuous):
     from pinquad.identification.em import initial_theta, run_em
     from pinquad.identification.identify import get_smoother
     from pinquad.models.sources import observations
-    from pinquad.mstep.updates import regressor_mstep, regressor_stats
+    from pinquad.mstep.protocol import REGRESSOR
+    from pinquad.mstep.updates import regressor_stats
 
     flight = simulate(SimConfig(sensor="B"), np.random.default_rng(7))
     obs = replace(observations(flight_log(flight).slice(0, 600), "B"), continuous=continuous)
     theta0 = initial_theta(obs, PAPER_VEHICLE.mass * 0.9, PAPER_VEHICLE.inertia * 1.2, 9.81)
-    post = run_em(obs, theta0, get_smoother("rts"), regressor_mstep, max_iterations=3).posterior
+    post = run_em(obs, theta0, get_smoother("rts"), REGRESSOR, max_iterations=3).posterior
     full = fi.full_stats(post, obs, 9.81)
     diag = regressor_stats(post, obs, 9.81)
     assert full.n == diag.n

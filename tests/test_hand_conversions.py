@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pinquad.io.logs import read_log
+from pinquad.io.logs import read_table
 from pinquad.io.timebase import uniform_step
 
 RPM = (12000.0, 15000.0, 18000.0, 21000.0)
@@ -30,8 +30,8 @@ def _rotor_csv(path: Path, speeds: tuple[str, ...], rotor_speed: str | None) -> 
 
 
 def test_declared_rad_per_s_matches_hand_converted_rpm(tmp_path):
-    as_rad = read_log(_rotor_csv(tmp_path / "rad.csv", RAD_S, "rad/s"))
-    as_rpm = read_log(_rotor_csv(tmp_path / "rpm.csv", tuple(f"{v:g}" for v in RPM), None))
+    as_rad = read_table(_rotor_csv(tmp_path / "rad.csv", RAD_S, "rad/s"))
+    as_rpm = read_table(_rotor_csv(tmp_path / "rpm.csv", tuple(f"{v:g}" for v in RPM), None))
     np.testing.assert_allclose(as_rad.rpm, np.tile(RPM, (60, 1)), rtol=1e-12)
     np.testing.assert_allclose(as_rpm.rpm, np.tile(RPM, (60, 1)), rtol=0)
 

@@ -154,13 +154,15 @@ def test_replay_of_a_measured_flight_converges_to_the_offline_answer():
     is within 1.5 % of the scale and its roll / pitch inertia within 10 % of the offline
     identification of the same log (``python -m pinquad.realdata``: 18.7, 16.9 e-6)."""
     from pinquad.experiments.online_replay import stream_em
+    from pinquad.io.read import read_log
     from pinquad.realdata.dataset import SCALE_MASS, default_guess
     from pinquad.realdata.identify import identify_real
-    from pinquad.realdata.load import load_real
+    from pinquad.realdata.observations import build_observations
+    from pinquad.realdata.raw import raw_flight
 
     flight = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushed" / "jana02"
     assert flight.is_file(), f"the Crazyflie data are missing: expected {flight}"
-    real = load_real(flight)
+    real = build_observations(raw_flight(read_log(flight)))
     mass0, inertia0, _ = default_guess("crazyflie21")
     hist, lat = stream_em(real.obs, mass0, inertia0, real.log.meta.gravity,
                           rotor_acc=real.rotor_acc)

@@ -9,10 +9,10 @@ import pytest
 
 from pinquad.identification.edges import collapsed_errors, triangle_face
 from pinquad.identification.identify import Identification
+from pinquad.identification.measured import MeasuredFit
 from pinquad.identification.verdict import NOT_IDENTIFIABLE, TRUSTED, VerdictEvidence, judge
 from pinquad.mstep.band import profiled_inertia
 from pinquad.pipeline.judge import error_failures
-from pinquad.realdata.identify import MeasuredFit
 
 # The flipped-yaw-spin fit of a Crazyflie 2.1 flight: I_zz at I_xx + I_yy, 2-3x the
 # vehicle's inertia, with the small errors the collapsed jackknife left [kg, kg m^2]

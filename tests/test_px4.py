@@ -280,6 +280,13 @@ def test_ddd_sample_inertia_against_truth():
         assert result.naive_inertia[a] < 0.8 * DDD_TRUTH[a]
     zz = result.get("I_zz")
     assert not math.isfinite(zz.value) and "yaw torque coefficient" in zz.reasons[0]
+    # the curve's thrust at the mean command is the curve at the number carried, not at
+    # the note's rounding of it
+    c_1, c_2 = result.get("thrust c_1").value, result.get("thrust c_2").value
+    u_m = result.mean_command
+    assert 0.0 < u_m < 1.0 and f"mean command u = {u_m:.3f}:" in " ".join(result.notes)
+    assert result.get("thrust at mean u").value == pytest.approx(c_1 * u_m + c_2 * u_m**2,
+                                                                 rel=1e-12)
 
 
 def test_bad_px4_input_named(tmp_path):

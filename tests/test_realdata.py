@@ -19,15 +19,15 @@ import pytest
 
 from pinquad.identification.identify import Identification
 from pinquad.io.logs import FlightLog, LogMeta
+from pinquad.io.read import read_log
 from pinquad.realdata.dataset import PUBLISHED_INERTIA, SCALE_MASS, default_guess
 from pinquad.realdata.identify import identify_real, measured_fit
-from pinquad.realdata.load import load_real
 from pinquad.realdata.mass_balance import quasi_static_mass
 from pinquad.realdata.observation_options import RealDataOptions
-from pinquad.realdata.observations import build_observations
-from pinquad.realdata.raw import RawFlight
+from pinquad.realdata.observations import RealObservations, build_observations
+from pinquad.realdata.raw import RawFlight, raw_flight
 from pinquad.realdata.thrust import thrust_coefficient
-from pinquad.vehicle.actuators import ActuatorModel
+from pinquad.vehicle.actuators import ActuatorModel, ThrustCoefficient
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "crazyflie"
@@ -41,11 +41,17 @@ def require_data() -> None:
         f"CSVs in {STAND}")
 
 
+def observations_of(path: Path, options: RealDataOptions, kf: ThrustCoefficient) -> RealObservations:
+    """The EM observations of a shipped flight with the given options and kf (what
+    ``realdata.vehicle_check.measured_observations`` builds with the vehicle's own)."""
+    return build_observations(raw_flight(read_log(path)), options, kf)
+
+
 @cache
 def identified(name: str) -> Identification:
     require_data()
     kf = thrust_coefficient(STAND)
-    real = load_real(FLIGHTS / name, RealDataOptions(), kf)
+    real = observations_of(FLIGHTS / name, RealDataOptions(), kf)
     mass0, inertia0, _ = default_guess("crazyflie21")
     return identify_real(real, mass0, inertia0, max_iterations=100, information=False)
 
@@ -231,7 +237,7 @@ def test_faulty_log_is_repaired_and_its_mass_is_near_the_scale():
                                                     rel=0.01)
     # Without the repair every airborne row is implausible: nothing left to identify.
     with pytest.raises(ValueError, match="no usable actuation"):
-        load_real(FLIGHTS / "jana20", RealDataOptions(faults="exclude"),
+        observations_of(FLIGHTS / "jana20", RealDataOptions(faults="exclude"),
                   thrust_coefficient(STAND))
 
 
@@ -426,7 +432,7 @@ def test_fixed_rotor_inertia_is_taken_back_out_of_the_band_stats():
 
     require_data()
     jr = 15e-9
-    real = load_real(FLIGHTS / "jana02", RealDataOptions(rotor_inertia=jr), thrust_coefficient(STAND))
+    real = observations_of(FLIGHTS / "jana02", RealDataOptions(rotor_inertia=jr), thrust_coefficient(STAND))
     mass0, inertia0, _ = default_guess("crazyflie21")
     run = identify_real(real, mass0, inertia0, max_iterations=100, information=False,
                         keep_band_stats=True)

@@ -15,7 +15,7 @@ from pinquad.cli.offline import build_parser, pipeline_options
 from pinquad.core.vehicle_file import VehicleFileError, load_vehicle
 from pinquad.identification.reference import log_reference, reference_values
 from pinquad.identification.verdict import NOT_ADEQUATE, TRUSTED, VerdictEvidence, judge
-from pinquad.io.logs import LogFormatError, read_log, write_log
+from pinquad.io.logs import LogFormatError, read_table, write_log
 from pinquad.pipeline import read
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
 
@@ -163,11 +163,11 @@ def test_a_declared_payload_moves_the_reference_mass(tmp_path: Path):
     raw = json.loads(side.read_text())
     raw["vehicle"] = vehicle
     side.write_text(json.dumps(raw))
-    assert read_log(path).meta.payload_mass == 0.0
-    plain = log_reference(read_log(path).meta)
+    assert read_table(path).meta.payload_mass == 0.0
+    plain = log_reference(read_table(path).meta)
     raw["payload_mass"] = 0.0074
     side.write_text(json.dumps(raw))
-    meta = read_log(path).meta
+    meta = read_table(path).meta
     assert meta.payload_mass == 0.0074
     loaded = log_reference(meta)
     assert plain is not None and loaded is not None
@@ -180,12 +180,12 @@ def test_a_declared_payload_moves_the_reference_mass(tmp_path: Path):
     assert "9.2 combined standard errors" in without.get("mass").reasons[0]
     assert judge(0.0451, inertia, stderr, VerdictEvidence(reference=loaded), None).trusted
     # the payload round-trips through pinquad's own export of the log
-    again = write_log(read_log(path), tmp_path / "again.csv")
-    assert read_log(again).meta.payload_mass == 0.0074
+    again = write_log(read_table(path), tmp_path / "again.csv")
+    assert read_table(again).meta.payload_mass == 0.0074
     raw["payload_mass"] = -0.001
     side.write_text(json.dumps(raw))
     with pytest.raises(LogFormatError, match=r"flight\.csv\.json.*payload_mass"):
-        read_log(path)
+        read_table(path)
 
 
 def test_the_command_line_declares_a_payload_over_the_sidecar(tmp_path: Path, capsys):

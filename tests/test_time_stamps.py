@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 
 from flightgen import FlightSpec, generate, write_csv
 from pinquad.api import identify
-from pinquad.io.logs import LogFormatError, read_log, write_log
-from pinquad.io.read import read_log as read_any
+from pinquad.io.logs import LogFormatError, read_table, write_log
+from pinquad.io.read import read_log
 from pinquad.io.timebase import find_gaps, gap_steps, relative_time
 from pinquad.realdata.observations import build_observations
 from pinquad.realdata.raw import raw_flight
@@ -61,9 +61,9 @@ def test_jitter_and_epoch_offsets_make_no_gap_but_a_2_s_hole_is_one(rate, amplit
 
 def test_unix_time_is_read_relative_to_the_first_row_in_float64(tmp_path):
     flight = generate(FlightSpec(duration=1.0, dt=0.001, seed=1, log_rate=100))
-    log = read_log(write_csv(flight, tmp_path / "f.csv"))
+    log = read_table(write_csv(flight, tmp_path / "f.csv"))
     for offset in OFFSETS[1:]:
-        back = read_log(write_log(replace(log, t=log.t + offset), tmp_path / f"{offset:g}.parquet"))
+        back = read_table(write_log(replace(log, t=log.t + offset), tmp_path / f"{offset:g}.parquet"))
         np.testing.assert_allclose(back.t, log.t, rtol=0, atol=1e-6)
         assert back.meta.t_origin == offset
 
@@ -76,7 +76,7 @@ def test_float32_unix_time_is_refused_naming_the_column(tmp_path):
                              "torque_x": np.zeros(200), "torque_y": np.zeros(200),
                              "torque_z": np.zeros(200)}), path)
     with pytest.raises(LogFormatError, match=r"f32\.parquet: column 't' is stored as 32-bit"):
-        read_log(path)
+        read_table(path)
 
 
 def test_sidecar_inertia_guess_may_be_its_diagonal(tmp_path):
@@ -86,12 +86,12 @@ def test_sidecar_inertia_guess_may_be_its_diagonal(tmp_path):
     raw = json.loads(side.read_text())
     raw["inertia_guess"] = [1.6e-5, 1.7e-5, 2.9e-5]
     side.write_text(json.dumps(raw))
-    np.testing.assert_array_equal(read_log(path).meta.inertia_guess,
+    np.testing.assert_array_equal(read_table(path).meta.inertia_guess,
                                   np.diag([1.6e-5, 1.7e-5, 2.9e-5]))
     raw["inertia_guess"] = [1.0, 2.0]
     side.write_text(json.dumps(raw))
     with pytest.raises(LogFormatError, match=r"f\.csv\.json: key 'inertia_guess' is \[1\.0, 2\.0\]"):
-        read_log(path)
+        read_table(path)
 
 
 # ----------------------------------------------------------------- a real IMRC flight
@@ -101,9 +101,9 @@ def real_export(tmp_path_factory):
     """jana00's ~500 Hz rows as pinquad's own Parquet log (rotor speeds), its estimate
     with standard errors."""
     assert JANA00.exists(), f"shared IMRC data missing: {JANA00}"
-    log = replace(read_any(JANA00), measured=None)
+    log = replace(read_log(JANA00), measured=None)
     path = write_log(log, tmp_path_factory.mktemp("imrc") / "jana00.parquet")
-    return read_log(path), identify(read_log(path)).run
+    return read_table(path), identify(read_table(path)).run
 
 
 def _changes(log, base) -> np.ndarray:
@@ -167,7 +167,7 @@ def test_a_real_2_s_gap_is_found_and_named(real_export):
 def flightgen_export(tmp_path_factory):
     flight = generate(FlightSpec(duration=6.0, dt=0.001, seed=3, log_rate=100))
     path = write_csv(flight, tmp_path_factory.mktemp("fg") / "fg.csv", mass_guess=0.03)
-    log = read_log(path)
+    log = read_table(path)
     return log, identify(log).run
 
 

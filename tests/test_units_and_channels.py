@@ -18,8 +18,8 @@ from pinquad.cli.offline import build_parser, pipeline_options
 from pinquad.core.vehicle_file import shipped_path
 from pinquad.io.actuation_check import check_stuck_channel, check_zero_channel
 from pinquad.io.declaration_check import check_declared_rotor_speed
-from pinquad.io.logs import FlightLog, LogFormatError, read_log, write_log
-from pinquad.io.read import read_log as read_any
+from pinquad.io.logs import FlightLog, LogFormatError, read_table, write_log
+from pinquad.io.read import read_log
 from pinquad.io.sanity import findings, implied_mass
 from pinquad.io.units_check import (
     check_gyro_axes,
@@ -37,10 +37,10 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie" / "
 def rpm_log(tmp_path_factory) -> FlightLog:
     """jana00 exported as pinquad's Parquet log of rotor speeds (vehicle crazyflie21)."""
     assert (DATA / "jana00").exists(), f"shared IMRC data missing: {DATA}"
-    sd = read_any(DATA / "jana00")
+    sd = read_log(DATA / "jana00")
     log = replace(sd, measured=None, meta=replace(sd.meta, vehicle="crazyflie21",
                                                   vehicle_named=True))
-    return read_log(write_log(log, tmp_path_factory.mktemp("rpm") / "jana00.parquet"))
+    return read_table(write_log(log, tmp_path_factory.mktemp("rpm") / "jana00.parquet"))
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +56,7 @@ def wrench_csv(rpm_log, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def wrench_log(wrench_csv) -> FlightLog:
-    return read_log(wrench_csv)
+    return read_table(wrench_csv)
 
 
 def test_the_clean_variants_pass_every_new_check(rpm_log, wrench_log):
@@ -127,7 +127,7 @@ def test_a_rotor_channel_at_zero_names_its_rows(rpm_log):
 
 def test_a_zero_channel_with_pwm_commands_is_left_to_the_repair():
     # jana20's motor 1 reads 0 in a third of its rows; its PWM commands rebuild it
-    log = read_any(DATA / "jana20")
+    log = read_log(DATA / "jana20")
     assert log.measured is not None and log.measured.pwm is not None
     assert check_zero_channel(log) is None
     assert check_zero_channel(replace(log, measured=None)) is not None
@@ -147,7 +147,7 @@ def test_a_false_rad_per_s_declaration_is_named(rpm_log, tmp_path):
     path = write_log(rpm_log, tmp_path / "f.parquet")
     side = Path(f"{path}.json")
     side.write_text(json.dumps({**json.loads(side.read_text()), "rotor_speed": "rad/s"}))
-    found = check_declared_rotor_speed(read_log(path))
+    found = check_declared_rotor_speed(read_table(path))
     assert found is not None and found[1] == "rpm_*"
     assert '"rotor_speed": "rad/s"' in found[2] and "remove the key" in found[2]
     assert check_declared_rotor_speed(rpm_log) is None
@@ -163,7 +163,7 @@ def test_a_duplicated_header_is_refused_naming_both_positions(wrench_csv, tmp_pa
     with pytest.raises(LogFormatError, match=(f"column 'gyro_x' appears twice in the header, "
                                               f"as column {k + 1} and column "
                                               f"{len(header) + 1}")):
-        read_log(dup)
+        read_table(dup)
 
 
 def test_a_european_csv_is_read_like_the_plain_one(wrench_csv, wrench_log, tmp_path):
@@ -172,7 +172,7 @@ def test_a_european_csv_is_read_like_the_plain_one(wrench_csv, wrench_log, tmp_p
     eu.write_text("\n".join([lines[0].replace(",", ";")]
                             + [ln.replace(",", ";").replace(".", ",") for ln in lines[1:]]))
     Path(f"{eu}.json").write_text(Path(f"{wrench_csv}.json").read_text())
-    log = read_log(eu)
+    log = read_table(eu)
     np.testing.assert_array_equal(log.thrust, wrench_log.thrust)
     np.testing.assert_array_equal(log.gyro, wrench_log.gyro)
     assert any("separated by ';' with ',' as the decimal mark" in n for n in log.meta.notes)
@@ -180,7 +180,7 @@ def test_a_european_csv_is_read_like_the_plain_one(wrench_csv, wrench_log, tmp_p
     bad.write_text("t;pos_x;pos_y;pos_z;thrust;torque_x;torque_y;torque_z\n"
                    "0,0;1.234,5;0;0;0,3;0;0;0\n")
     with pytest.raises(LogFormatError, match="line 2, column 'pos_x': '1.234,5'"):
-        read_log(bad)
+        read_table(bad)
 
 
 def test_offline_names_the_dead_channel_with_exit_2_and_writes_nothing(rpm_log, tmp_path):
@@ -204,7 +204,7 @@ def test_offline_faults_flag_reaches_the_identification():
 
 
 def test_no_usable_actuation_names_the_channel_and_the_flag():
-    log = read_any(DATA / "jana20")
+    log = read_log(DATA / "jana20")
     with pytest.raises(ValueError) as err:
         measured_observations(log, faults="exclude")
     text = str(err.value)

@@ -30,9 +30,9 @@ from pinquad.realdata.faults import (
 from pinquad.realdata.observation_options import options_for_vehicle
 from pinquad.realdata.observations import build_observations
 from pinquad.realdata.raw import RawFlight, raw_flight
-from pinquad.realdata.thrust import ThrustCoefficient
 from pinquad.realdata.vehicle_check import measured_vehicle
 from pinquad.sim.effects import drag, ground_effect
+from pinquad.vehicle.actuators import ThrustCoefficient
 
 ROOT = Path(__file__).resolve().parents[1]
 QUAD250 = ROOT / "docs" / "vehicles" / "quad250_plus.toml"

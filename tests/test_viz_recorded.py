@@ -15,7 +15,7 @@ import pytest
 from estimators.protocol import Posterior
 from pinquad.core.params import CRAZYFLIE21
 from pinquad.experiments.step_residuals import window_mean, wrench_residuals
-from pinquad.io.logs import FlightLog, read_log, write_log
+from pinquad.io.logs import FlightLog, read_table, write_log
 from pinquad.io.runs import REPORT_SCHEMA
 from pinquad.models.ssm import Observations
 from pinquad.report.run_tables import EM_HISTORY_COLUMNS, em_history_rows, em_iterates
@@ -92,11 +92,11 @@ def _tiny_log(n: int = 20) -> FlightLog:
 def test_whether_a_log_names_its_vehicle(tmp_path: Path):
     path = write_log(_tiny_log(), tmp_path / "flight.csv")
     sidecar = Path(f"{path}.json")
-    assert read_log(path).meta.vehicle_named  # write_log's sidecar names it
+    assert read_table(path).meta.vehicle_named  # write_log's sidecar names it
     sidecar.write_text(json.dumps({"mass_guess": 0.03}))
-    assert not read_log(path).meta.vehicle_named
+    assert not read_table(path).meta.vehicle_named
     sidecar.unlink()
-    meta = read_log(path).meta
+    meta = read_table(path).meta
     assert not meta.vehicle_named and meta.vehicle == "paper"
 
 

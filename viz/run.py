@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.io.logs import LogFormatError, read_log
+from pinquad.io.logs import LogFormatError, read_table
 from pinquad.io.runs import REPORT_SCHEMA
 from viz.recorded import (
     Headline,
@@ -232,7 +232,7 @@ def _load_flight(run_dir: Path, name: str, entry: Any, warnings: list[str]) -> F
         return None
     log_path = run_dir / entry["log"]
     try:
-        log = read_log(log_path)
+        log = read_table(log_path)
     except LogFormatError as exc:
         warnings.append(f"flight {name!r} skipped: {exc}")
         return None

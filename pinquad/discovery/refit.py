@@ -23,6 +23,7 @@ from pinquad.discovery.selection import estimate_coefficients
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.models.effect import EffectSSM
 from pinquad.models.ssm import Observations, QuadSSM, Theta
+from pinquad.mstep.protocol import MStep
 from pinquad.mstep.stats import transition_mask
 from pinquad.mstep.updates import (
     applied_force,
@@ -108,8 +109,7 @@ def effect_mstep(coefficients: dict[str, Array], bounds: VehicleRange | None = N
         wrench[0:2] = np.maximum(obs.dt * var, 1e-6 * wrench[2])
         return replace(out, theta=new.with_noise(replace(new.noise, wrench=wrench)))
 
-    mstep.__name__ = "regressor_mstep"  # keeps EM's over-relaxation for this M-step
-    return mstep
+    return MStep(mstep, over_relaxation=True)
 
 
 def model_factory(coefficients: dict[str, Array]):

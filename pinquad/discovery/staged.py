@@ -11,7 +11,7 @@ from pinquad.discovery.refit import refit
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.models.ssm import Observations, Theta
-from pinquad.mstep.updates import regressor_mstep
+from pinquad.mstep.protocol import REGRESSOR
 
 Array = NDArray[np.float64]
 
@@ -33,7 +33,7 @@ def staged_start(obs: Observations, mass0: float, inertia0: Array, gravity: floa
     twenty E-steps either towards the optimum or towards a local maximum several hundred
     nats lower; which one changed with 1e-13 relative perturbations of the data (two of
     four) and with the E-step's rounding, so that start made the answer a coin toss."""
-    diag = run_em(obs, initial_theta(obs, mass0, inertia0, gravity), smoother, regressor_mstep,
+    diag = run_em(obs, initial_theta(obs, mass0, inertia0, gravity), smoother, REGRESSOR,
                   max_iterations=100)
     theta, _, coefficients = refit(obs, diag.theta, diag.posterior, ["com_offset"], smoother,
                                    DiscoveryConfig(refit_passes=1, joint_iterations=0))

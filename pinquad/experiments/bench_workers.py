@@ -37,7 +37,7 @@ from pinquad.experiments.bench_cases import TOLERANCE, load_case, mean_error
 from pinquad.experiments.bench_estep import contestant
 from pinquad.identification.em import initial_theta, run_em
 from pinquad.models.sources import Observations, observations
-from pinquad.mstep.updates import regressor_mstep
+from pinquad.mstep.protocol import REGRESSOR
 
 
 def _worker_estep(spec: dict) -> dict:
@@ -117,7 +117,7 @@ def _worker_em(spec: dict) -> dict:
                            PAPER_VEHICLE.gravity)
 
     def run():
-        return run_em(obs, theta0, smooth_quad, regressor_mstep, max_iterations=100)
+        return run_em(obs, theta0, smooth_quad, REGRESSOR, max_iterations=100)
 
     first, res = timed_call(run)
     times = [first] + [timed_call(run)[0] for _ in range(int(spec["repeats"]) - 1)]

@@ -7,7 +7,7 @@ coefficient from ``pinquad.sim.effects``, and drag + wind together) and each see
    by 0.3 reshuffled to include a low pass at 7 cm above the floor, cruise 1 m/s, sensor
    B, a 40 rad/s attitude-rate loop) with the effect injected into the true vehicle;
 2. write its log to CSV (the log does not mention the effect; ``true_*`` columns are
-   never read by estimators) and read it back with ``pinquad.io.logs.read_log``;
+   never read by estimators) and read it back with ``pinquad.io.logs.read_table``;
 3. identify it exactly as ``python -m pinquad.offline --log`` does (``pinquad.pipeline.identify``,
    regressor M-step) and run discovery (``pipeline.discover.run_discovery``);
 4. score: the names selected; the coefficients against the injected ones (relative
@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO
 from pinquad.discovery.calibrated import discovery_start
 from pinquad.discovery.discover import base_heldout_rms
-from pinquad.io.logs import read_log, write_log
+from pinquad.io.logs import read_table, write_log
 from pinquad.pipeline.discover import run_discovery
 from pinquad.pipeline.identify import LogOptions, identify_log
 from pinquad.sim import effects
@@ -161,7 +161,7 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
     injected = CONDITIONS[condition]
     log, flight = simulate_log(injected, seed, laps)
     path = write_log(log, workdir / f"{condition}-{seed}.csv")
-    back = read_log(path)
+    back = read_table(path)
     options = LogOptions(msteps=("regressor",), estep="rts", max_iterations=100,
                          information=False)
     result = identify_log(back, options)
@@ -186,7 +186,7 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
     twin_rms: dict[str, float] = {}
     if injected:
         twin_log, _ = simulate_log((), seed, laps)
-        twin_back = read_log(write_log(twin_log, workdir / f"twin-{condition}-{seed}.csv"))
+        twin_back = read_table(write_log(twin_log, workdir / f"twin-{condition}-{seed}.csv"))
         twin_result = identify_log(twin_back, options)
         twin_run = twin_result.runs[0]
         twin = np.r_[twin_run.mass, np.diag(twin_run.inertia)] / truth - 1.0

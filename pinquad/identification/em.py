@@ -18,12 +18,12 @@ from numpy.typing import NDArray
 from estimators.protocol import Posterior, StateSpaceModel
 from pinquad.core.params import VehicleRange
 from pinquad.models.ssm import KinematicSSM, NoiseModel, Observations, QuadSSM, Theta
-from pinquad.mstep.updates import MStepResult, relative_change
+from pinquad.mstep.protocol import MStep
+from pinquad.mstep.updates import relative_change
 
 Array = NDArray[np.float64]
 
 Smoother = Callable[[StateSpaceModel, Array], Posterior]
-MStep = Callable[[Posterior, Observations, Theta], MStepResult]
 
 ETA_MAX = 16.0
 """Largest over-relaxation factor of the shared eta."""
@@ -72,7 +72,8 @@ class EMSettings:
     """How one EM run goes (``run_em``'s options): at most ``max_iterations`` E-steps;
     stop when the relative change of (m, I) is below ``tol`` [-] and the relative
     log-likelihood change below ``tol_loglik`` [-]; ``accelerate``: over-relaxed steps
-    (the regressor M-step's), one factor per log-parameter if ``per_parameter``; bounds:
+    (of an M-step that declares ``over_relaxation``), one factor per log-parameter if
+    ``per_parameter``; bounds:
     the vehicle's plausible range EM does not leave (None: none)."""
 
     max_iterations: int = 100
@@ -122,21 +123,22 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
            on_iteration: Callable[[int, Theta], None] | None = None,
            model_factory: Callable[[Any, Any], StateSpaceModel] = QuadSSM,
            distance: Callable[[Any, Any], float] = relative_change,
-           extrapolate: Callable[[Theta, Theta, float], Theta] | None = None,
            per_parameter: bool = False, bounds: VehicleRange | None = None,
            quadcopter: bool = True) -> EMResult:
     """Run EM from theta0 (see module docstring).
 
-    With ``accelerate`` (the regressor M-step, or any M-step given its ``extrapolate``)
-    the steps are over-relaxed in log-parameter space (adaptive over-relaxed EM,
-    Salakhutdinov and Roweis 2003): theta_p = theta_t * (M(theta_t) / theta_t)^eta
-    (``extrapolate(theta_t, M(theta_t), eta)``); if log p(y | theta_p) >= log p(y |
+    mstep: the update and what it declares (``pinquad.mstep.protocol.MStep``). With
+    ``accelerate`` and an M-step that declares ``over_relaxation`` (the regressor M-step,
+    the ten-parameter one) the steps are over-relaxed in log-parameter space (adaptive
+    over-relaxed EM, Salakhutdinov and Roweis 2003): theta_p = theta_t * (M(theta_t) /
+    theta_t)^eta (the M-step's ``extrapolate(theta_t, M(theta_t), eta)`` when it has
+    one); if log p(y | theta_p) >= log p(y |
     theta_t) the step is taken and eta grows by 1.5x (at most ``ETA_MAX``), otherwise eta falls
     back to 1 and the plain EM step M(theta_t) is taken. Every E-step counts towards
     ``max_iterations``; the recorded history holds the accepted iterates only, so the
     recorded log-likelihood is the EM sequence's.
 
-    per_parameter (the regressor M-step's packing, no ``extrapolate``): one eta per
+    per_parameter (the packed log-parameters, an M-step without ``extrapolate``): one eta per
     log-parameter (mass, inertia, wrench noise, measurement noise), eta_i applied to
     parameter i's EM step; a parameter whose plain EM step changes sign from its
     previous one falls back to eta_i = 1 while the others keep theirs; the acceptance
@@ -179,9 +181,8 @@ def run_em(obs: Observations, theta0: Theta, smoother: Smoother, mstep: MStep,
     inertias = [inertia_of(theta0)]
     logliks: list[float] = []
     n_esteps = 0
-    over_relax = (accelerate and is_quad
-                  and (extrapolate is not None
-                       or getattr(mstep, "__name__", "") == "regressor_mstep"))
+    over_relax = accelerate and is_quad and mstep.over_relaxation
+    extrapolate = mstep.extrapolate
 
     def e_step(theta: Theta) -> Posterior:
         nonlocal n_esteps

@@ -52,6 +52,7 @@ from pinquad.models.full import (
     from_dynamic_parameters,
 )
 from pinquad.models.ssm import Observations, Theta
+from pinquad.mstep.protocol import MStep
 from pinquad.mstep.stats import transition_mask
 from pinquad.mstep.updates import MStepResult, applied_force, update_noise
 
@@ -441,9 +442,10 @@ def identify_full(obs: Observations, start: Theta, smoother: Callable, max_itera
     paper's fixed Q0 the first E-step is the force-free warm-up), then the observed-
     information standard errors at the result (``standard_errors``; skipped without
     ``information``)."""
-    res = run_em(obs, start, smoother, full_mstep, max_iterations=max_iterations, tol=tol,
-                 model_factory=FullQuadSSM, distance=full_change,
-                 extrapolate=full_extrapolate)
+    res = run_em(obs, start, smoother,
+                 MStep(full_mstep, over_relaxation=True, extrapolate=full_extrapolate),
+                 max_iterations=max_iterations, tol=tol, model_factory=FullQuadSSM,
+                 distance=full_change)
     se_m, se_c, se_i = (standard_errors(obs, res.theta)[:3] if information
                         else (math.nan, np.full(3, math.nan), np.full((3, 3), math.nan)))
     return FullIdentification(res.theta, se_m, se_c, se_i, res.posterior, res.loglik,

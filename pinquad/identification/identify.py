@@ -18,7 +18,6 @@ from pinquad.identification.em import (
     SETTLED_SHARE,
     EMResult,
     EMSettings,
-    MStep,
     Smoother,
     initial_theta,
     project,
@@ -31,13 +30,15 @@ from pinquad.identification.fisher import (
     standard_errors,
 )
 from pinquad.identification.full_inertia import FullIdentification
+from pinquad.identification.measured import MeasuredFit
 from pinquad.identification.verdict import EstimateVerdict
 from pinquad.models.ssm import Observations, Theta
-from pinquad.mstep.updates import MStepResult, paper_mstep, regressor_mstep
+from pinquad.mstep.protocol import PAPER, REGRESSOR, MStep
+from pinquad.mstep.updates import MStepResult, regressor_mstep
 
 Array = NDArray[np.float64]
 
-MSTEPS = {"regressor": regressor_mstep, "paper": paper_mstep}
+MSTEPS = {"regressor": REGRESSOR, "paper": PAPER}
 ESTEPS = ("rts", "ieks", "gtsam")
 """E-step smoothers by name (:func:`get_smoother`)."""
 
@@ -82,11 +83,14 @@ class Identification:
     kept); full: the ten-parameter fit
     (CoM and full tensor with their standard errors) when ``mstep == "full"``;
     measured: what a measured flight's fit adds (kf, jackknife, nuisance moment,
-    model-free mass: a ``pinquad.realdata.identify.MeasuredFit``, a layer above this
-    one) when the flight is a rotor-speed log; verdict: whether the log carries each estimate
-    (``pinquad.identification.verdict``; set by ``pinquad.identify`` and the recorded-log
-    report, None where nobody judged it); stderr_problem: why standard errors that were
-    asked for are missing (``fisher.STDERR_UNAVAILABLE``), else None.
+    model-free mass: ``pinquad.identification.measured.MeasuredFit``, filled by
+    ``realdata.identify.identify_real``) when the flight is a rotor-speed log; verdict:
+    whether the log carries each estimate (``pinquad.identification.verdict``; set by
+    ``pinquad.identify`` and the recorded-log report, None where nobody judged it);
+    stderr_problem: why standard errors that were asked for are missing
+    (``fisher.STDERR_UNAVAILABLE``), else None; borrowed_moment: the torque inputs carried
+    another fit's nuisance moment (``models.ssm.corrected``: a measured flight's paper
+    M-step run on its regressor run's moment), False: the logged torques alone.
     """
 
     mstep: str
@@ -108,9 +112,10 @@ class Identification:
     posterior: Posterior | None = field(default=None, repr=False, compare=False)
     observations: Observations | None = field(default=None, repr=False, compare=False)
     full: FullIdentification | None = field(default=None, repr=False)
-    measured: object | None = field(default=None, repr=False)
+    measured: MeasuredFit | None = field(default=None, repr=False)
     verdict: EstimateVerdict | None = field(default=None, repr=False, compare=False)
     stderr_problem: str | None = None
+    borrowed_moment: bool = False
 
     @property
     def iterations(self) -> int:
@@ -153,20 +158,20 @@ def unmoved_note(mass0: float, inertia0: Array, mass: float, inertia: Array,
 
 def bounded_mstep(mstep: str, bounds: VehicleRange | None) -> MStep:
     """The M-step ``mstep`` (``MSTEPS``) kept inside ``bounds``: the regressor M-step
-    maximises over the box itself; the paper's closed form is projected onto it (its
-    per-axis updates are not a joint maximiser anyway). None: the M-step as it is."""
+    maximises over the box itself (and stays over-relaxable); the paper's closed form is
+    projected onto it (its per-axis updates are not a joint maximiser anyway). None: the
+    M-step as it is."""
     base = MSTEPS[mstep]
     if bounds is None:
         return base
     if mstep == "regressor":
-        step = functools.partial(regressor_mstep, bounds=bounds)
-        return functools.update_wrapper(step, regressor_mstep)  # keeps EM's over-relaxation
+        return replace(base, update=functools.partial(regressor_mstep, bounds=bounds))
 
     def projected(post: Posterior, obs: Observations, theta: Theta) -> MStepResult:
         out = base(post, obs, theta)
         return replace(out, theta=project(out.theta, bounds))
 
-    return projected
+    return replace(base, update=projected)
 
 
 def em_from_guess(obs: Observations, mass0: float, inertia0: Array, gravity: float,
@@ -228,9 +233,9 @@ def unconverged(run: Identification) -> str | None:
     if run.converged:
         return None
     history = np.column_stack([run.history_mass, run.history_inertia])
-    stat = (getattr(run.measured, "se_stat", None) if run.measured is not None
+    stat = (run.measured.se_stat if run.measured is not None
             else np.asarray(run.stderr, dtype=float))
-    if (run.failure is None and stat is not None and np.all(np.isfinite(stat))
+    if (run.failure is None and np.all(np.isfinite(stat))
             and np.all(remaining_move(history) < SETTLED_SHARE * np.asarray(stat))):
         return None
     why = run.failure or "EM stopped at its E-step limit"

@@ -110,7 +110,8 @@ class KnownMassResult:
     the curve's thrust and slope at the mean command, time constant, I_xx, I_yy, I_zz),
     the vertical fit's explained share and the torque fits' per axis, the naive
     regression's inertia (3,) [kg m^2, NaN: not estimated] and shares, the given mass
-    [kg] and its assumed standard uncertainty mass_se [kg], the band [Hz], and notes."""
+    [kg] and its assumed standard uncertainty mass_se [kg], the band [Hz], notes, and the
+    mean command u_m [-] where the curve's thrust and slope are given."""
 
     estimates: tuple[Estimate, ...]
     force_share: float
@@ -121,6 +122,7 @@ class KnownMassResult:
     mass_se: float
     band: tuple[float, float]
     notes: tuple[str, ...] = ()
+    mean_command: float = float("nan")
 
     def get(self, name: str) -> Estimate:
         """The estimate called ``name``."""
@@ -583,4 +585,4 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
     return KnownMassResult(tuple(estimates), top.share,
                            tuple(float(s) for s in share[:2 if curve.yaw_ratio is None else 3]),
                            naive, naive_share, mass, mass * settings.mass_rel_se,
-                           settings.band, tuple(notes))
+                           settings.band, tuple(notes), mean_command=u_m)

@@ -75,6 +75,7 @@ from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import interval_inputs
 from pinquad.models.ssm import Observations, Theta, corrected
 from pinquad.mstep.band import BandMStep
+from pinquad.mstep.protocol import MStep
 
 Array = NDArray[np.float64]
 
@@ -176,12 +177,12 @@ def _run(flight: CommandLog, curve: Array, tau: float, mass: float, positions: A
                                                       positions, spin, yaw_ratio))
     mstep = BandMStep(band)
     if warm is not None:
-        res = run_em(obs, warm.without_nuisance(), smooth_quad, mstep,
+        res = run_em(obs, warm.without_nuisance(), smooth_quad, MStep(mstep),
                      max_iterations=EM_MAX_ITERATIONS, tol=EM_TOL, tol_loglik=0.1 * EM_TOL,
                      accelerate=False)
     else:
         res = em_from_guess(obs, mass, _start_inertia(mass, positions),
-                            flight.log.meta.gravity, "rts", mstep,
+                            flight.log.meta.gravity, "rts", MStep(mstep),
                             EMSettings(EM_MAX_ITERATIONS, tol=EM_TOL, tol_loglik=0.1 * EM_TOL,
                                        accelerate=False))
     return res, obs, mstep

@@ -442,8 +442,9 @@ def _read_sidecar(path: Path) -> LogMeta:
     )
 
 
-def read_log(path: str | Path) -> FlightLog:
-    """Read a CSV or Parquet flight log (and its sidecar). Raises LogFormatError."""
+def read_table(path: str | Path) -> FlightLog:
+    """Read a CSV or Parquet flight log (and its sidecar): the table part of
+    ``pinquad.io.read.read_log``, which reads every format. Raises LogFormatError."""
     path = Path(path)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")

@@ -15,12 +15,21 @@ from pinquad.io.command_log import CommandLog
 from pinquad.io.logs import FlightLog, LogFormatError, vehicle_file_named
 
 
-def read_log(path: str | Path) -> FlightLog:
-    """The flight in ``path``, whatever its format (micro-SD logs are recognised by their
-    content, tables by their suffix; a file that is neither a table nor an event-based
-    log and starts like a fixed-frequency header is read as one). Raises LogFormatError
-    naming the file, and the column, row or byte offset, when it is not a readable log."""
-    path = Path(path)
+def read_log(path: str | Path, vehicle: str | None = None) -> FlightLog:
+    """The flight in ``path``, whatever its format: a Crazyflie micro-SD binary log
+    (recognised by its content), a CSV or Parquet table (by its suffix; the log columns of
+    ``pinquad.io.logs``) with its optional JSON sidecar, or a file that starts like a
+    fixed-frequency header. vehicle: a shipped vehicle name or a ``.toml`` vehicle file
+    (relative to the working directory) that overrides the log's sidecar (``offline --log
+    PATH --vehicle``; None: the log's own). Raises LogFormatError naming the file, and the
+    column, row or byte offset, when it is not a readable log, or the vehicle when it is
+    not one."""
+    log = _read_any(Path(path))
+    return log if vehicle is None else with_vehicle(log, vehicle, Path.cwd(), "--vehicle")
+
+
+def _read_any(path: Path) -> FlightLog:
+    """The flight in ``path`` as its sidecar describes it (:func:`read_log`)."""
     if not path.exists():
         raise LogFormatError(f"{path}: no such file; expected a CSV, Parquet or Crazyflie "
                              "micro-SD log")
@@ -43,7 +52,7 @@ def read_log(path: str | Path) -> FlightLog:
                              "docs/px4.md)")
     if _is_fixed_frequency(path):
         return with_sidecar_vehicle(fixed_frequency.read_fixed_frequency(path))
-    return logs.read_log(path)
+    return logs.read_table(path)
 
 
 def is_command_log(path: Path) -> bool:

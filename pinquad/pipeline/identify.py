@@ -46,11 +46,11 @@ from pinquad.models.ssm import Observations, corrected
 from pinquad.realdata.dataset import default_guess
 from pinquad.realdata.identify import identify_real
 from pinquad.realdata.observation_options import FAULT_MODES
-from pinquad.realdata.thrust import ThrustCoefficient
 from pinquad.realdata.vehicle_check import (
     measured_observations,
     measured_search_range,
 )
+from pinquad.vehicle.actuators import ThrustCoefficient
 
 Array = NDArray[np.float64]
 
@@ -104,8 +104,9 @@ class LogResult:
     actuation-fault notes of a measured flight, and contents: what the recorded log carries, in words
     (``log_contents``; ``log`` is the log as the E-step saw it, for a measured flight
     resampled with the thrust and torques its rotor speeds give), search: the range EM
-    searched (``identification.search_range``; None: unbounded). Discovery starts from
-    ``discovery_start(runs[0])``."""
+    searched (``identification.search_range``; None: unbounded); vehicle_unnamed: a
+    measured log that names no vehicle, judged against no vehicle's range (its note says
+    so). Discovery starts from ``discovery_start(runs[0])``."""
 
     runs: tuple[Identification, ...]
     log: FlightLog
@@ -120,6 +121,14 @@ class LogResult:
     input_alternative: Array | None = None
     contents: str = ""
     search: VehicleRange | None = None
+    vehicle_unnamed: bool = False
+
+
+def torque_words(run: Identification) -> str:
+    """What drove a measured flight's paper-M-step run's torque rows, in words: the rotor
+    torques alone, or with the regressor run's nuisance moment (``borrowed_moment``)."""
+    return ("with the regressor run's nuisance moment" if run.borrowed_moment
+            else "rotor torques only")
 
 
 def initial_guess(log: FlightLog) -> tuple[float, Array, str]:
@@ -189,10 +198,9 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
             obs = real.obs if theta is None else corrected(real.obs, theta)
             ident_p, post_p = identify(obs, mass0, inertia0, log.meta.gravity, options.estep,
                                        "paper", options.max_iterations, False, bounds=box)
-            torques = ("with the regressor run's nuisance moment" if theta is not None
-                       else "rotor torques only")
-            runs.append(replace(ident_p, sensor=label, posterior=post_p, observations=obs,
-                                notes=(f"torques: {torques}",)))
+            ident_p = replace(ident_p, sensor=label, posterior=post_p, observations=obs,
+                              borrowed_moment=theta is not None)
+            runs.append(replace(ident_p, notes=(f"torques: {torque_words(ident_p)}",)))
             if first is None:
                 first = (real, post_p.mean)
     assert first is not None
@@ -208,7 +216,8 @@ def _measured(log: FlightLog, options: LogOptions, kind: str) -> LogResult:
         "the vehicle in the sidecar to judge against its range",)
     return LogResult(tuple(runs), exported, real.obs, smoothed, guess, real.excluded,
                      (*real.notes, *unnamed), kind, kf=real.kf,
-                     faults=tuple(real.faults.notes), contents=log_contents(log), search=box)
+                     faults=tuple(real.faults.notes), contents=log_contents(log), search=box,
+                     vehicle_unnamed=bool(unnamed))
 
 
 def _full(obs: Observations, sensor: str, mass0: float, inertia0: Array, gravity: float,

@@ -13,8 +13,8 @@ from pathlib import Path
 
 from pinquad.pipeline.single import check, read
 from pinquad.realdata.observations import RealObservations
-from pinquad.realdata.thrust import ThrustCoefficient
 from pinquad.realdata.vehicle_check import measured_observations
+from pinquad.vehicle.actuators import ThrustCoefficient
 
 
 def measured_log(path: str | Path, vehicle: str | None = None,

@@ -39,7 +39,8 @@ from pinquad.realdata.identify import identify_real, measured_fit
 from pinquad.realdata.observation_options import RealDataOptions
 from pinquad.realdata.observations import build_observations
 from pinquad.realdata.raw import raw_flight
-from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
+from pinquad.realdata.thrust import thrust_coefficient
+from pinquad.vehicle.actuators import ThrustCoefficient
 
 Array = NDArray[np.float64]
 

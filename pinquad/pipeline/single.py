@@ -36,7 +36,7 @@ from pinquad.discovery.result import DiscoveryResult
 from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import EstimateVerdict
 from pinquad.io.logs import FlightLog
-from pinquad.io.read import read_log, with_vehicle
+from pinquad.io.read import read_log
 from pinquad.io.sanity import check_log
 from pinquad.pipeline.discover import run_discovery
 from pinquad.pipeline.identify import LogOptions, LogResult, identify_log
@@ -80,12 +80,10 @@ def read(path: str | Path, vehicle: str | None = None,
     carried to ``payload_mass`` [kg] when given. Raises
     ``pinquad.io.logs.LogFormatError`` naming the file and the column, row or byte offset
     when it is not a readable log, or the vehicle when it is not one."""
-    log = read_log(path)
-    if payload_mass is not None:
-        log = replace(log, meta=replace(log.meta, payload_mass=float(payload_mass)))
-    if vehicle is None:
+    log = read_log(path, vehicle)
+    if payload_mass is None:
         return log
-    return with_vehicle(log, vehicle, Path.cwd(), "--vehicle")
+    return replace(log, meta=replace(log.meta, payload_mass=float(payload_mass)))
 
 
 def check(log: FlightLog) -> FlightLog:

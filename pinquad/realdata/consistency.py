@@ -39,6 +39,7 @@ from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
 from pinquad.identification.identify import Identification
+from pinquad.identification.measured import MeasuredFit
 from pinquad.identification.reference import only_the_reference
 from pinquad.identification.verdict import (
     NOT_ADEQUATE,
@@ -48,7 +49,7 @@ from pinquad.identification.verdict import (
     judge,
     vehicle_range,
 )
-from pinquad.realdata.identify import MeasuredFit, measured_fit
+from pinquad.realdata.identify import measured_fit
 
 Array = NDArray[np.float64]
 

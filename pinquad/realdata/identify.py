@@ -18,7 +18,6 @@ standard errors (:func:`total_standard_errors`).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,13 +25,14 @@ from numpy.typing import NDArray
 from pinquad.identification.em import EMSettings
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.identify import Identification, em_from_guess, loglik_function
+from pinquad.identification.measured import MeasuredFit
 from pinquad.models.ssm import Theta, corrected
-from pinquad.mstep.band import BandMStep, BandStats
+from pinquad.mstep.band import BandMStep
+from pinquad.mstep.protocol import MStep
 from pinquad.realdata.input_holes import GAP_REASON
-from pinquad.realdata.mass_balance import MotorSplit, motor_split, quasi_static_mass
+from pinquad.realdata.mass_balance import motor_split, quasi_static_mass
 from pinquad.realdata.observations import RealObservations
 from pinquad.realdata.rotor_inertia import yaw_band_stats
-from pinquad.realdata.thrust import ThrustCoefficient
 from pinquad.vehicle.actuators import CRAZYFLIE_SPEC, YAW_RATIO_CRAZYFLIE
 
 Array = NDArray[np.float64]
@@ -55,52 +55,13 @@ YAW_RATIO_REL_SE = CRAZYFLIE_SPEC.actuators.yaw_ratio_se / YAW_RATIO_CRAZYFLIE  
 # identify only kf / m and cannot tell which.
 
 
-@dataclass(frozen=True)
-class MeasuredFit:
-    """What identifying a measured rotor-speed flight adds to its ``Identification``
-    (``Identification.measured``, as ``Identification.full`` holds what the ten-parameter
-    fit adds).
-
-    kf: the thrust coefficient; se_info (4,): standard errors of [m, I_xx, I_yy, I_zz]
-    from the observed information (NaN if not computed or not positive definite);
-    se_jack (4,): block-jackknife standard errors; se_stat (4,): the larger of the two
-    (the statistical uncertainty with kf known; ``Identification.stderr`` combines it
-    with kf's uncertainty, every estimate being proportional to kf, and for I_zz the yaw
-    ratio's: :func:`total_standard_errors`); moment_coef (3, 7): the nuisance moment
-    (``TORQUE_FEATURES``); n_used / n_excluded transitions; excluded: exclusion notes;
-    band: the torque band [Hz]; rotor_inertia: J_r [kg m^2] used (fitted or fixed; NaN:
-    none); band_stats: the band-passed regression at the final posterior
-    (``keep_band_stats``); quasi_static_mass [kg]: the model-free check
-    :func:`quasi_static_mass` on the same transitions; motor_split: that check split by
-    motor (:func:`motor_split`); yaw_rel [-]: the yaw ratio's relative uncertainty and
-    repair_rel (4,) [-] or None: the PWM repair's, both inside ``Identification.stderr``.
-    """
-
-    kf: ThrustCoefficient
-    se_info: Array
-    se_jack: Array
-    se_stat: Array
-    moment_coef: Array
-    n_used: int
-    n_excluded: int
-    excluded: tuple[str, ...]
-    band: tuple[float, float] = (3.0, 8.0)
-    rotor_inertia: float = float("nan")
-    band_stats: BandStats | None = None
-    quasi_static_mass: float = float("nan")
-    motor_split: MotorSplit | None = None
-    yaw_rel: float = 0.0
-    repair_rel: Array | None = None
-
-
 def measured_fit(run: Identification) -> MeasuredFit:
     """The measured-flight block of a run of :func:`identify_real`. Raises ValueError for
     a run of another path (no such block)."""
-    fit = run.measured
-    if not isinstance(fit, MeasuredFit):
+    if run.measured is None:
         raise ValueError(f"the {run.mstep} run on {run.sensor or 'this log'} is not a "
                          "measured rotor-speed flight's fit")
-    return fit
+    return run.measured
 
 
 def total_standard_errors(params: Array, se_stat: Array, kf_rel: float,
@@ -162,7 +123,7 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
     fixed_jr = real.options.rotor_inertia
     fit_jr = fit_rotor_inertia and real.rotor_acc is not None and fixed_jr is None
     mstep = BandMStep(band, real.rotor_acc if fit_jr else None)
-    res = em_from_guess(obs, mass0, inertia0, gravity, estep, mstep,
+    res = em_from_guess(obs, mass0, inertia0, gravity, estep, MStep(mstep),
                         EMSettings(max_iterations, tol=tol, tol_loglik=0.1 * tol,
                                    accelerate=False))
     theta = res.theta
@@ -187,7 +148,7 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         rotor_inertia=used_rotor_inertia(theta if fit_jr else None, fixed_jr),
         band_stats=yaw_band_stats(real, res.posterior, band) if keep_band_stats else None,
         quasi_static_mass=quasi_static_mass(real), motor_split=motor_split(real),
-        yaw_rel=yaw_rel, repair_rel=repair_rel)
+        yaw_rel=yaw_rel, repair_rel=repair_rel, exclusions=real.exclusions)
     return Identification(
         mstep="regressor", mass=theta.mass, inertia=np.diag(np.diag(theta.inertia)),
         stderr=se_total, history_mass=np.concatenate([[mass0], res.mass]),

@@ -4,12 +4,11 @@ vertical thrust (:func:`quasi_static_mass`), and that balance split by motor
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
+from pinquad.identification.measured import MotorSplit
 from pinquad.realdata.observations import RealObservations
 
 Array = NDArray[np.float64]
@@ -46,39 +45,6 @@ def quasi_static_mass(real: RealObservations) -> float:
     if not rows.size:
         return float("nan")
     return float(np.sum(real.obs.inputs[rows, 0] * rzz) / np.sum(lift))
-
-
-@dataclass(frozen=True)
-class MotorSplit:
-    """:func:`quasi_static_mass` split by motor.
-
-    share (n,) [-]: each of the n motors' part of the vertical thrust over the used
-    transitions relative to the mean over the n motors, s_i = n sum_k F_k R_k,zz w_ik /
-    sum_k F_k R_k,zz with w_ik = omega_ik^2 / sum_j omega_jk^2 (1 for all when they carry
-    equal thrust);
-    measured_mass [kg]:
-    the part of m_qs the motors whose speeds were measured carry,
-    m_meas = sum_k F_k R_k,zz sum_(i measured) w_ik / sum_k (g + a_z,k); rebuilt: the
-    motors (0-based) whose speeds were rebuilt from PWM (in some or all rows);
-    all_measured_mass [kg]: m_qs over only the transitions whose bin holds no reading
-    from the PWM map (every motor measured, a pulse-divided channel multiplied back;
-    NaN if there is none); all_measured_rows: their number.
-    """
-
-    share: Array
-    measured_mass: float
-    rebuilt: tuple[int, ...]
-    all_measured_mass: float = float("nan")
-    all_measured_rows: int = 0
-
-    def mass_if(self, share: float) -> float:
-        """The model-free mass [kg] if the rebuilt motors carried ``share`` each (of the
-        mean over the n motors): m_meas / (1 - n_rebuilt share / n)."""
-        return self.measured_mass / (1.0 - len(self.rebuilt) * share / self.share.size)
-
-    def share_for(self, mass: float) -> float:
-        """The share each rebuilt motor would carry if the mass were ``mass`` [kg]."""
-        return self.share.size * (1.0 - self.measured_mass / mass) / max(len(self.rebuilt), 1)
 
 
 def motor_split(real: RealObservations) -> MotorSplit:

@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.core.conventions import rotation_from_euler
+from pinquad.identification.measured import Exclusion
 from pinquad.io.logs import FlightLog, LogMeta
 from pinquad.io.timebase import clock_times, grid_times, sampling_interval
 from pinquad.models.attitude_range import near_euler_singularity
@@ -76,26 +77,18 @@ from pinquad.realdata.rotor_acceleration import (
     grid_rotor_acceleration,
     held_grid_rotor_acceleration,
 )
-from pinquad.realdata.thrust import ThrustCoefficient, thrust_coefficient
+from pinquad.realdata.thrust import thrust_coefficient
 from pinquad.sim.simulator import Flight
 from pinquad.vehicle.actuators import (
     KF_CRAZYFLIE,
     ActuatorModel,
+    ThrustCoefficient,
 )
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 # ----------------------------------------------------------------------------- result
-
-@dataclass(frozen=True)
-class Exclusion:
-    """One reason for skipping transitions: reason (words) and transitions (count; a
-    transition may have several reasons)."""
-
-    reason: str
-    transitions: int
-
 
 @dataclass(frozen=True)
 class RealObservations:

@@ -10,7 +10,6 @@ errors.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -18,30 +17,7 @@ import numpy as np
 
 from pinquad.core.vehicle_file import VehicleSpec, shipped_path
 from pinquad.realdata.dataset import stand_dir
-from pinquad.vehicle.actuators import KF_CRAZYFLIE, ThrustStandFit, fit_thrust_stand
-
-
-@dataclass(frozen=True)
-class ThrustCoefficient:
-    """The rotor thrust coefficient used for a real flight, and how well it is known.
-
-    kf [N/(rad/s)^2]: the equal-weight mean of the per-run thrust-stand fits;
-    kf_se [N/(rad/s)^2]: the standard error of that mean from the spread between runs
-    (std(ddof=1) / sqrt(runs)); runs: each run's fit (``fit_thrust_stand`` per CSV);
-    pooled [N/(rad/s)^2]: the row-weighted fit of all CSVs together, for comparison;
-    note: how kf was chosen, in words.
-    """
-
-    kf: float
-    kf_se: float
-    runs: tuple[ThrustStandFit, ...]
-    pooled: float
-    note: str
-
-    @property
-    def rel_se(self) -> float:
-        """kf_se / kf [1]."""
-        return self.kf_se / self.kf
+from pinquad.vehicle.actuators import KF_CRAZYFLIE, ThrustCoefficient, fit_thrust_stand
 
 
 @lru_cache(maxsize=8)
@@ -60,6 +36,7 @@ def thrust_coefficient(directory: Path | None = None) -> ThrustCoefficient:
     if not csvs:
         return ThrustCoefficient(
             kf=KF_CRAZYFLIE, kf_se=0.05 * KF_CRAZYFLIE, runs=(), pooled=KF_CRAZYFLIE,
+            missing_stand=Path(directory),
             note=f"no thrust-stand CSV in {directory}: kf = KF_CRAZYFLIE = {KF_CRAZYFLIE:.3e} "
                  "N/(rad/s)^2 with an assumed 5 % standard error")
     runs = tuple(fit_thrust_stand(p) for p in csvs)
@@ -95,7 +72,7 @@ def vehicle_thrust_coefficient(spec: VehicleSpec) -> ThrustCoefficient:
         return thrust_coefficient(stand)
     where = "" if stand is None else f" (no thrust-stand CSV in {stand})"
     return ThrustCoefficient(
-        kf=act.kf, kf_se=act.kf_se, runs=(), pooled=act.kf,
+        kf=act.kf, kf_se=act.kf_se, runs=(), pooled=act.kf, missing_stand=stand,
         note=f"kf = {act.kf:.4e} +- {act.kf_se:.2e} N/(rad/s)^2 ({100 * act.kf_rel_se:.1f} %) "
              f"from the vehicle file {spec.source}{where}; identified mass and inertia "
              "scale with kf.")

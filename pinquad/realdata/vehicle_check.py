@@ -17,7 +17,8 @@ from pinquad.io.logs import FlightLog, LogFormatError
 from pinquad.realdata.observation_options import RealDataOptions, options_for_sensor, options_for_vehicle
 from pinquad.realdata.observations import RealObservations, build_observations
 from pinquad.realdata.raw import raw_flight
-from pinquad.realdata.thrust import ThrustCoefficient, vehicle_thrust_coefficient
+from pinquad.realdata.thrust import vehicle_thrust_coefficient
+from pinquad.vehicle.actuators import ThrustCoefficient
 
 VELOCITY_CHANNELS = ("vel", "euler", "gyro")
 """The channels of a measured log without any position sample (``measured_observations``)."""

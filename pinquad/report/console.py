@@ -147,11 +147,11 @@ def warning_lines(result: LogResult) -> list[str]:
     not from a thrust stand (its assumed error is in the budget), no vehicle named."""
     lines = []
     kf = result.kf
-    if kf is not None and "no thrust-stand CSV" in kf.note:
+    if kf is not None and kf.missing_stand is not None:
         lines.append(f"warning: no thrust-stand data found: kf = {kf.kf:.4g} N/(rad/s)^2 "
                      f"± {100 * kf.rel_se:.0f} % assumed, and mass and inertia scale with it; "
                      f"`{FETCH_COMMAND}` gets the stand's runs")
-    if any(n.startswith("no vehicle named") for n in result.notes):
+    if result.vehicle_unnamed:
         lines.append("warning: no vehicle named: judged against no vehicle's range (name it "
                      "in the sidecar's \"vehicle\" or with --vehicle)")
     return lines

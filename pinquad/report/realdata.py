@@ -17,12 +17,13 @@ from pinquad.vehicle.actuators import CRAZYFLIE_SPEC
 
 def _short_reasons(r: FlightRow) -> str:
     words = []
-    for line in r.fit.excluded[:-1]:
-        count, _, reason = line.partition(" transitions: ")
-        key = ("contact" if reason.startswith("ground") else
-               "faulty rpm" if reason.startswith("implausible") else
-               "log gaps" if reason.startswith("no actuation") else reason[:20])
-        words.append(f"{count} {key}")
+    for e in r.fit.exclusions:
+        if not e.transitions:
+            continue
+        key = ("contact" if e.reason.startswith("ground") else
+               "faulty rpm" if e.reason.startswith("implausible") else
+               "log gaps" if e.reason.startswith("no actuation") else e.reason[:20])
+        words.append(f"{e.transitions} {key}")
     return ", ".join(words) if words else "-"
 
 

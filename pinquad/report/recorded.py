@@ -18,7 +18,7 @@ from pinquad.identification.verdict import PRODUCTS, EstimateVerdict, ParameterV
 from pinquad.io.logs import write_log
 from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 from pinquad.models.ssm import Observations
-from pinquad.pipeline.identify import LogResult
+from pinquad.pipeline.identify import LogResult, torque_words
 from pinquad.pipeline.judge import Headline
 from pinquad.report.discovery import discovery_markdown
 from pinquad.report.offline import plot_trajectory
@@ -81,9 +81,7 @@ def run_details(r: Identification, kind: str) -> dict:
             detail["motor_split"] = split
         return detail
     if kind != "simulated":  # the paper's M-step on a measured flight
-        torques = next((n.split(": ", 1)[1] for n in r.notes if n.startswith("torques: ")),
-                       "rotor torques only")
-        return {"torques": torques, "seconds": r.seconds}
+        return {"torques": torque_words(r), "seconds": r.seconds}
     if r.full is not None:
         start = r.full.start
         return {"stderr_note": "observed information of the EKF likelihood over all ten "

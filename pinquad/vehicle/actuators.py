@@ -207,6 +207,32 @@ class ThrustStandFit:
 
 
 @dataclass(frozen=True)
+class ThrustCoefficient:
+    """The rotor thrust coefficient used for a real flight, and how well it is known.
+
+    kf [N/(rad/s)^2]: the equal-weight mean of the per-run thrust-stand fits;
+    kf_se [N/(rad/s)^2]: the standard error of that mean from the spread between runs
+    (std(ddof=1) / sqrt(runs)); runs: each run's fit (``fit_thrust_stand`` per CSV);
+    pooled [N/(rad/s)^2]: the row-weighted fit of all CSVs together, for comparison;
+    note: how kf was chosen, in words; missing_stand: the folder where thrust-stand CSVs
+    were looked for and none found (kf then a fallback with its assumed error), None when
+    kf came from the stand or no stand folder was named.
+    """
+
+    kf: float
+    kf_se: float
+    runs: tuple[ThrustStandFit, ...]
+    pooled: float
+    note: str
+    missing_stand: Path | None = None
+
+    @property
+    def rel_se(self) -> float:
+        """kf_se / kf [1]."""
+        return self.kf_se / self.kf
+
+
+@dataclass(frozen=True)
 class _StandRows:
     """Rows of one stand file prepared for the fit: x = sum omega^2 [(rad/s)^2] and
     y = tared total thrust [N], aligned for the load-cell lag; group: segment labels."""
