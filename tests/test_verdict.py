@@ -14,6 +14,7 @@ import pytest
 from pinquad.cli.offline import main as offline_main
 from pinquad.core.params import CRAZYFLIE21
 from pinquad.experiments.discovery_mc import simulate_log
+from pinquad.identification.evidence import innovation_consistency, torque_excitation, torque_share
 from pinquad.identification.verdict import (
     IMPLAUSIBLE,
     NOT_ADEQUATE,
@@ -21,10 +22,7 @@ from pinquad.identification.verdict import (
     NOT_JUDGED,
     TRUSTED,
     VerdictEvidence,
-    innovation_consistency,
     judge,
-    torque_excitation,
-    torque_share,
     vehicle_range,
 )
 from pinquad.io.logs import write_log

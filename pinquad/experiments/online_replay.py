@@ -23,6 +23,7 @@ from pinquad.identification.budget import (
 )
 from pinquad.identification.edges import collapsed_errors
 from pinquad.identification.em import initial_theta, project
+from pinquad.identification.evidence import data_evidence
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
     observed_information,
@@ -31,7 +32,7 @@ from pinquad.identification.fisher import (
 from pinquad.identification.identify import get_smoother
 from pinquad.identification.reference import log_reference
 from pinquad.identification.search_range import at_bound
-from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge
+from pinquad.identification.verdict import EstimateVerdict, judge
 from pinquad.identification.window import window_em, window_prior
 from pinquad.io.logs import LogMeta
 from pinquad.models.nuisance import torque_features
