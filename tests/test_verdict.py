@@ -14,7 +14,6 @@ import pytest
 from pinquad.cli.offline import main as offline_main
 from pinquad.core.params import CRAZYFLIE21
 from pinquad.experiments.discovery_mc import simulate_log
-from pinquad.identification.evidence import innovation_consistency, torque_excitation, torque_share
 from pinquad.identification.verdict import (
     IMPLAUSIBLE,
     NOT_ADEQUATE,
@@ -25,6 +24,7 @@ from pinquad.identification.verdict import (
     judge,
     vehicle_range,
 )
+from pinquad.identification.verdict_evidence import innovation_consistency, torque_excitation, torque_share
 from pinquad.io.logs import write_log
 from pinquad.io.runs import LOG_REPORT_KEYS
 from pinquad.models.ssm import NoiseModel, Observations, Theta

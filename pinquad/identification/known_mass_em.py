@@ -54,7 +54,6 @@ from pinquad.core.actuator_curve import ActuatorCurve
 from pinquad.estep.fast_smoother import smooth_quad
 from pinquad.identification.budget import DEFAULT_YAW_TORQUE
 from pinquad.identification.em import EMResult, EMSettings, run_em
-from pinquad.identification.evidence import data_evidence
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.identify import em_from_guess, loglik_function
 from pinquad.identification.known_mass import (
@@ -65,6 +64,7 @@ from pinquad.identification.known_mass import (
 )
 from pinquad.identification.search_range import generic_range
 from pinquad.identification.verdict import BandHalves, Estimate, judge, judge_estimate
+from pinquad.identification.verdict_evidence import data_evidence
 from pinquad.io.command_log import CommandLog
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import interval_inputs

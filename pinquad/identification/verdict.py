@@ -30,7 +30,7 @@ ten-parameter model) gets one of ``VERDICTS``, judged from data by three checks:
   range.
 
 Every route's verdicts are made here, from one ``VerdictEvidence`` (gathered from a fit
-by ``evidence.data_evidence`` and the route's own findings): the vehicle estimate of a
+by ``verdict_evidence.data_evidence`` and the route's own findings): the vehicle estimate of a
 recorded log, a measured flight, an online replay window or the known-mass EM route
 (``judge``: mass and inertia), and each single number of the known-mass route
 (``judge_estimate``: the thrust curve, the motor time constant, a moment of inertia),
@@ -363,18 +363,19 @@ def _assemble(name: str, value: float, unit: str, se: float, parts: Sequence[tup
                     _worst([v for v, _ in findings]), tuple(r for _, r in findings))
 
 
-def _judge(name: str, value: float, unit: str, se: float,
-           checks: dict[str, list[str]]) -> Estimate:
+def _judge(name: str, value: float, unit: str, se: float, checks: dict[str, list[str]],
+           parts: Sequence[tuple[str, float]] = ()) -> Estimate:
     """A vehicle parameter's estimate from its checks (verdict -> reasons), the reasons of
     the most severe verdict first."""
-    return _assemble(name, value, unit, se, (),
+    return _assemble(name, value, unit, se, parts,
                      [(v, r) for v in reversed(VERDICTS[1:]) for r in checks.get(v, [])])
 
 
 def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
           vrange: VehicleRange | None, stderr_products: Array | None = None,
           thresholds: VerdictThresholds = DEFAULT_THRESHOLDS,
-          missing_stderr: str | None = None) -> EstimateVerdict:
+          missing_stderr: str | None = None,
+          parts: Mapping[str, Array] | None = None) -> EstimateVerdict:
     """The verdict of one estimate (module docstring).
 
     mass [kg]; inertia (3, 3) [kg m^2]; stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not
@@ -383,13 +384,18 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
     triangle inequality only); stderr_products (3,) of [I_xy, I_xz, I_yz] when the
     products of inertia were estimated (their parameters are judged too);
     missing_stderr: the standard errors were asked for, and a NaN one is then "not
-    identifiable" for this reason (a number without its uncertainty is not trusted).
+    identifiable" for this reason (a number without its uncertainty is not trusted);
+    parts: stderr by source, name -> (4,) (an ``ErrorBudget``'s), kept on each of
+    [m, I_xx, I_yy, I_zz]'s ``Estimate``.
     """
     th = thresholds
     inertia = np.asarray(inertia, dtype=float).reshape(3, 3)
     stderr = np.asarray(stderr, dtype=float)
     diag = np.diag(inertia)
     params: list[Estimate] = []
+
+    def parts_of(index: int) -> tuple[tuple[str, float], ...]:
+        return tuple((k, float(np.asarray(v)[index])) for k, v in (parts or {}).items())
 
     # mass
     bad_value: list[str] = []
@@ -409,7 +415,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
         NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th)
         + balance_check(mass, stderr[0], evidence.model_free_mass, evidence.balance_stderr)
         + reference_check("mass", 0, mass, stderr[0], evidence.reference, 1e3, "g"),
-        IMPLAUSIBLE: bad_value, NOT_JUDGED: _judged(stderr[0], missing_stderr)}))
+        IMPLAUSIBLE: bad_value, NOT_JUDGED: _judged(stderr[0], missing_stderr)}, parts_of(0)))
 
     # the tensor as a whole: positive definite, principal moments obey the triangle inequality
     tensor: list[str] = []
@@ -455,7 +461,7 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
             NOT_IDENTIFIABLE: ident, IMPLAUSIBLE: implausible,
             NOT_ADEQUATE: rotation + rotation_ref + reference_check(
                 name, i + 1, value, stderr[i + 1], evidence.reference, 1e6, "e-6 kg m^2"),
-            NOT_JUDGED: _judged(stderr[i + 1], missing_stderr)}))
+            NOT_JUDGED: _judged(stderr[i + 1], missing_stderr)}, parts_of(i + 1)))
     if stderr_products is not None:
         for (name, i, j), se in zip(PRODUCTS, np.asarray(stderr_products, dtype=float),
                                     strict=True):

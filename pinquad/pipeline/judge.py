@@ -15,7 +15,6 @@ from pinquad.discovery.result import DiscoveryResult
 from pinquad.estep.fast_smoother import loglik_quad
 from pinquad.identification.budget import ErrorBudget, calibration_of, error_budget
 from pinquad.identification.edges import collapsed_errors
-from pinquad.identification.evidence import data_evidence
 from pinquad.identification.fisher import (
     STDERR_UNAVAILABLE,
     observed_information,
@@ -26,6 +25,7 @@ from pinquad.identification.mass_balance import balance_mass
 from pinquad.identification.reference import log_reference
 from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import EstimateVerdict, VerdictEvidence, judge
+from pinquad.identification.verdict_evidence import data_evidence
 from pinquad.models.full import FullQuadSSM
 from pinquad.pipeline.identify import LogResult, input_reading, plausible_range
 
@@ -34,11 +34,12 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class VehicleEstimate:
-    """One estimate of the vehicle (its parameters' ``verdict.Estimate`` each, with its
-    verdict, in ``verdict.parameters``): mass [kg], inertia (3, 3) [kg m^2], com (3,) [m] or
-    None, stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not computed; the budget's total),
-    stderr_note: how it was computed, model: the model it was fitted under, in words;
-    verdict; budget: stderr by named part (None: no budget)."""
+    """One estimate of the vehicle, whose parameters are each a ``verdict.Estimate``
+    (value, total error, its parts, verdict, reasons: ``verdict.parameters``): mass [kg],
+    inertia (3, 3) [kg m^2], com (3,) [m] or None, stderr (4,) of [m, I_xx, I_yy, I_zz]
+    (NaN: not computed; the budget's total), stderr_note: how it was computed, model: the
+    model it was fitted under, in words; verdict; budget: stderr by named part (None: no
+    budget)."""
 
     mass: float
     inertia: Array
@@ -167,7 +168,8 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     budget = run_budget(result, run)
     ev = with_budget(ev, budget, result)
     return judge(run.mass, run.inertia, budget.total, ev,
-                 plausible_range(result.log), products, missing_stderr=run.stderr_problem)
+                 plausible_range(result.log), products, missing_stderr=run.stderr_problem,
+                 parts=budget.parts)
 
 
 def _base(result: LogResult, verdict: EstimateVerdict) -> VehicleEstimate:
@@ -219,7 +221,7 @@ def _final(result: LogResult, found: DiscoveryResult, base: VehicleEstimate
     stderr = budget.total
     ev = replace(with_budget(ev, budget, result), error_failures=failures)
     verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result.log),
-                    missing_stderr=missing)
+                    missing_stderr=missing, parts=budget.parts)
     return VehicleEstimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr),
                            note,
                     f"base model plus {', '.join(found.selected)} (discovery's refit)", verdict,

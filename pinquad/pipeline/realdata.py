@@ -20,10 +20,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.discovery.null import NullSettings
-from pinquad.identification.evidence import data_evidence
 from pinquad.identification.identify import Identification
 from pinquad.identification.reference import vehicle_reference
 from pinquad.identification.verdict import VerdictEvidence, judge, vehicle_range
+from pinquad.identification.verdict_evidence import data_evidence
 from pinquad.io.logs import LogFormatError
 from pinquad.models.ssm import corrected
 from pinquad.pipeline.discover import measured_effects

@@ -4,7 +4,7 @@ from a fit: how much of the angular acceleration the logged torques explain
 (``torque_excitation``) and how large the EKF's innovations are against what the model
 predicts (``innovation_consistency``), all at the fit's parameters; ``data_evidence``
 puts them in one ``VerdictEvidence``. The rules that turn the evidence into verdict
-words are ``verdict``'s alone.
+words are ``verdict``'s alone (unlike ``discovery.evidence``: an effect's evidence).
 """
 
 from __future__ import annotations
