@@ -38,12 +38,11 @@ from pinquad.core.actuator_curve import read_curve_vehicle
 from pinquad.core.vehicle_file import load_vehicle
 from pinquad.identification.excitation import segments_of
 from pinquad.identification.known_mass import (
-    Estimate,
     KnownMassResult,
     KnownMassSettings,
     identify_known_mass,
 )
-from pinquad.identification.verdict import NOT_ADEQUATE, NOT_IDENTIFIABLE, TRUSTED
+from pinquad.identification.verdict import NOT_ADEQUATE, NOT_IDENTIFIABLE, TRUSTED, Estimate
 from pinquad.io.datadir import checkout_data_dir
 from pinquad.io.read import read_command_log
 

@@ -5,7 +5,7 @@ Flies the clean flights of the flightgen discovery Monte Carlo (``flight_spec("n
 seed, i, rate)``: seed = i, the same flights as ``python -m pinquad.discovery --generator
 flightgen --conditions none``), identifies each as ``offline --log`` does (regressor
 M-step, 100 E-steps, no discovery) and prints per flight the inertia's error against the
-truth, the torque excitation per body axis (``verdict.torque_excitation``) and each
+truth, the torque excitation per body axis (``verdict_evidence.torque_excitation``) and each
 inertia's verdict.
 
     PYTHONPATH=$PWD python scripts/torque_excitation.py --rate 100 --flights 0 1 2 3
@@ -22,7 +22,7 @@ import numpy as np
 from flightgen import CRAZYFLIE, generate, write_csv
 from pinquad.discovery.calibrated import discovery_start
 from pinquad.experiments.discovery_mc_flightgen import case_seed, flight_spec
-from pinquad.identification.verdict import torque_excitation
+from pinquad.identification.verdict_evidence import torque_excitation
 from pinquad.io.read import read_log
 from pinquad.pipeline.identify import LogOptions, identify_log, input_reading
 from pinquad.pipeline.judge import run_verdict

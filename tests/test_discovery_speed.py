@@ -19,7 +19,7 @@ from pinquad.discovery.refit import effect_mstep
 from pinquad.discovery.residuals import block_grams, compute_residuals, group_sums, step_blocks
 from pinquad.discovery.result import DiscoveryConfig
 from pinquad.estep import fast_smoother
-from pinquad.identification import verdict
+from pinquad.identification import verdict_evidence
 from pinquad.io.read import read_log
 from pinquad.mstep.stats import transition_mask
 from pinquad.mstep.updates import regressor_mstep, regressor_stats
@@ -82,10 +82,10 @@ def test_block_covariance_and_grams_equal_the_per_block_reference(drag_start):
 
 def test_compiled_innovation_consistency_equals_the_generic_filters(drag_start, monkeypatch):
     obs, theta = drag_start.obs, drag_start.theta
-    fast = verdict.innovation_consistency(obs, theta)
-    assert fast_smoother.innovations_quad(verdict.QuadSSM(obs, theta), obs.ys) is not None
-    monkeypatch.setattr(verdict, "innovations_quad", lambda model, ys: None)
-    generic = verdict.innovation_consistency(obs, theta)
+    fast = verdict_evidence.innovation_consistency(obs, theta)
+    assert fast_smoother.innovations_quad(verdict_evidence.QuadSSM(obs, theta), obs.ys) is not None
+    monkeypatch.setattr(verdict_evidence, "innovations_quad", lambda model, ys: None)
+    generic = verdict_evidence.innovation_consistency(obs, theta)
     assert set(fast) == set(generic) == set(obs.channels)
     for c in fast:
         assert fast[c] == pytest.approx(generic[c], rel=1e-9)

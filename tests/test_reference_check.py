@@ -60,15 +60,15 @@ def test_a_number_only_the_reference_rejects_still_counts_in_the_scatter_between
     vehicle's reference rejects was carried by its flight and counts; one the flight did
     not carry does not."""
     from pinquad.identification.reference import only_the_reference
-    from pinquad.identification.verdict import NOT_IDENTIFIABLE, ParameterVerdict
+    from pinquad.identification.verdict import NOT_IDENTIFIABLE, Estimate
     from pinquad.realdata.consistency import _carried
 
     ref = reference_values(load_vehicle("crazyflie21"))
     far = judge(0.0348, np.diag([16e-6, 17e-6, 15e-6]), np.r_[0.0017, 1.2e-6, 1.2e-6, 5.7e-6],
                 VerdictEvidence(reference=ref), None).get("I_zz")
     assert far.verdict == NOT_ADEQUATE and only_the_reference(far.reasons) and _carried(far)
-    other = ParameterVerdict("I_zz", 15e-6, 9e-6, NOT_ADEQUATE, ("innovations too large",))
-    unsure = ParameterVerdict("I_zz", 15e-6, 9e-6, NOT_IDENTIFIABLE, ("cover 30 %",))
+    other = Estimate("I_zz", 15e-6, "kg m^2", 9e-6, (), NOT_ADEQUATE, ("innovations too large",))
+    unsure = Estimate("I_zz", 15e-6, "kg m^2", 9e-6, (), NOT_IDENTIFIABLE, ("cover 30 %",))
     assert not _carried(other) and not _carried(unsure)
     assert not only_the_reference(())
 

@@ -21,12 +21,10 @@ from pinquad.identification.verdict import (
     NOT_JUDGED,
     TRUSTED,
     VerdictEvidence,
-    innovation_consistency,
     judge,
-    torque_excitation,
-    torque_share,
     vehicle_range,
 )
+from pinquad.identification.verdict_evidence import innovation_consistency, torque_excitation, torque_share
 from pinquad.io.logs import write_log
 from pinquad.io.runs import LOG_REPORT_KEYS
 from pinquad.models.ssm import NoiseModel, Observations, Theta

@@ -16,10 +16,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pinquad.identification.verdict import (
-    NOT_IDENTIFIABLE,
     TRUSTED,
     VehicleRange,
-    range_reasons,
+    scaled_error_verdicts,
     vehicle_range,
 )
 from pinquad.pipeline.single import PipelineResult
@@ -167,7 +166,7 @@ def compare_flights(rows: Sequence[BatchRow]) -> tuple[list[BatchRow], list[Flig
     where it exceeds them every
     row of the group gets its statistical error scaled by S inside its total, and a
     trusted parameter whose scaled error then covers too much of the vehicle's range is
-    "not identifiable" (``verdict.range_reasons``; the row not trusted). Only that check
+    "not identifiable" (``verdict.scaled_error_verdicts``; the row not trusted). Only that check
     depends on the error's size, so a verdict can only be lowered here. Returns the rows
     and the scatters compared."""
     done = [r for r in rows if r.status != "failed" and r.verdicts]
@@ -184,19 +183,13 @@ def compare_flights(rows: Sequence[BatchRow]) -> tuple[list[BatchRow], list[Flig
             out.append(r)
             continue
         s, total = new[r.name]
-        vrange = _vehicle_range(r.vehicle)
-        verdicts = dict(r.verdicts)
-        for j, name in enumerate(PARAMETERS):
-            if verdicts.get(name) == TRUSTED and vrange is not None and s[j] > 1.0 \
-                    and range_reasons(j, float(total[j]), vrange):
-                verdicts[name] = NOT_IDENTIFIABLE
+        verdicts, overall = scaled_error_verdicts(r.verdicts, r.overall, total, s,
+                                                  _vehicle_range(r.vehicle))
         lowered = verdicts != r.verdicts
         out.append(replace(r, mass_se=float(total[0]),
                            inertia_se=tuple(float(v) for v in total[1:4]),
                            verdicts=verdicts, scatter_scale=tuple(float(v) for v in s),
-                           status="not trusted" if lowered else r.status,
-                           overall=NOT_IDENTIFIABLE if lowered and r.overall == TRUSTED
-                           else r.overall))
+                           status="not trusted" if lowered else r.status, overall=overall))
     return out, scatters
 
 

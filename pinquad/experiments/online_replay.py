@@ -31,7 +31,8 @@ from pinquad.identification.fisher import (
 from pinquad.identification.identify import get_smoother
 from pinquad.identification.reference import log_reference
 from pinquad.identification.search_range import at_bound
-from pinquad.identification.verdict import EstimateVerdict, data_evidence, judge
+from pinquad.identification.verdict import EstimateVerdict, judge
+from pinquad.identification.verdict_evidence import data_evidence
 from pinquad.identification.window import window_em, window_prior
 from pinquad.io.logs import LogMeta
 from pinquad.models.nuisance import torque_features
@@ -170,5 +171,5 @@ def replay_verdict(fit: StreamFit, meta: LogMeta, vrange: VehicleRange | None,
     evidence = replace(evidence, reference=log_reference(meta),
                        error_failures=collapsed_errors(values, {"observed information": stat}))
     verdict = judge(plain.mass, plain.inertia, budget.total, evidence, vrange,
-                    missing_stderr=STDERR_UNAVAILABLE)
+                    missing_stderr=STDERR_UNAVAILABLE, parts=budget.parts)
     return verdict, budget

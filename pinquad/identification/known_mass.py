@@ -58,7 +58,15 @@ from scipy.signal import butter, lfilter, sosfiltfilt
 from pinquad.core.actuator_curve import ActuatorCurve
 from pinquad.core.conventions import rotation_from_euler
 from pinquad.identification.budget import DEFAULT_ARM, DEFAULT_YAW_TORQUE
-from pinquad.identification.verdict import NOT_ADEQUATE, NOT_IDENTIFIABLE, TRUSTED
+from pinquad.identification.verdict import (
+    DEFAULT_THRESHOLDS,
+    BandHalves,
+    Estimate,
+    ExplainedShare,
+    VerdictEvidence,
+    VerdictThresholds,
+    judge_estimate,
+)
 from pinquad.io.command_log import CommandLog
 
 Array = NDArray[np.float64]
@@ -70,11 +78,8 @@ class KnownMassSettings:
 
     mass_rel_se [-]: relative standard uncertainty of the given mass; arm_rel_se [-]: of
     the rotor positions; band (lo, hi) [Hz]: the torque regression's band; lags (L,) [s]:
-    the time constants profiled; max_rel_se [-]: largest relative total standard error of
-    a trusted estimate; min_fit_share [-]: smallest share of the (band-passed) torque or
-    vertical-force variance the model must explain; max_band_shift [-]: largest shift,
-    in combined statistical standard errors, between the inertia on the band's lower and
-    upper halves (larger: the model's torque is wrong in a frequency-dependent way);
+    the time constants profiled; thresholds: what a trusted estimate demands
+    (``verdict.VerdictThresholds``: max_rel_se, min_fit_share, max_band_shift);
     drag_rate_max [1/s]: on a log without velocity, the largest body-z rotor drag per unit
     mass d_z / m assumed when the vehicle file declares none (its error part, module
     docstring).
@@ -84,24 +89,8 @@ class KnownMassSettings:
     arm_rel_se: float = DEFAULT_ARM
     band: tuple[float, float] = (0.3, 2.0)
     lags: Array = field(default_factory=lambda: np.arange(0.0, 0.2001, 0.0025))
-    max_rel_se: float = 0.10
-    min_fit_share: float = 0.5
-    max_band_shift: float = 2.0
+    thresholds: VerdictThresholds = DEFAULT_THRESHOLDS
     drag_rate_max: float = 0.5
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """One identified number: value, unit, total standard error (every part combined in
-    quadrature), its parts by source (name, se), verdict and the reasons behind it."""
-
-    name: str
-    value: float
-    unit: str
-    stderr: float
-    parts: tuple[tuple[str, float], ...]
-    verdict: str
-    reasons: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -316,46 +305,17 @@ def _naive(m: float, a_z: Array, u: Array, gyro: Array, dt: float, positions: Ar
     return out, tuple(share)
 
 
-def _judge(name: str, value: float, total: float, settings: KnownMassSettings,
-           extra: list[tuple[str, str]], parts: dict[str, float]
-           ) -> tuple[str, tuple[str, ...]]:
-    """The verdict: ``extra`` holds (verdict, reason) of the estimate's own checks; a
-    relative total standard error over ``max_rel_se`` is not identifiable, the reason
-    naming the largest of ``parts`` (name -> se) when there are several."""
-    reasons = list(extra)
-    if not (math.isfinite(total) and abs(total) <= settings.max_rel_se * abs(value)):
-        share = f"{abs(total / value) * 100:.0f} %" if value != 0 else "unbounded share"
-        big = max(parts.items(), key=lambda kv: kv[1] if math.isfinite(kv[1]) else math.inf,
-                  default=None)
-        largest = f"; largest part: {big[0]} {big[1]:.3g}" if big and len(parts) > 1 else ""
-        reasons.append((NOT_IDENTIFIABLE, f"{name}: total standard error {total:.3g} is "
-                        f"{share} of the value {value:.3g} (trusted at most "
-                        f"{settings.max_rel_se * 100:.0f} %{largest})"))
-    if not reasons:
-        return TRUSTED, ()
-    order = (NOT_ADEQUATE, NOT_IDENTIFIABLE)
-    worst = max((v for v, _ in reasons), key=order.index)
-    return worst, tuple(r for _, r in reasons)
+NO_YAW_RATIO = ("I_zz", "I_zz needs the yaw torque coefficient (actuator_curve.yaw_ratio [m] "
+                "in the vehicle file): motor commands give yaw torque only up to that factor")
+"""Why I_zz has no value when the vehicle file gives no yaw torque coefficient: motor
+commands fix the yaw torque only up to that factor (I_zz / k is all a log carries)."""
 
 
-def yaw_inertia_without_ratio() -> Estimate:
-    """I_zz when the vehicle file gives no yaw torque coefficient: not identifiable, since
-    motor commands fix the yaw torque only up to that factor (I_zz / k is all a log
-    carries)."""
-    return Estimate("I_zz", float("nan"), "kg m^2", float("nan"), (), NOT_IDENTIFIABLE, (
-        "I_zz needs the yaw torque coefficient (actuator_curve.yaw_ratio [m] in the "
-        "vehicle file): motor commands give yaw torque only up to that factor",))
-
-
-def estimate_with_verdict(name: str, value: float, unit: str, parts: dict[str, float],
-                          settings: KnownMassSettings, extra: list[tuple[str, str]]
-                          ) -> Estimate:
-    """An ``Estimate`` whose total standard error is its parts (name -> se) combined in
-    quadrature, judged by its own checks ``extra`` ((verdict, reason)) and the relative
-    error limit of ``settings``."""
-    total = math.sqrt(sum(v * v for v in parts.values()))
-    verdict, reasons = _judge(name, value, total, settings, extra, parts)
-    return Estimate(name, value, unit, total, tuple(parts.items()), verdict, reasons)
+def yaw_inertia_without_ratio(thresholds: VerdictThresholds = DEFAULT_THRESHOLDS) -> Estimate:
+    """I_zz without the yaw torque coefficient: no value (``NO_YAW_RATIO``), not
+    identifiable (``verdict.judge_estimate``)."""
+    return judge_estimate("I_zz", float("nan"), "kg m^2", {},
+                          VerdictEvidence(undetermined=(NO_YAW_RATIO,)), thresholds)
 
 
 def stack_segments(segments: Sequence[CommandLog], groups: Sequence[int] | None = None
@@ -470,11 +430,10 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
     if curve.thrust is not None:
         notes.append(f"the vehicle file's thrust curve {curve.thrust.tolist()} N is not used: "
                      "the curve is identified from this flight")
-    force_adequate = top.share >= settings.min_fit_share
-    curve_checks = [] if force_adequate else [(NOT_ADEQUATE, (
-        f"the curve explains {top.share * 100:.0f} % of the vertical force (at least "
-        f"{settings.min_fit_share * 100:.0f} % demanded)"))]
-    estimates = []
+    # each number (name, value, unit, error parts by source), judged once all the
+    # findings of the fit are in (``verdict.judge_estimate``)
+    numbers: list[tuple[str, float, str, dict[str, float]]] = []
+    undetermined: list[tuple[str, str]] = []
     n_groups = stack.n_groups
     drags = [("drag d_z" if n_groups == 1 else f"drag d_z [log {g + 1}]", "N s/m")
              for g in range(n_groups)]
@@ -496,8 +455,7 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
                  "mass": abs(top.coef[i]) * settings.mass_rel_se,
                  "time_constant": float(tau_part[i]),
                  **({"rotor_drag": abs(float(drag_shift[i]))} if imu_only else {})}
-        estimates.append(estimate_with_verdict(name, float(top.coef[i]), unit, parts,
-                                               settings, curve_checks if i < 2 else []))
+        numbers.append((name, float(top.coef[i]), unit, parts))
     # the curve's scale where the flight flew: T(u_m) = c_1 u_m + c_2 u_m^2 and its slope
     # dT/du = c_1 + 2 c_2 u_m at the mean command u_m; c_1 and c_2 trade against each
     # other, these two do not (the slope is what turns command differences into torque)
@@ -511,19 +469,19 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
                  "mass": abs(value) * settings.mass_rel_se,
                  "time_constant": abs(float(grad @ (alt[1].coef - alt[0].coef))) / 2.0,
                  **({"rotor_drag": abs(float(grad @ drag_shift))} if imu_only else {})}
-        estimates.append(estimate_with_verdict(name, value, "N", parts, settings, curve_checks))
-    tau_checks = curve_checks + ([(NOT_IDENTIFIABLE, (
-        f"the profile likelihood's interval reaches the end of the searched "
-        f"{settings.lags[0]:.3f}-{settings.lags[-1]:.3f} s"))] if tau_edge else [])
-    if tau == 0.0 and not tau_edge:
-        tau_checks.append((NOT_IDENTIFIABLE, (
-            f"the profile likelihood puts the time constant at 0, below "
-            f"{settings.lags[inside[-1] + 1]:.3g} s: no motor lag resolvable at "
-            f"{dt * 1e3:.0f} ms rows")))
+        numbers.append((name, value, "N", parts))
     if curve.time_constant is None:
-        estimates.append(estimate_with_verdict(
-            "time constant", tau, "s", {"statistical": tau_se, **(
-                {"rotor_drag": abs(tau_d - tau)} if imu_only else {})}, settings, tau_checks))
+        numbers.append(("time constant", tau, "s", {"statistical": tau_se, **(
+            {"rotor_drag": abs(tau_d - tau)} if imu_only else {})}))
+        if tau_edge:
+            undetermined.append(("time constant", (
+                f"the profile likelihood's interval reaches the end of the searched "
+                f"{settings.lags[0]:.3f}-{settings.lags[-1]:.3f} s")))
+        elif tau == 0.0:
+            undetermined.append(("time constant", (
+                f"the profile likelihood puts the time constant at 0, below "
+                f"{settings.lags[inside[-1] + 1]:.3g} s: no motor lag resolvable at "
+                f"{dt * 1e3:.0f} ms rows")))
     else:
         notes.append(f"time constant {tau:.4g} s: given by the vehicle file")
 
@@ -552,25 +510,20 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
     high_half = inertia_at(top.coef, lagged, (mid, hi))
     yaw_rel = DEFAULT_YAW_TORQUE if curve.yaw_ratio is None or curve.yaw_ratio_se is None \
         else curve.yaw_ratio_se / curve.yaw_ratio
+    explained = [ExplainedShare(("thrust c_1", "thrust c_2", "thrust at mean u",
+                                 "dT/du at mean u", "time constant"),
+                                "the curve explains", "the vertical force", top.share)]
+    halves = []
     for a, name in enumerate(("I_xx", "I_yy", "I_zz")):
         if a == 2 and curve.yaw_ratio is None:
-            estimates.append(yaw_inertia_without_ratio())
+            numbers.append(("I_zz", float("nan"), "kg m^2", {}))
+            undetermined.append(NO_YAW_RATIO)
             continue
-        checks: list[tuple[str, str]] = []
-        if share[a] < settings.min_fit_share:
-            checks.append((NOT_ADEQUATE, f"{name}: the torques explain {share[a] * 100:.0f} % "
-                           f"of the band-passed torque variance (at least "
-                           f"{settings.min_fit_share * 100:.0f} % demanded)"))
-        shift = abs(low_half[0][a] - high_half[0][a])
-        combined = math.hypot(low_half[1][a], high_half[1][a])
-        if shift > settings.max_band_shift * combined:
-            checks.append((NOT_ADEQUATE, (
-                f"{name}: {low_half[0][a]:.4g} on {lo:g}-{mid:.2g} Hz but "
-                f"{high_half[0][a]:.4g} on {mid:.2g}-{hi:g} Hz, {shift / combined:.1f} "
-                "statistical errors apart: the torque model is wrong in a frequency-"
-                "dependent way (motor dynamics, drag moments)")))
-        if not inertia[a] > 0:
-            checks.append((NOT_ADEQUATE, f"{name}: {inertia[a]:.3g} is not positive"))
+        explained.append(ExplainedShare((name,), f"{name}: the torques explain",
+                                        "the band-passed torque variance", float(share[a])))
+        halves.append(BandHalves(name, (float(low_half[0][a]), float(low_half[1][a])),
+                                 (float(high_half[0][a]), float(high_half[1][a])),
+                                 (lo, mid, hi)))
         # roll and pitch torques rest on the rotor positions, yaw torque on the yaw ratio
         lever = ({"arm_length": abs(inertia[a]) * settings.arm_rel_se} if a < 2 else
                  {"yaw_torque_coefficient": abs(inertia[a]) * yaw_rel})
@@ -579,8 +532,10 @@ def identify_known_mass(flight: CommandLog | Sequence[CommandLog], mass: float,
                  "thrust_curve": float(curve_part[a]),
                  "time_constant": float(tau_inertia_part[a]),
                  **({"rotor_drag": float(drag_inertia_part[a])} if imu_only else {})}
-        estimates.append(estimate_with_verdict(name, float(inertia[a]), "kg m^2", parts,
-                                               settings, checks))
+        numbers.append((name, float(inertia[a]), "kg m^2", parts))
+    evidence = VerdictEvidence(explained=tuple(explained), band_halves=tuple(halves),
+                               undetermined=tuple(undetermined))
+    estimates = [judge_estimate(*number, evidence, settings.thresholds) for number in numbers]
     naive, naive_share = _naive(mass, a_z, u, gyro, dt, positions, spin, stack)
     return KnownMassResult(tuple(estimates), top.share,
                            tuple(float(s) for s in share[:2 if curve.yaw_ratio is None else 3]),

@@ -32,19 +32,20 @@ se_m the mass's assumed uncertainty; arm: the rotor positions' (``DEFAULT_ARM``)
 curve's shape and the time constant: EM rerun with the nominal curve's linear term
 moved by its standard error (the quadratic term moved to keep the thrust at the mean
 command) and with tau +- its standard error, half the change. The scale itself is not an
-error source: EM estimates it. The verdicts are the house's (``verdict.judge`` on the
-smoother's evidence: torque shares, innovation consistency, torque excitation, the search
-range), the regression's band-halves check (EM on the band's lower and upper halves:
-inertias more than ``max_band_shift`` combined jackknife errors apart are "model not
-adequate", ``band_halves``), and a total relative error over ``max_rel_se`` is not
-identifiable, as in the regression.
+error source: EM estimates it. The verdicts are the house's (``verdict.judge_estimate``,
+as the regression's): the rescaled vehicle estimate's (``verdict.judge`` on the smoother's
+evidence: torque shares, innovation consistency, torque excitation, the search range),
+the band halves (EM on the band's lower and upper halves: inertias more than
+``max_band_shift`` combined jackknife errors apart are "model not adequate",
+``band_halves``), EM's convergence, and a total relative error over ``max_rel_se`` is not
+identifiable.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -56,20 +57,14 @@ from pinquad.identification.em import EMResult, EMSettings, run_em
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.identify import em_from_guess, loglik_function
 from pinquad.identification.known_mass import (
-    Estimate,
     KnownMassResult,
     KnownMassSettings,
-    estimate_with_verdict,
     motor_lag,
     yaw_inertia_without_ratio,
 )
 from pinquad.identification.search_range import generic_range
-from pinquad.identification.verdict import (
-    NOT_ADEQUATE,
-    NOT_IDENTIFIABLE,
-    data_evidence,
-    judge,
-)
+from pinquad.identification.verdict import BandHalves, Estimate, judge, judge_estimate
+from pinquad.identification.verdict_evidence import data_evidence
 from pinquad.io.command_log import CommandLog
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.sources import interval_inputs
@@ -292,19 +287,19 @@ def identify_known_mass_em(flight: CommandLog, mass: float, positions: Array, sp
     evidence = data_evidence(corrected(obs, theta), theta.without_nuisance(),
                              main.posterior.mean, band=band, actuation="sampled")
     house = judge(mass, np.diag(inertia), np.r_[mass * mass_rel, inertia * stat_i], evidence,
-                  generic_range(mass))
-    em_checks: list[tuple[str, str]] = []
-    if main.failure:
-        em_checks.append((NOT_IDENTIFIABLE, f"EM: {main.failure}"))
-    elif not main.converged:
-        em_checks.append((NOT_IDENTIFIABLE, f"EM did not converge in {EM_MAX_ITERATIONS} "
-                          "E-steps"))
+                  generic_range(mass), thresholds=settings.thresholds)
     halves = band_halves(flight, nominal, tau, mass, positions, spin, yaw, warm, band)
-    estimates = [estimate_with_verdict("thrust scale s", scale, "-", s_parts, settings,
-                                       em_checks)]
+    # what the fit itself says, for every number of the route
+    findings = replace(evidence, not_converged=(
+        f"EM: {main.failure}" if main.failure else None if main.converged else
+        f"EM did not converge in {EM_MAX_ITERATIONS} E-steps"), band_halves=tuple(
+        BandHalves(name, halves[0][a], halves[1][a], (band[0], halves[2], band[1]))
+        for a, name in enumerate(("I_xx", "I_yy", "I_zz"))))
+    estimates = [judge_estimate("thrust scale s", scale, "-", s_parts, findings,
+                                settings.thresholds)]
     for a, name in enumerate(("I_xx", "I_yy", "I_zz")):
         if a == 2 and curve.yaw_ratio is None:
-            estimates.append(yaw_inertia_without_ratio())
+            estimates.append(yaw_inertia_without_ratio(settings.thresholds))
             continue
         lever = ({"arm_length": inertia[a] * settings.arm_rel_se} if a < 2 else
                  {"yaw_torque_coefficient": inertia[a] * yaw_rel})
@@ -313,19 +308,8 @@ def identify_known_mass_em(flight: CommandLog, mass: float, positions: Array, sp
         parts = {"statistical": inertia[a] * stat_i[a], "mass": inertia[a] * mass_rel,
                  **lever, "curve_shape": inertia[a] * shape_part[a + 1],
                  "time_constant": inertia[a] * tau_part[a + 1]}
-        verdict = house.get(name)
-        (lo_i, lo_se), (hi_i, hi_se) = halves[0][a], halves[1][a]
-        combined = math.hypot(lo_se, hi_se)
-        band_check = [] if abs(lo_i - hi_i) <= settings.max_band_shift * combined else [(
-            NOT_ADEQUATE, f"{name}: {lo_i:.4g} on {band[0]:g}-{halves[2]:.2g} Hz but "
-            f"{hi_i:.4g} on {halves[2]:.2g}-{band[1]:g} Hz, {abs(lo_i - hi_i) / combined:.1f} "
-            "statistical errors apart: the torque model is wrong in a frequency-dependent "
-            "way (motor dynamics, drag moments)")]
-        checks = list(em_checks) + band_check + [
-            (verdict.verdict if verdict.verdict in (NOT_ADEQUATE, NOT_IDENTIFIABLE)
-             else NOT_ADEQUATE, r) for r in verdict.reasons]
-        estimates.append(estimate_with_verdict(name, float(inertia[a]), "kg m^2", parts,
-                                               settings, checks))
+        estimates.append(judge_estimate(name, float(inertia[a]), "kg m^2", parts, findings,
+                                        settings.thresholds, part_of=house))
     notes.append(f"EM on the nominal wrench ({source} curve c_1 {nominal[0]:.4g} N, c_2 "
                  f"{nominal[1]:.4g} N; time constant {tau:.4g} s; inertia from the "
                  f"{band[0]:g}-{band[1]:g} Hz torque rows): m_hat {m_hat:.5g} kg, "

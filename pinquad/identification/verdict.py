@@ -29,6 +29,27 @@ ten-parameter model) gets one of ``VERDICTS``, judged from data by three checks:
   triangle inequality (I_1 + I_2 >= I_3), positive definite tensor, within the vehicle's
   range.
 
+Every route's verdicts are made here, from one ``VerdictEvidence`` (gathered from a fit
+by ``verdict_evidence.data_evidence`` and the route's own findings): the vehicle estimate of a
+recorded log, a measured flight, an online replay window or the known-mass EM route
+(``judge``: mass and inertia), and each single number of the known-mass route
+(``judge_estimate``: the thrust curve, the motor time constant, a moment of inertia),
+which is also
+
+* not identifiable when its total standard error exceeds ``max_rel_se`` of its value,
+  when the fit does not determine it (``VerdictEvidence.undetermined``: the time
+  constant's profile reaching the end of its grid, or resting at 0 below the rows'
+  resolution; I_zz without the yaw torque coefficient) or when EM did not converge;
+* not adequate when the regression it comes from explains less than ``min_fit_share``
+  of the variance it fits (``ExplainedShare``), or when the inertia read on the lower
+  and upper halves of the torque band lies more than ``max_band_shift`` combined
+  statistical errors apart (``BandHalves``): the torque model is wrong in a frequency-
+  dependent way;
+* implausible when a moment of inertia is not positive;
+
+and takes the verdict of the vehicle estimate it is part of (``part_of``, EM's). A
+batch's between-flight scatter can only lower a verdict (``scaled_error_verdicts``).
+
 A parameter failing several checks takes the most severe label (``VERDICTS`` order), and
 keeps every reason (strings with the numbers). The overall verdict of an estimate is the
 most severe of its parameters'. The thresholds are ``VerdictThresholds``; they were set
@@ -37,23 +58,18 @@ before they were measured on any log (docs/verdict.md has the measured values).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import butter, sosfiltfilt
 
-from estimators.ekf import predict, update
-from pinquad.core.filters import band_sos
 from pinquad.core.params import VEHICLES, VehicleRange
 from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
-from pinquad.estep.fast_smoother import Innovations, innovations_quad
 from pinquad.identification.edges import triangle_face
 from pinquad.identification.mass_balance import balance_check
 from pinquad.identification.reference import ReferenceValues, reference_check, vehicle_mismatch
-from pinquad.models.ssm import Observations, QuadSSM, Theta
-from pinquad.mstep.stats import transition_mask
 
 Array = NDArray[np.float64]
 
@@ -92,6 +108,12 @@ class VerdictThresholds:
     high at r = 2.49 with a 1.7 % standard error. Now 3: up to 1 / r^2 of the logged
     torques' variance may be the controller's answer to the noise, which biases the
     inertia read from them; at r = 3 that is 11 %.
+
+    The known-mass route's single numbers (``judge_estimate``): max_rel_se [-]: largest
+    relative total standard error of a trusted estimate; min_fit_share [-]: smallest
+    share of the (band-passed) torque or vertical-force variance the regression must
+    explain; max_band_shift [-]: largest shift, in combined statistical standard errors,
+    between the inertia on the torque band's lower and upper halves.
     """
 
     mass_factor: float = 2.0
@@ -101,6 +123,9 @@ class VerdictThresholds:
     max_nis_ratio: float = 3.0
     max_input_shift: float = 0.05
     min_torque_excitation: float = 3.0
+    max_rel_se: float = 0.10
+    min_fit_share: float = 0.5
+    max_band_shift: float = 2.0
 
 
 DEFAULT_THRESHOLDS = VerdictThresholds()
@@ -136,6 +161,32 @@ def vehicle_range(vehicle: str, mass_guess: float | None = None,
 
 
 @dataclass(frozen=True)
+class ExplainedShare:
+    """How much of the variance a regression fits its model explains: names, the
+    estimates that rest on the regression; explains, its model with the verb in words
+    (e.g. ``the curve explains``); of, the fitted variance in words (e.g. ``the vertical
+    force``); share [-] (1 - var(residual) / var(data))."""
+
+    names: tuple[str, ...]
+    explains: str
+    of: str
+    share: float
+
+
+@dataclass(frozen=True)
+class BandHalves:
+    """One inertia read again on the lower and upper halves of the torque band: name;
+    low, high (value [kg m^2], statistical standard error [kg m^2]); edges (lo, mid, hi)
+    [Hz], the halves lo-mid and mid-hi. A rigid body with the right torques reads the
+    same inertia on both."""
+
+    name: str
+    low: tuple[float, float]
+    high: tuple[float, float]
+    edges: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
 class VerdictEvidence:
     """What the data say about an estimate, beside its standard errors.
 
@@ -162,6 +213,11 @@ class VerdictEvidence:
     the balance is compared with (None: the mass's total); reference: the vehicle's
     values known without flight data (``reference``), or None; error_failures: (name,
     reason) of each parameter whose error estimate failed (``edges.collapsed_errors``).
+
+    The known-mass route's findings (``judge_estimate``): explained, the regressions'
+    explained shares (``ExplainedShare``); band_halves, the inertia on the torque band's
+    halves (``BandHalves``); undetermined: (name, reason) of each estimate the fit does
+    not determine, whatever its standard error.
     """
 
     torque_share: Array = field(default_factory=lambda: np.full(3, np.nan))
@@ -178,24 +234,33 @@ class VerdictEvidence:
     balance_stderr: float | None = None
     reference: ReferenceValues | None = None
     error_failures: tuple[tuple[str, str], ...] = ()
+    explained: tuple[ExplainedShare, ...] = ()
+    band_halves: tuple[BandHalves, ...] = ()
+    undetermined: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
-class ParameterVerdict:
-    """One parameter's verdict: name (``mass``, ``I_xx``, ..., ``I_xy``, ...), value and
-    stderr [SI; NaN: not computed], verdict (one of ``VERDICTS``), reasons in words."""
+class Estimate:
+    """One identified number with its verdict: name (``mass``, ``I_xx``, ..., ``I_xy``,
+    ``thrust c_2``, ``time constant``, ...), value and total standard error stderr in
+    unit (SI; NaN: not computed), parts: the total's parts by source (name, se), combined
+    in quadrature (empty when the route keeps them elsewhere: a vehicle estimate's are in
+    its ``ErrorBudget``), verdict (one of ``VERDICTS``) and the reasons behind it."""
 
     name: str
     value: float
+    unit: str
     stderr: float
+    parts: tuple[tuple[str, float], ...]
     verdict: str
-    reasons: tuple[str, ...]
+    reasons: tuple[str, ...] = ()
 
     @property
     def trusted(self) -> bool:
         return self.verdict == TRUSTED
 
-    def to_report(self) -> dict:
+    def verdict_report(self) -> dict:
+        """report.json's entry of the parameter under ``verdict.parameters``."""
         return {"verdict": self.verdict, "reasons": list(self.reasons)}
 
 
@@ -203,7 +268,7 @@ class ParameterVerdict:
 class EstimateVerdict:
     """The verdicts of one estimate's parameters and the overall one (the most severe)."""
 
-    parameters: tuple[ParameterVerdict, ...]
+    parameters: tuple[Estimate, ...]
     overall: str
     reasons: tuple[str, ...]
 
@@ -211,13 +276,13 @@ class EstimateVerdict:
     def trusted(self) -> bool:
         return self.overall == TRUSTED
 
-    def get(self, name: str) -> ParameterVerdict:
+    def get(self, name: str) -> Estimate:
         return next(p for p in self.parameters if p.name == name)
 
     def to_report(self) -> dict:
         """report.json's ``verdict``: overall, its reasons, one entry per parameter."""
         return {"overall": self.overall, "reasons": list(self.reasons),
-                "parameters": {p.name: p.to_report() for p in self.parameters}}
+                "parameters": {p.name: p.verdict_report() for p in self.parameters}}
 
 
 def _worst(verdicts: Sequence[str]) -> str:
@@ -290,16 +355,27 @@ def _judged(se: float, missing_stderr: str | None) -> list[str]:
     return [NO_STDERR] if not np.isfinite(se) and not missing_stderr else []
 
 
-def _judge(name: str, value: float, se: float, checks: dict[str, list[str]]) -> ParameterVerdict:
-    failed = [v for v in VERDICTS[1:] if checks.get(v)]
-    reasons = tuple(r for v in reversed(VERDICTS[1:]) for r in checks.get(v, []))
-    return ParameterVerdict(name, float(value), float(se), _worst(failed), reasons)
+def _assemble(name: str, value: float, unit: str, se: float, parts: Sequence[tuple[str, float]],
+              findings: Sequence[tuple[str, str]]) -> Estimate:
+    """The estimate with its verdict: the most severe of the findings' (verdict, reason),
+    trusted without any; every reason kept, in the findings' order."""
+    return Estimate(name, float(value), unit, float(se), tuple(parts),
+                    _worst([v for v, _ in findings]), tuple(r for _, r in findings))
+
+
+def _judge(name: str, value: float, unit: str, se: float, checks: dict[str, list[str]],
+           parts: Sequence[tuple[str, float]] = ()) -> Estimate:
+    """A vehicle parameter's estimate from its checks (verdict -> reasons), the reasons of
+    the most severe verdict first."""
+    return _assemble(name, value, unit, se, parts,
+                     [(v, r) for v in reversed(VERDICTS[1:]) for r in checks.get(v, [])])
 
 
 def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
           vrange: VehicleRange | None, stderr_products: Array | None = None,
           thresholds: VerdictThresholds = DEFAULT_THRESHOLDS,
-          missing_stderr: str | None = None) -> EstimateVerdict:
+          missing_stderr: str | None = None,
+          parts: Mapping[str, Array] | None = None) -> EstimateVerdict:
     """The verdict of one estimate (module docstring).
 
     mass [kg]; inertia (3, 3) [kg m^2]; stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not
@@ -308,13 +384,18 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
     triangle inequality only); stderr_products (3,) of [I_xy, I_xz, I_yz] when the
     products of inertia were estimated (their parameters are judged too);
     missing_stderr: the standard errors were asked for, and a NaN one is then "not
-    identifiable" for this reason (a number without its uncertainty is not trusted).
+    identifiable" for this reason (a number without its uncertainty is not trusted);
+    parts: stderr by source, name -> (4,) (an ``ErrorBudget``'s), kept on each of
+    [m, I_xx, I_yy, I_zz]'s ``Estimate``.
     """
     th = thresholds
     inertia = np.asarray(inertia, dtype=float).reshape(3, 3)
     stderr = np.asarray(stderr, dtype=float)
     diag = np.diag(inertia)
-    params: list[ParameterVerdict] = []
+    params: list[Estimate] = []
+
+    def parts_of(index: int) -> tuple[tuple[str, float], ...]:
+        return tuple((k, float(np.asarray(v)[index])) for k, v in (parts or {}).items())
 
     # mass
     bad_value: list[str] = []
@@ -329,12 +410,12 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
     ident += _fit_checks("mass", evidence)
     if missing_stderr and not np.isfinite(stderr[0]):
         ident.append(missing_stderr)
-    params.append(_judge("mass", mass, stderr[0], {
+    params.append(_judge("mass", mass, "kg", stderr[0], {
         NOT_IDENTIFIABLE: ident,
         NOT_ADEQUATE: _nis_check(evidence, MASS_CHANNELS, th)
         + balance_check(mass, stderr[0], evidence.model_free_mass, evidence.balance_stderr)
         + reference_check("mass", 0, mass, stderr[0], evidence.reference, 1e3, "g"),
-        IMPLAUSIBLE: bad_value, NOT_JUDGED: _judged(stderr[0], missing_stderr)}))
+        IMPLAUSIBLE: bad_value, NOT_JUDGED: _judged(stderr[0], missing_stderr)}, parts_of(0)))
 
     # the tensor as a whole: positive definite, principal moments obey the triangle inequality
     tensor: list[str] = []
@@ -376,11 +457,11 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
             ident.insert(0, f"torques explain {100 * share[i]:.0f} % of the angular "
                             f"acceleration about body {name[-1]} ({evidence.torque_band}; at "
                             f"least {100 * th.min_torque_share:.0f} % needed)")
-        params.append(_judge(name, value, stderr[i + 1], {
+        params.append(_judge(name, value, "kg m^2", stderr[i + 1], {
             NOT_IDENTIFIABLE: ident, IMPLAUSIBLE: implausible,
             NOT_ADEQUATE: rotation + rotation_ref + reference_check(
                 name, i + 1, value, stderr[i + 1], evidence.reference, 1e6, "e-6 kg m^2"),
-            NOT_JUDGED: _judged(stderr[i + 1], missing_stderr)}))
+            NOT_JUDGED: _judged(stderr[i + 1], missing_stderr)}, parts_of(i + 1)))
     if stderr_products is not None:
         for (name, i, j), se in zip(PRODUCTS, np.asarray(stderr_products, dtype=float),
                                     strict=True):
@@ -400,186 +481,79 @@ def judge(mass: float, inertia: Array, stderr: Array, evidence: VerdictEvidence,
             if low:
                 ident.insert(0, f"torques explain {100 * min(share[a] for a in low):.0f} % of "
                                 f"the angular acceleration about a body axis it couples")
-            params.append(_judge(name, inertia[i, j], se, {
+            params.append(_judge(name, inertia[i, j], "kg m^2", se, {
                 NOT_IDENTIFIABLE: ident, NOT_ADEQUATE: rotation, IMPLAUSIBLE: list(tensor)}))
     overall = _worst([p.verdict for p in params])
     reasons = tuple(f"{p.name}: {r}" for p in params if not p.trusted for r in p.reasons)
     return EstimateVerdict(tuple(params), overall, reasons)
 
 
-def mstep_transitions(obs: Observations) -> NDArray[np.bool_]:
-    """(N - 1,) the transitions k -> k+1 the M-step uses (``mstep.stats.transition_mask``)
-    that were not reset either."""
-    used = transition_mask(obs)
-    if obs.resets.size:
-        used &= ~np.asarray(obs.resets[: obs.n - 1], dtype=bool)
-    return used
+def judge_estimate(name: str, value: float, unit: str, parts: Mapping[str, float],
+                   evidence: VerdictEvidence | None = None,
+                   thresholds: VerdictThresholds = DEFAULT_THRESHOLDS,
+                   part_of: EstimateVerdict | None = None) -> Estimate:
+    """One number of the known-mass route with its verdict (module docstring): value in
+    unit; parts: its standard error by source (name -> se, same unit), the total their
+    quadrature sum (NaN without parts). From the evidence (None: none): EM did not converge
+    (``not_converged``), the regression's explained share (``explained``) and the band
+    halves (``band_halves``) of this estimate, the fit does not determine it
+    (``undetermined``); a moment of inertia (``DIAGONAL``) must be positive; part_of: the
+    verdict of the vehicle estimate (``judge``) the number is part of, whose reasons on it
+    count with its verdict. Then its total standard error must be at most ``max_rel_se``
+    of its value; a number without a value (NaN) is not identifiable. Reasons in that
+    order; the verdict is the most severe."""
+    th = thresholds
+    evidence = VerdictEvidence() if evidence is None else evidence
+    total = math.sqrt(sum(v * v for v in parts.values())) if parts else math.nan
+    findings: list[tuple[str, str]] = []
+    if evidence.not_converged is not None:
+        findings.append((NOT_IDENTIFIABLE, evidence.not_converged))
+    findings += [(NOT_ADEQUATE, f"{e.explains} {e.share * 100:.0f} % of {e.of} (at least "
+                                f"{th.min_fit_share * 100:.0f} % demanded)")
+                 for e in evidence.explained if name in e.names and e.share < th.min_fit_share]
+    for h in evidence.band_halves:
+        shift, combined = abs(h.low[0] - h.high[0]), math.hypot(h.low[1], h.high[1])
+        if h.name == name and shift > th.max_band_shift * combined:
+            lo, mid, hi = h.edges
+            findings.append((NOT_ADEQUATE, (
+                f"{name}: {h.low[0]:.4g} on {lo:g}-{mid:.2g} Hz but {h.high[0]:.4g} on "
+                f"{mid:.2g}-{hi:g} Hz, {shift / combined:.1f} statistical errors apart: the "
+                "torque model is wrong in a frequency-dependent way (motor dynamics, drag "
+                "moments)")))
+    findings += [(NOT_IDENTIFIABLE, why) for n, why in evidence.undetermined if n == name]
+    if name in DIAGONAL and value <= 0.0:
+        findings.append((IMPLAUSIBLE, f"{name}: {value:.3g} is not positive"))
+    if part_of is not None and any(p.name == name for p in part_of.parameters):
+        house = part_of.get(name)
+        findings += [(house.verdict, r) for r in house.reasons]
+    if not math.isfinite(value):
+        if not findings:
+            findings.append((NOT_IDENTIFIABLE, f"{name}: the fit gave no value"))
+    elif not (math.isfinite(total) and abs(total) <= th.max_rel_se * abs(value)):
+        share = f"{abs(total / value) * 100:.0f} %" if value != 0 else "unbounded share"
+        big = max(parts.items(), key=lambda kv: kv[1] if math.isfinite(kv[1]) else math.inf,
+                  default=None)
+        largest = f"; largest part: {big[0]} {big[1]:.3g}" if big and len(parts) > 1 else ""
+        findings.append((NOT_IDENTIFIABLE, (
+            f"{name}: total standard error {total:.3g} is {share} of the value {value:.3g} "
+            f"(trusted at most {th.max_rel_se * 100:.0f} %{largest})")))
+    return _assemble(name, value, unit, total, tuple(parts.items()), findings)
 
 
-def torque_share(obs: Observations, mean: Array, inertia: Array,
-                 band: tuple[float, float] | None = None, com: Array | None = None) -> Array:
-    """Share of the angular-acceleration variance the torques explain, per body axis (3,).
-
-    On the transitions k -> k+1 the M-step uses (not excluded, not reset): the angular
-    acceleration a_k = (omega_{k+1} - omega_k) / dt [rad/s^2] of the smoothed rates
-    mean[:, 9:12] against the model's u_k = J^{-1} (tau_k - omega_k x J omega_k) with the
-    logged torques tau_k = inputs[k, 1:4] [N m] and the estimate J (3, 3) [kg m^2];
-    R^2_i = max(corr(a_i, u_i), 0)^2 (a free scale and offset: the share any inertia
-    could explain). band (lo, hi) [Hz]: both series band-passed first (zero-phase
-    Butterworth), for an M-step that reads the inertia from that band only. com (3,) [m]:
-    the centre of mass from the thrust centre (the ten-parameter model), whose thrust
-    moment -c x (0, 0, F_k) joins the torques about the CoM.
-    """
-    inertia = np.asarray(inertia, dtype=float).reshape(3, 3)
-    omega = np.asarray(mean, dtype=float)[:, 9:12]
-    accel = np.diff(omega, axis=0) / obs.dt
-    tau = obs.inputs[:-1, 1:4]
-    if com is not None:
-        thrust = np.zeros((obs.n - 1, 3))
-        thrust[:, 2] = obs.inputs[:-1, 0]
-        tau = tau - np.cross(np.asarray(com, dtype=float), thrust)
-    u = (tau - np.cross(omega[:-1], omega[:-1] @ inertia.T)) @ np.linalg.inv(inertia).T
-    if band is not None:
-        sos = band_sos(band, 1.0 / obs.dt, top=0.495)
-        accel, u = sosfiltfilt(sos, accel, axis=0), sosfiltfilt(sos, u, axis=0)
-    used = mstep_transitions(obs) & np.isfinite(accel).all(axis=1) & np.isfinite(u).all(axis=1)
-    out = np.full(3, np.nan)
-    if used.sum() < 10:
-        return out
-    for i in range(3):
-        a, b = accel[used, i], u[used, i]
-        if np.std(a) > 0 and np.std(b) > 0:
-            out[i] = max(float(np.corrcoef(a, b)[0, 1]), 0.0) ** 2
-    return out
-
-
-EXCITATION_BAND = 50.0
-"""Upper edge [Hz] of the band in which ``torque_excitation`` compares the torques with the
-process noise when the M-step reads every frequency: the noise averaged over 10 ms, about
-the time an attitude loop takes to answer a disturbance. A fixed edge keeps the ratio the
-same for the same flight logged at 100 or 500 Hz (the torques recorded barely change, the
-noise's bandwidth up to the Nyquist frequency would grow with the rate)."""
-
-
-def torque_excitation(obs: Observations, theta: Theta,
-                      band: tuple[float, float] | None = None, *,
-                      actuation: str) -> tuple[Array, str]:
-    """How far the logged torques stand out from the process noise, per body axis (3,) [-],
-    and the band it was measured on (in words).
-
-    r_i = rms(tau_i - mean(tau_i)) / sqrt(2 S_i B): tau = inputs[:, 1:4] [N m] low-passed
-    to B = min(``EXCITATION_BAND``, Nyquist) (zero-phase Butterworth) on the transitions the
-    M-step uses; S_i [N^2 m^2 s] the torque noise intensity of theta (EM's estimate; white
-    noise of intensity S has variance 2 S B in a band of width B). A ratio near 1 means the
-    torques are the size of the disturbances, i.e. mostly a controller's answer to them.
-
-    Measured only for a log whose input is a faster controller's command sampled at each
-    row (``actuation`` ``sampled``, ``LogMeta.actuation``): there the command moved within
-    each interval in answer to the disturbances, unrecorded. A held input (``held``: what
-    acted over the whole interval, as pinquad's simulator logs it) leaves no such answer
-    unrecorded, and EM's inertia stays right at small ratios (pinquad's CoM-offset
-    flight, seed 7: 1.35 about z, 2 % off), so the ratio is NaN there.
-
-    NaN too when theta's noise is the fixed one (``NoiseModel.fixed_q``: not estimated from
-    this log) or not positive, and for an M-step that reads one band (lo, hi) [Hz] only
-    (the measured flights'): EM fits one white intensity over all frequencies, which on
-    those flights also holds the unmodelled low-frequency moments the band M-step leaves
-    out, so the ratio would not compare like with like (jana01, whose I_xx is within 1 %
-    of the published value, has 1.8 there).
-    """
-    out = np.full(3, np.nan)
-    if band is not None:
-        return out, f"not measured on an M-step that reads {band[0]:g}-{band[1]:g} Hz only"
-    if actuation != "sampled":
-        return out, "not measured: the log's input is held over each row"
-    if theta.noise.fixed_q is not None:
-        return out, "not measured: the noise model is fixed, not estimated from this log"
-    nyquist = 0.5 / obs.dt
-    tau = np.asarray(obs.inputs[:-1, 1:4], dtype=float)
-    width = min(EXCITATION_BAND, nyquist)
-    words = f"0-{width:g} Hz"
-    if EXCITATION_BAND < 0.99 * nyquist:
-        tau = sosfiltfilt(butter(2, EXCITATION_BAND / nyquist, output="sos"), tau, axis=0)
-    intensity = np.asarray(theta.noise.wrench, dtype=float)[3:6]
-    used = mstep_transitions(obs) & np.isfinite(tau).all(axis=1)
-    if used.sum() < 10:
-        return out, words
-    rms = np.std(tau[used], axis=0)
-    for i in range(3):
-        if intensity[i] > 0:
-            out[i] = float(rms[i] / np.sqrt(2.0 * intensity[i] * width))
-    return out, words
-
-
-def innovation_consistency(obs: Observations, theta: Theta, model=None) -> dict[str, float]:
-    """Mean normalised innovation squared per row of each channel (channel -> [-]) of the
-    EKF at theta: for every sample of channel c, nu_c^T S_cc^{-1} nu_c / (rows of c) with
-    nu the one-step-ahead innovation and S its covariance (the channel's block). 1 when the
-    innovations are as large as the model predicts. model: the state-space model (default
-    ``QuadSSM(obs, theta)``)."""
-    model = model if model is not None else QuadSSM(obs, theta)
-    fast = innovations_quad(model, obs.ys)
-    if fast is not None:
-        return _mean_nis(fast, obs.channels)
-    mean, cov = model.initial()
-    mean, cov = np.array(mean, dtype=float), np.array(cov, dtype=float)
-    blocks = {c: np.arange(3 * i, 3 * i + 3) for i, c in enumerate(obs.channels)}
-    sums = {c: 0.0 for c in blocks}
-    counts = {c: 0 for c in blocks}
-    for k in range(obs.n):
-        y = obs.ys[k]
-        seen = ~np.isnan(y)
-        if seen.any():
-            y_pred, h = model.measure(mean, k)
-            nu = model.residual(np.where(seen, y, y_pred), y_pred)
-            s = h @ cov @ h.T + model.meas_cov(k)
-            for c, rows in blocks.items():
-                rows = rows[seen[rows]]
-                if rows.size:
-                    v = nu[rows]
-                    sums[c] += float(v @ np.linalg.solve(s[np.ix_(rows, rows)], v))
-                    counts[c] += rows.size
-            upd = update(model, k, mean, cov, y)
-            mean, cov = upd.mean, upd.cov
-        if k + 1 < obs.n:
-            mean, cov, _ = predict(model, k, mean, cov)
-    return {c: sums[c] / counts[c] for c in blocks if counts[c]}
-
-
-def _mean_nis(inn: Innovations, channels: Sequence[str]) -> dict[str, float]:
-    """``innovation_consistency`` from the innovations of the whole pass at once: per
-    channel, the samples grouped by which of its rows were observed."""
-    out = {}
-    for i, c in enumerate(channels):
-        rows = np.arange(3 * i, 3 * i + 3)
-        nu = inn.nu[:, rows]
-        seen = ~np.isnan(nu)
-        total, count = 0.0, 0
-        for pattern in np.unique(seen, axis=0):
-            if not pattern.any():
-                continue
-            steps = np.all(seen == pattern, axis=1)
-            r = rows[pattern]
-            v = inn.nu[np.ix_(steps, r)]
-            s_blk = inn.s[steps][:, r][:, :, r]
-            total += float(np.sum(v * np.linalg.solve(s_blk, v[:, :, None])[:, :, 0]))
-            count += int(steps.sum()) * r.size
-        if count:
-            out[c] = total / count
-    return out
-
-
-def data_evidence(obs: Observations, theta: Theta, mean: Array,
-                  band: tuple[float, float] | None = None, model=None,
-                  actuation: str = "held") -> VerdictEvidence:
-    """The evidence of a fit at theta: torque shares on the smoothed means (N, 12) (on the
-    M-step's band when it reads the inertia from one), the torques against the process
-    noise (``torque_excitation``, for a log whose ``actuation`` is ``sampled``) and the
-    EKF's innovation consistency (``model``: default ``QuadSSM(obs, theta)``; the
-    ten-parameter model's ``FullQuadSSM`` for a fit with a centre of mass)."""
-    words = "all frequencies" if band is None else f"{band[0]:g}-{band[1]:g} Hz, the M-step's band"
-    com = np.asarray(theta.com, dtype=float)
-    excitation, excitation_words = torque_excitation(obs, theta, band, actuation=actuation)
-    return VerdictEvidence(torque_share(obs, mean, theta.inertia, band, com if com.any() else None),
-                           words, innovation_consistency(obs, theta, model),
-                           torque_excitation=excitation, excitation_band=excitation_words)
+def scaled_error_verdicts(verdicts: Mapping[str, str], overall: str, totals: Array,
+                          scale: Array, vrange: VehicleRange | None,
+                          thresholds: VerdictThresholds = DEFAULT_THRESHOLDS
+                          ) -> tuple[dict[str, str], str]:
+    """A report's verdicts (name -> verdict of mass, I_xx, I_yy, I_zz; the overall one)
+    after the scatter between flights scaled its errors by scale (4,) [-] to totals (4,)
+    [kg, kg m^2]: a trusted parameter whose error grew (scale > 1) until it covers too
+    much of the vehicle's range (``range_reasons``) is not identifiable, and so is a
+    trusted overall verdict with such a parameter. Only that check depends on the error's
+    size, so a verdict can only be lowered; without a range nothing changes."""
+    out = dict(verdicts)
+    for j, name in enumerate(("mass", *DIAGONAL)):
+        if out.get(name) == TRUSTED and vrange is not None and scale[j] > 1.0 \
+                and range_reasons(j, float(totals[j]), vrange, thresholds):
+            out[name] = NOT_IDENTIFIABLE
+    lowered = out != dict(verdicts)
+    return out, NOT_IDENTIFIABLE if lowered and overall == TRUSTED else overall

@@ -24,12 +24,8 @@ from pinquad.identification.identify import Identification, unconverged
 from pinquad.identification.mass_balance import balance_mass
 from pinquad.identification.reference import log_reference
 from pinquad.identification.search_range import at_bound
-from pinquad.identification.verdict import (
-    EstimateVerdict,
-    VerdictEvidence,
-    data_evidence,
-    judge,
-)
+from pinquad.identification.verdict import EstimateVerdict, VerdictEvidence, judge
+from pinquad.identification.verdict_evidence import data_evidence
 from pinquad.models.full import FullQuadSSM
 from pinquad.pipeline.identify import LogResult, input_reading, plausible_range
 
@@ -37,11 +33,13 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class Estimate:
-    """One estimate of the vehicle: mass [kg], inertia (3, 3) [kg m^2], com (3,) [m] or
-    None, stderr (4,) of [m, I_xx, I_yy, I_zz] (NaN: not computed; the budget's total),
-    stderr_note: how it was computed, model: the model it was fitted under, in words;
-    verdict; budget: stderr by named part (None: no budget)."""
+class VehicleEstimate:
+    """One estimate of the vehicle, whose parameters are each a ``verdict.Estimate``
+    (value, total error, its parts, verdict, reasons: ``verdict.parameters``): mass [kg],
+    inertia (3, 3) [kg m^2], com (3,) [m] or None, stderr (4,) of [m, I_xx, I_yy, I_zz]
+    (NaN: not computed; the budget's total), stderr_note: how it was computed, model: the
+    model it was fitted under, in words; verdict; budget: stderr by named part (None: no
+    budget)."""
 
     mass: float
     inertia: Array
@@ -68,8 +66,8 @@ class Headline:
     (the base fit, the reported run) and one verdict per run (``LogResult.runs`` order).
     ``final is base`` when no effect was selected or discovery did not run."""
 
-    final: Estimate
-    base: Estimate
+    final: VehicleEstimate
+    base: VehicleEstimate
     run_verdicts: tuple[EstimateVerdict, ...]
 
     @property
@@ -170,22 +168,24 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     budget = run_budget(result, run)
     ev = with_budget(ev, budget, result)
     return judge(run.mass, run.inertia, budget.total, ev,
-                 plausible_range(result.log), products, missing_stderr=run.stderr_problem)
+                 plausible_range(result.log), products, missing_stderr=run.stderr_problem,
+                 parts=budget.parts)
 
 
-def _base(result: LogResult, verdict: EstimateVerdict) -> Estimate:
+def _base(result: LogResult, verdict: EstimateVerdict) -> VehicleEstimate:
     run = result.runs[0]
     note = ("total of stderr_parts: statistical (observed information or block jackknife) "
             "with what the estimate assumed" if run.measured is not None
             else "total of stderr_parts: statistical (observed information of the EKF "
             "likelihood) with what the estimate assumed")
     budget = run_budget(result, run)
-    return Estimate(run.mass, np.asarray(run.inertia), run.com, budget.total,
+    return VehicleEstimate(run.mass, np.asarray(run.inertia), run.com, budget.total,
                     note, f"base rigid-body model ({run.mstep} M-step, sensor {run.sensor})",
                     verdict, budget)
 
 
-def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimate:
+def _final(result: LogResult, found: DiscoveryResult, base: VehicleEstimate
+           ) -> VehicleEstimate:
     run = result.runs[0]
     start = discovery_start(run)
     theta = replace(found.theta, mass=float(found.mass), inertia=np.asarray(found.inertia))
@@ -221,8 +221,9 @@ def _final(result: LogResult, found: DiscoveryResult, base: Estimate) -> Estimat
     stderr = budget.total
     ev = replace(with_budget(ev, budget, result), error_failures=failures)
     verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result.log),
-                    missing_stderr=missing)
-    return Estimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr), note,
+                    missing_stderr=missing, parts=budget.parts)
+    return VehicleEstimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr),
+                           note,
                     f"base model plus {', '.join(found.selected)} (discovery's refit)", verdict,
                     budget)
 

@@ -22,12 +22,8 @@ from numpy.typing import NDArray
 from pinquad.discovery.null import NullSettings
 from pinquad.identification.identify import Identification
 from pinquad.identification.reference import vehicle_reference
-from pinquad.identification.verdict import (
-    VerdictEvidence,
-    data_evidence,
-    judge,
-    vehicle_range,
-)
+from pinquad.identification.verdict import VerdictEvidence, judge, vehicle_range
+from pinquad.identification.verdict_evidence import data_evidence
 from pinquad.io.logs import LogFormatError
 from pinquad.models.ssm import corrected
 from pinquad.pipeline.discover import measured_effects

@@ -40,7 +40,7 @@ from pinquad.io.read import read_log
 from pinquad.io.sanity import check_log
 from pinquad.pipeline.discover import run_discovery
 from pinquad.pipeline.identify import LogOptions, LogResult, identify_log
-from pinquad.pipeline.judge import Estimate, Headline, headline, run_verdict
+from pinquad.pipeline.judge import Headline, VehicleEstimate, headline, run_verdict
 
 LOG_MAX_ITERATIONS = 200
 """E-steps at most per EM run of a recorded log from the command line and the API: a
@@ -160,7 +160,7 @@ class PipelineResult:
         return self.headline.final.verdict.trusted
 
     @property
-    def estimate(self) -> Estimate:
+    def estimate(self) -> VehicleEstimate:
         """The headline estimate: under the final model (discovery's refit when it
         selected effects, else the base fit), with its error budget and verdict."""
         return self.headline.final

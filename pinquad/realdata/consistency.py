@@ -44,7 +44,7 @@ from pinquad.identification.reference import only_the_reference
 from pinquad.identification.verdict import (
     NOT_ADEQUATE,
     TRUSTED,
-    ParameterVerdict,
+    Estimate,
     VerdictEvidence,
     judge,
     vehicle_range,
@@ -262,7 +262,7 @@ def between_flights(results: Sequence[FlightRow]
     return out, scatters
 
 
-def _carried(p: ParameterVerdict) -> bool:
+def _carried(p: Estimate) -> bool:
     """A parameter the flight carried: trusted, or not adequate by the vehicle's reference
     alone (``identification.reference``: the reference judges the number; the scatter of
     such numbers between flights is what the model misses)."""

@@ -21,7 +21,7 @@ from pinquad.identification.identify import Identification
 from pinquad.identification.verdict import PRODUCTS, EstimateVerdict
 from pinquad.io.datadir import FETCH_COMMAND
 from pinquad.pipeline.identify import LogResult
-from pinquad.pipeline.judge import Estimate, Headline
+from pinquad.pipeline.judge import Headline, VehicleEstimate
 
 WIDTH = 120
 """The longest printed line [characters]: a reason is shortened to fit."""
@@ -55,7 +55,7 @@ def _number(value: float, stderr: float, scale: float) -> str:
     return f"{value * scale:.{decimals}f} ± {stderr * scale:.{decimals}f}"
 
 
-def parameter_lines(estimate: Estimate) -> list[str]:
+def parameter_lines(estimate: VehicleEstimate) -> list[str]:
     """One line per parameter: ``name  value ± total error unit  verdict: main reason``."""
     values = np.r_[estimate.mass, np.diag(estimate.inertia)]
     lines = []

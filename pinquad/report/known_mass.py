@@ -10,9 +10,9 @@ import numpy as np
 
 from pinquad.core.actuator_curve import CurveVehicle
 from pinquad.identification.excitation import Excitation
-from pinquad.identification.known_mass import Estimate, KnownMassResult
+from pinquad.identification.known_mass import KnownMassResult
 from pinquad.identification.known_mass_em import KnownMassEM
-from pinquad.identification.verdict import TRUSTED
+from pinquad.identification.verdict import Estimate
 
 INERTIA = ("I_xx", "I_yy", "I_zz")
 
@@ -91,7 +91,7 @@ def known_mass_table(result: KnownMassResult, vehicle: CurveVehicle,
 def headline_trusted(result: KnownMassResult, em: KnownMassEM | None = None) -> bool:
     """Whether every estimate that could be had (a value), by either route, is trusted."""
     routes = (result.estimates, *(() if em is None else (em.estimates,)))
-    return all(e.verdict == TRUSTED for est in routes for e in est if math.isfinite(e.value))
+    return all(e.trusted for est in routes for e in est if math.isfinite(e.value))
 
 
 def _estimates_json(estimates: tuple[Estimate, ...]) -> list[dict]:

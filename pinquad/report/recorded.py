@@ -14,7 +14,7 @@ from pinquad.core.vehicle_file import is_vehicle_file, load_vehicle
 from pinquad.discovery.calibrated import DiscoveryOutcome
 from pinquad.identification.budget import ErrorBudget
 from pinquad.identification.identify import Identification
-from pinquad.identification.verdict import PRODUCTS, EstimateVerdict, ParameterVerdict
+from pinquad.identification.verdict import PRODUCTS, Estimate, EstimateVerdict
 from pinquad.io.logs import write_log
 from pinquad.io.runs import REPORT_SCHEMA, RunWriter, atomic_write_json
 from pinquad.models.ssm import Observations
@@ -104,7 +104,7 @@ def pm(v: float, s: float, scale: float, fmt: str) -> str:
     return f"{v * scale:{fmt}}" + ("" if not np.isfinite(s) else f" ± {s * scale:{fmt}}")
 
 
-def judged(v: float, s: float, scale: float, fmt: str, verdict: ParameterVerdict | None) -> str:
+def judged(v: float, s: float, scale: float, fmt: str, verdict: Estimate | None) -> str:
     """A number as printed beside its verdict: ``value ± stderr`` when trusted (or not
     judged), else ``value (verdict: first reason)``: an untrusted estimate never stands as
     a bare number with a small error bar."""
