@@ -3,7 +3,11 @@
 and RK4 at 2 kHz, the command SAMPLED at each log row), identifies each with the logged
 input read two ways, held over each interval (pinquad's simulator's convention) and the
 mean of the interval's two rows (``pinquad.models.sources.interval_inputs``, what a
-sampled log gets), and prints mass and inertia against the truth.
+sampled log gets), and prints mass and inertia against the truth. Both readings are the
+pipeline's identify step's (``pinquad.pipeline.single.identify``, regressor M-step, at
+most 100 E-steps): its sidecar not saying how the actuation acted, the log is read as
+sampled and the held reading is the input alternative the step fits beside it
+(``LogResult.input_alternative``, which the verdict weighs).
 
     PYTHONPATH=$PWD python scripts/actuation_readings.py     (about 5 minutes on 2 cores)
 """
@@ -11,31 +15,26 @@ sampled log gets), and prints mass and inertia against the truth.
 from __future__ import annotations
 
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from flightgen import FlightSpec, Noise, generate, write_csv
-from pinquad.identification.identify import identify
-from pinquad.io.read import read_log
-from pinquad.models.sources import interval_inputs, observations
-from pinquad.pipeline.identify import default_sensor, initial_guess
+from pinquad.pipeline.identify import LogOptions
+from pinquad.pipeline.single import identify, read
 
 TRUTH = np.array([35.0, 16.6, 16.7, 29.3])
+OPTIONS = LogOptions(msteps=("regressor",), estep="rts", max_iterations=100, information=False)
+SCALE = np.array([1e3, 1e6, 1e6, 1e6])
 
 
 def readings(path: Path) -> dict[str, np.ndarray]:
-    log = read_log(path)
-    mass0, inertia0, _ = initial_guess(log)
-    obs = observations(log, default_sensor(log))
-    logged = np.column_stack([log.thrust, log.torque])
-    out = {}
-    for how in ("held", "sampled"):
-        o = replace(obs, inputs=interval_inputs(logged, how))
-        ident, _ = identify(o, mass0, inertia0, log.meta.gravity, "rts", "regressor", 100, False)
-        out[how] = np.r_[ident.mass * 1e3, np.diag(ident.inertia) * 1e6]
-    return out
+    """{"held", "sampled"}: [m [g], I_xx, I_yy, I_zz [1e-6 kg m^2]] of the log at path."""
+    identified = identify(read(path), OPTIONS)
+    held = identified.input_alternative
+    assert held is not None  # the sidecar does not say how the actuation acted
+    run = identified.runs[0]
+    return {"held": held * SCALE, "sampled": np.r_[run.mass, np.diag(run.inertia)] * SCALE}
 
 
 SEEDS = (1, 2, 3)

@@ -3,8 +3,9 @@
 The flight (default jana00 of the shared IMRC brushed logs) is exported once as
 pinquad's own Parquet log (its ~500 Hz rows with rotor speeds, ``write_log``) and
 identified (regressor M-step, standard errors: the clean export). Each variant is then
-written (``pinquad.io.foreign.write_foreign`` for the conventions) and run through
-``identify_log``, the path of ``python -m pinquad.offline --log``:
+written (``pinquad.io.foreign.write_foreign`` for the conventions) and run through the
+read and identify steps of ``python -m pinquad.offline --log``'s pipeline
+(``pinquad.pipeline.single``):
 
 * a refusal prints ``exit 2`` and the message the command prints after ``error:``;
 * an identification prints the largest change of mass, I_xx, I_yy, I_zz against the
@@ -34,9 +35,9 @@ import numpy as np
 
 from pinquad.io.declared import Conventions
 from pinquad.io.foreign import write_foreign
-from pinquad.io.logs import FlightLog, LogFormatError, read_table, write_log
-from pinquad.io.read import read_log, with_vehicle
-from pinquad.pipeline.identify import LogOptions, identify_log, plausible_range
+from pinquad.io.logs import FlightLog, LogFormatError, write_log
+from pinquad.pipeline.identify import LogOptions, plausible_range
+from pinquad.pipeline.single import identify, read
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "crazyflie" / "imrc_brushed"
@@ -83,7 +84,7 @@ VEHICLE_FILES = (  # (variant, the file's text from crazyflie21.toml, or a shipp
 def estimate(log: FlightLog, information: bool = False):
     """([m, I_xx, I_yy, I_zz], stderr (4,), converged, failure, result) of the regressor
     run."""
-    result = identify_log(log, replace(OPTIONS, information=information))
+    result = identify(log, replace(OPTIONS, information=information))
     run = result.runs[0]
     return (np.r_[run.mass, np.diag(run.inertia)], np.asarray(run.stderr), run.converged,
             run.failure, result)
@@ -91,11 +92,10 @@ def estimate(log: FlightLog, information: bool = False):
 
 def outcome(log_path: Path, base: np.ndarray, se: np.ndarray, vehicle: Path | None = None
             ) -> str:
-    """What identify_log does with the log at log_path (read with ``vehicle``), in words."""
+    """What the pipeline's read and identify steps do with the log at log_path (read
+    with ``vehicle``, as ``--vehicle`` gives it), in words."""
     try:
-        log = read_table(log_path)
-        if vehicle is not None:
-            log = with_vehicle(log, str(vehicle), ROOT, "--vehicle")
+        log = read(log_path, None if vehicle is None else str(vehicle))
         est, _, converged, failure, result = estimate(log)
     except (LogFormatError, ValueError) as exc:
         return f"exit 2: `{exc}`".replace(str(log_path.parent) + "/", "").replace(
@@ -129,7 +129,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         t0 = time.perf_counter()
-        clean = read_table(write_log(replace(read_log(args.log), measured=None),
+        clean = read(write_log(replace(read(args.log), measured=None),
                                    folder / "flight.parquet"))
         base, se, converged, _, _ = estimate(clean, information=True)
         row("clean export", "as written", f"mass {base[0] * 1e3:.3f} g, inertia "
@@ -150,7 +150,7 @@ def main() -> None:
                 if drop:  # the clean reference for a log without quaternion columns
                     ref = write_foreign(clean, folder / f"ref{len(rows)}.parquet",
                                         Conventions(), False, drop)
-                    b, s, *_ = estimate(read_table(ref), information=True)
+                    b, s, *_ = estimate(read(ref), information=True)
                 else:
                     b, s = base, se
                 row(name, side, outcome(path, b, s))
@@ -170,7 +170,7 @@ def main() -> None:
                 outcome(folder / "flight.parquet", base, se, vehicle))
         bare = write_log(clean, folder / "bare.parquet")
         Path(str(bare) + ".json").unlink()
-        est, _, _, _, result = estimate(read_table(bare))
+        est, _, _, _, result = estimate(read(bare))
         vrange = plausible_range(result.log)
         note = [n for n in result.notes if n.startswith("no vehicle named")]
         row("no sidecar", "none", f"judged against "

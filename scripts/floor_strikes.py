@@ -1,8 +1,8 @@
 """Flights that take off, strike the floor twice and land, with no contact column in
 the log (floor contact from the data; docs/trust.md). Each flightgen flight
-goes CSV -> ``offline --log``'s path (identify_log, then discovery with its null
-calibration); it prints the contact transitions found against the truth and what
-discovery selects.
+goes CSV -> the pipeline of ``offline --log`` (``pinquad.pipeline.single.run``: identify,
+then discovery with its null calibration; regressor M-step, at most 100 E-steps); it
+prints the contact transitions found against the truth and what discovery selects.
 
     PYTHONPATH=$PWD python scripts/floor_strikes.py      (about 3 minutes on 2 cores)
 """
@@ -17,12 +17,13 @@ from pinquad.experiments.discovery_mc_flightgen import (
     found_contact_transitions,
     true_contact_transitions,
 )
-from pinquad.io.read import read_log
-from pinquad.pipeline.discover import run_discovery
-from pinquad.pipeline.identify import LogOptions, identify_log
+from pinquad.pipeline.identify import LogOptions
+from pinquad.pipeline.single import PipelineOptions, read, run
 
 SEEDS = (1, 2, 3, 4)
 RATE = 100
+OPTIONS = PipelineOptions(identification=LogOptions(msteps=("regressor",), max_iterations=100,
+                                                    information=False))
 
 
 def main() -> None:
@@ -37,11 +38,12 @@ def main() -> None:
                               start_on_floor=True, land=True, floor_strikes=2)
             flight = generate(spec)
             path = write_csv(flight, Path(tmp) / f"strikes_{seed}.csv")
-            log = read_log(path)
-            result = identify_log(log, LogOptions(msteps=("regressor",), information=False))
+            log = read(path)
+            piped = run(log, OPTIONS)
+            result, outcome = piped.identified, piped.outcome
+            assert outcome is not None  # a regressor fit, discovery asked for: always run
             truth = true_contact_transitions(flight, result.obs.n)
             found = found_contact_transitions(log)
-            outcome = run_discovery(result)
             selected = outcome.result.selected if outcome.result is not None else outcome.error
             print(f"| {seed} | {int(truth.sum())} | {int((found & truth).sum())} | "
                   f"{int((truth & ~found).sum())} | {int((found & ~truth).sum())} | "

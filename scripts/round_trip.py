@@ -19,9 +19,9 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from pinquad.io.logs import write_log
-from pinquad.io.read import read_log
 from pinquad.pipeline import LOG_MAX_ITERATIONS
-from pinquad.pipeline.identify import LogOptions, identify_log
+from pinquad.pipeline.identify import LogOptions
+from pinquad.pipeline.single import identify, read
 
 ROOT = Path(__file__).resolve().parents[1]
 OPTIONS = LogOptions(msteps=("regressor",), max_iterations=LOG_MAX_ITERATIONS)
@@ -34,14 +34,14 @@ def _values(result) -> tuple[np.ndarray, np.ndarray]:
 
 def three_readings(path: Path) -> tuple[str, np.ndarray, np.ndarray]:
     """(name, values (3, 4) of [m, I_xx, I_yy, I_zz] per reading, the micro-SD's stderr)."""
-    first = identify_log(read_log(path), OPTIONS)
+    first = identify(read(path), OPTIONS)
     with tempfile.TemporaryDirectory() as tmp:
         export = write_log(first.log, Path(tmp) / "flight.parquet")
-        again = identify_log(read_log(export), OPTIONS)
+        again = identify(read(export), OPTIONS)
         csv = Path(tmp) / "copy.csv"
         pa_csv.write_csv(pq.read_table(export), csv)
         Path(f"{csv}.json").write_text(Path(f"{export}.json").read_text())
-        copy = identify_log(read_log(csv), OPTIONS)
+        copy = identify(read(csv), OPTIONS)
     a, se = _values(first)
     return path.name, np.vstack([a, _values(again)[0], _values(copy)[0]]), se
 

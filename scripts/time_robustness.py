@@ -36,9 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from pinquad.io.logs import FlightLog, LogFormatError, write_log
-from pinquad.io.read import read_log
 from pinquad.io.timebase import clock_times
-from pinquad.pipeline.identify import LogOptions, identify_log
+from pinquad.pipeline.identify import LogOptions
+from pinquad.pipeline.single import identify, read
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "crazyflie"
 FOLDERS = {"jana": SHARED / "imrc_brushed", "eckart": SHARED / "imrc_brushless"}
@@ -57,9 +57,10 @@ def jittered(t: np.ndarray, amplitude: float, offset: float, seed: int) -> np.nd
 def estimate(source: Path | FlightLog,
              information: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """([m, I_xx, I_yy, I_zz], stderr (4,), statistical stderr (4,), gap transitions) of
-    the regressor run of a log (a file, or a micro-SD reading in memory)."""
-    log = source if isinstance(source, FlightLog) else read_log(source)
-    result = identify_log(log, LogOptions(msteps=("regressor",), information=information))
+    the regressor run of a log (a file, or a micro-SD reading in memory), identified by
+    the pipeline's identify step."""
+    log = source if isinstance(source, FlightLog) else read(source)
+    result = identify(log, LogOptions(msteps=("regressor",), information=information))
     run = result.runs[0]
     params = np.r_[run.mass, np.diag(run.inertia)]
     stat = run.measured.se_stat if run.measured is not None else run.stderr
@@ -69,7 +70,7 @@ def estimate(source: Path | FlightLog,
 
 
 def micro_sd(name: str) -> FlightLog:
-    return read_log(FOLDERS[name.rstrip("0123456789")] / name)
+    return read(FOLDERS[name.rstrip("0123456789")] / name)
 
 
 def export(name: str, folder: Path) -> tuple[Path, FlightLog]:

@@ -6,7 +6,7 @@ seed, i, rate)``: seed = i, the same flights as ``python -m pinquad.discovery --
 flightgen --conditions none``), identifies each as ``offline --log`` does (regressor
 M-step, 100 E-steps, no discovery) and prints per flight the inertia's error against the
 truth, the torque excitation per body axis (``verdict_evidence.torque_excitation``) and each
-inertia's verdict.
+inertia's verdict (the pipeline's, ``pinquad.pipeline.single.run`` without discovery).
 
     PYTHONPATH=$PWD python scripts/torque_excitation.py --rate 100 --flights 0 1 2 3
 """
@@ -23,9 +23,12 @@ from flightgen import CRAZYFLIE, generate, write_csv
 from pinquad.discovery.calibrated import discovery_start
 from pinquad.experiments.discovery_mc_flightgen import case_seed, flight_spec
 from pinquad.identification.verdict_evidence import torque_excitation
-from pinquad.io.read import read_log
-from pinquad.pipeline.identify import LogOptions, identify_log, input_reading
-from pinquad.pipeline.judge import run_verdict
+from pinquad.pipeline.identify import LogOptions, input_reading
+from pinquad.pipeline.single import PipelineOptions, read, run
+
+OPTIONS = PipelineOptions(identification=LogOptions(msteps=("regressor",), estep="rts",
+                                                    max_iterations=100, information=True),
+                          discover=False)
 
 
 def main() -> None:
@@ -42,12 +45,10 @@ def main() -> None:
             seed = case_seed(0, "none", i)
             spec = flight_spec("none", seed, i, args.rate)
             path = write_csv(generate(spec), Path(tmp) / f"fg-{args.rate}-{seed}.csv")
-            result = identify_log(read_log(path), LogOptions(msteps=("regressor",), estep="rts",
-                                                             max_iterations=100, information=True))
-            run = result.runs[0]
-            verdict = run_verdict(result, run)
-            err = 100 * (np.diag(run.inertia) / truth - 1)
-            start = discovery_start(run)
+            piped = run(read(path), OPTIONS)
+            result, fit, verdict = piped.identified, piped.run, piped.verdict
+            err = 100 * (np.diag(fit.inertia) / truth - 1)
+            start = discovery_start(fit)
             ratio, _ = torque_excitation(start.obs, start.theta,
                                          actuation=input_reading(result.kind, result.log))
             kind = f"{'aggressive' if spec.aggressive else 'gentle'} {spec.trajectory}"

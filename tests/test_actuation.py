@@ -62,7 +62,7 @@ def test_a_sampled_100hz_log_read_as_the_rows_mean_gets_the_inertia_held_would_m
     mean_rows = np.diag(result.runs[0].inertia)[:2]
     held = result.input_alternative[1:3]
     # the controller runs at 2 kHz: held inputs lead the state by half a row (scripts/
-    # actuation_readings.py: held +21..+34 %, the rows' mean -2..+9 % on 20 s flights)
+    # actuation_readings.py: held +21..+34 %, the rows' mean 0..+9 % on 20 s flights)
     err_mean = np.abs(mean_rows / TRUE_INERTIA[:2] - 1)
     err_held = held / TRUE_INERTIA[:2] - 1
     assert np.all(err_held > 0.15), held

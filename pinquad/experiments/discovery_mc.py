@@ -7,9 +7,11 @@ coefficient from ``pinquad.sim.effects``, and drag + wind together) and each see
    by 0.3 reshuffled to include a low pass at 7 cm above the floor, cruise 1 m/s, sensor
    B, a 40 rad/s attitude-rate loop) with the effect injected into the true vehicle;
 2. write its log to CSV (the log does not mention the effect; ``true_*`` columns are
-   never read by estimators) and read it back with ``pinquad.io.logs.read_table``;
-3. identify it exactly as ``python -m pinquad.offline --log`` does (``pinquad.pipeline.identify``,
-   regressor M-step) and run discovery (``pipeline.discover.run_discovery``);
+   never read by estimators);
+3. put the CSV through the pipeline of ``python -m pinquad.offline --log``
+   (``pinquad.pipeline.single.run_path``: read, check, identify, discover, judge) with
+   the Monte Carlo's options (``MC_OPTIONS``: regressor M-step, at most 100 E-steps, no
+   standard errors);
 4. score: the names selected; the coefficients against the injected ones (relative
    error per coefficient, ``|c - c0| / |c0|``); mass and inertia after the refit against
    the truth; the held-out residual RMS per affected axis before and after.
@@ -46,9 +48,9 @@ from numpy.typing import NDArray
 from pinquad.core.params import CRAZYFLIE21, PAPER_SCENARIO
 from pinquad.discovery.calibrated import discovery_start
 from pinquad.discovery.discover import base_heldout_rms
-from pinquad.io.logs import read_table, write_log
-from pinquad.pipeline.discover import run_discovery
-from pinquad.pipeline.identify import LogOptions, identify_log
+from pinquad.io.logs import write_log
+from pinquad.pipeline.identify import LogOptions
+from pinquad.pipeline.single import PipelineOptions, identify, read, run_path
 from pinquad.sim import effects
 from pinquad.sim.control import design_gains
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
@@ -76,6 +78,14 @@ rates, where it shows in the attitude kinematics (``discovery.result.ATT_AXES``)
 scored."""
 
 PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
+
+MC_OPTIONS = PipelineOptions(identification=LogOptions(
+    msteps=("regressor",), estep="rts", max_iterations=100, information=False))
+"""The pipeline's options for every flight of the Monte Carlo: the regressor M-step with the
+RTS E-step, at most 100 E-steps per EM run (``offline --log`` allows
+``pipeline.single.LOG_MAX_ITERATIONS``: a flight whose base EM needs more is scored
+unconverged, discovery not run), no standard errors (nothing here reads them), discovery
+with the default null calibration."""
 
 
 def discovery_scenario(laps: int = 1):
@@ -156,22 +166,19 @@ class CaseResult:
 
 
 def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseResult:
-    """Simulate, write CSV, read back, identify and discover as ``offline --log`` does."""
+    """Simulate, write CSV, and put it through ``offline --log``'s pipeline (``MC_OPTIONS``)."""
     t0 = time.perf_counter()
     injected = CONDITIONS[condition]
     log, flight = simulate_log(injected, seed, laps)
     path = write_log(log, workdir / f"{condition}-{seed}.csv")
-    back = read_table(path)
-    options = LogOptions(msteps=("regressor",), estep="rts", max_iterations=100,
-                         information=False)
-    result = identify_log(back, options)
-    section = run_discovery(result).to_report()
+    piped = run_path(path, MC_OPTIONS)
+    assert piped.outcome is not None  # a regressor fit, discovery asked for: always run
+    section = piped.outcome.to_report()
     truth = np.r_[CRAZYFLIE21.mass, np.diag(CRAZYFLIE21.inertia)]
-    refit = section.get("refit", {})
-    main = result.runs[0]
+    main = piped.run
     base = np.r_[main.mass, np.diag(main.inertia)]
-    est = (np.r_[refit["mass"], np.diag(np.asarray(refit["inertia"]))] if section["selected"]
-           else base)
+    # the headline: discovery's refit when it selected effects, else the base fit
+    est = np.r_[piped.mass, piped.inertia_diag]
     coef_err: dict[str, float] = {}
     coefs: dict[str, list[float]] = {}
     for s in section["selected"]:
@@ -186,8 +193,9 @@ def run_case(condition: str, seed: int, workdir: Path, laps: int = 1) -> CaseRes
     twin_rms: dict[str, float] = {}
     if injected:
         twin_log, _ = simulate_log((), seed, laps)
-        twin_back = read_table(write_log(twin_log, workdir / f"twin-{condition}-{seed}.csv"))
-        twin_result = identify_log(twin_back, options)
+        # the twin's base fit only: the pipeline's identify step (no discovery)
+        twin_back = read(write_log(twin_log, workdir / f"twin-{condition}-{seed}.csv"))
+        twin_result = identify(twin_back, MC_OPTIONS.identification)
         twin_run = twin_result.runs[0]
         twin = np.r_[twin_run.mass, np.diag(twin_run.inertia)] / truth - 1.0
         start = discovery_start(twin_result.runs[0])

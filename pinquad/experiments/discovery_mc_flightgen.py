@@ -8,10 +8,11 @@ the realistic Crazyflie-class value of ``pinquad.sim.effects``' defaults) and se
    0.5 ms, its own geometric controller at that rate, the actuation SAMPLED at each log
    row, motion capture at 100 Hz, default noise, no floor, one pass 7 cm above the ground
    plane: ``flight_spec``) with the effect in the truth;
-2. write its CSV with ``flightgen.write_csv`` (the log does not mention the effect),
-   read it with ``pinquad.io.read.read_log``;
-3. identify and discover exactly as ``python -m pinquad.offline --log`` does
-   (``pinquad.pipeline.identify``, regressor M-step);
+2. write its CSV with ``flightgen.write_csv`` (the log does not mention the effect);
+3. put it through the pipeline of ``python -m pinquad.offline --log``
+   (``pinquad.pipeline.single``: read, check, identify, discover, judge) with the Monte
+   Carlo's options (``FG_OPTIONS``: regressor M-step, at most 100 E-steps, standard
+   errors);
 4. score: the names selected, each injected effect's coefficients against the truth
    (``|c - c0| / |c0|``, max over its coefficients), the held-out gain of the round that
    selected it, and the base EM's and the final mass / inertia against the truth; on
@@ -41,17 +42,11 @@ from flightgen.rotation import quats_to_rots
 from flightgen.trajectory import excursion
 from pinquad.experiments.discovery_mc import in_order
 from pinquad.io.logs import FlightLog
-from pinquad.io.read import read_log
 from pinquad.models.attitude_range import near_euler_singularity
 from pinquad.models.contact import touching_transitions
 from pinquad.models.sources import floor_contact
-from pinquad.pipeline.discover import run_discovery
-from pinquad.pipeline.identify import (
-    LogOptions,
-    identify_log,
-    initial_guess,
-)
-from pinquad.pipeline.judge import headline
+from pinquad.pipeline.identify import LogOptions, initial_guess
+from pinquad.pipeline.single import PipelineOptions, read, run
 from pinquad.sim import effects as sim_effects
 
 FG_CONDITIONS: tuple[str, ...] = ("none", "drag", "ground_effect", "com_offset", "wind",
@@ -65,6 +60,13 @@ FLOOR_CONDITION = "floor_strikes"
 
 LOG_RATES: tuple[int, ...] = (100, 250, 500)
 PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
+
+FG_OPTIONS = PipelineOptions(identification=LogOptions(
+    msteps=("regressor",), estep="rts", max_iterations=100, information=True))
+"""The pipeline's options for every flight: the regressor M-step with the RTS E-step, at
+most 100 E-steps per EM run (``offline --log`` allows ``pipeline.single.
+LOG_MAX_ITERATIONS``), standard errors (the coefficients' are scored), discovery with the
+default null calibration."""
 
 LOWEST_PASS = 0.07
 """Lowest point of the reference [m] above the ground plane: every flight's hover point
@@ -208,33 +210,30 @@ def noise_only_drag_error(flight: Flight) -> float:
 
 def found_contact_transitions(log: FlightLog) -> NDArray[np.bool_]:
     """(N - 1,) bool: transitions touching the floor contact found from the data, as
-    ``identify_log`` finds it (its other exclusions, such as an attitude near the Euler
-    singularity, are not floor contact)."""
+    the pipeline's identify step finds it (its other exclusions, such as an attitude near
+    the Euler singularity, are not floor contact)."""
     return touching_transitions(floor_contact(log, initial_guess(log)[0]).rows)
 
 
 def run_case(condition: str, log_rate: int, seed: int, index: int, workdir: Path
              ) -> FlightgenCase:
-    """Fly, write CSV, read back, identify and discover as ``offline --log`` does."""
+    """Fly, write CSV, and put it through ``offline --log``'s pipeline (``FG_OPTIONS``)."""
     t0 = time.perf_counter()
     spec = flight_spec(condition, seed, index, log_rate)
     flight = generate(spec)
     path = write_csv(flight, workdir / f"fg-{condition}-{log_rate}-{seed}.csv")
-    log = read_log(path)
-    result = identify_log(log, LogOptions(msteps=("regressor",), estep="rts",
-                                          max_iterations=100, information=True))
-    outcome = run_discovery(result)
-    judged = headline(result, outcome).final.verdict
+    log = read(path)
+    piped = run(log, FG_OPTIONS, source=str(path))
+    result, outcome, judged = piped.identified, piped.outcome, piped.verdict
+    assert outcome is not None  # a regressor fit, discovery asked for: always run
     truth_contact = true_contact_transitions(flight, result.obs.n)
     found = found_contact_transitions(log)
     singular = near_euler_singularity(log.t, log.euler).transitions()
     section = outcome.to_report()
     truth = np.r_[CRAZYFLIE.mass, np.diag(CRAZYFLIE.inertia_matrix)]
-    run = result.runs[0]
-    base = np.r_[run.mass, np.diag(run.inertia)]
-    refit = section.get("refit", {})
-    final = (np.r_[refit["mass"], np.diag(np.asarray(refit["inertia"]))] if section["selected"]
-             else base)
+    base = np.r_[piped.run.mass, np.diag(piped.run.inertia)]
+    # the headline: discovery's refit when it selected effects, else the base fit
+    final = np.r_[piped.mass, piped.inertia_diag]
     coefs = {s["effect"]: [float(v) for v in s["coefficients"].values()]
              for s in section["selected"]}
     stderr = {s["effect"]: [float(v) for v in s["stderr"].values()]

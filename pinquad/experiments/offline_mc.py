@@ -82,6 +82,9 @@ def run_cycle(job: CycleJob) -> CycleResult:
         mass0, inertia0 = vehicle.mass * PAPER_INITIAL_MASS / 0.18, vehicle.inertia * 0.5
     runs = []
     smoothed = None
+    # the paper's procedure, not the pipeline's identify step: its guess, EM with the
+    # shared over-relaxation the paper's figures were measured with
+    # (``pipeline.identify.RECORDED_PER_PARAMETER``), the truth's likelihood beside it
     for mstep in job.msteps:
         ident, post = identify(obs, mass0, inertia0, vehicle.gravity, job.estep, mstep,
                                job.max_iterations, job.information,

@@ -85,6 +85,12 @@ def fit_flight(name: str, real: RealObservations, max_iterations: int = 60,
     """Base identification (``realdata.identify_real``, from ``vehicle``'s [guess]) and
     discovery of the measured flight ``name`` with observations ``real`` (read, checked
     and observed with its vehicle's mixer and kf by ``pinquad.pipeline.measured``)."""
+    # the pipeline's read and check (``measured_log``), not its identify/discover steps:
+    # this study's per-flight naming is the uncalibrated selection on the base posterior
+    # (no null calibration, no refit EM) after a 60 E-step base fit from the vehicle's
+    # guess, which its cross-flight pooling (step 2) and its table were built on; the
+    # pipeline's guarded, null-calibrated discover answers what one log names against
+    # its own null, a different question
     mass0, inertia0, _ = default_guess(vehicle)
     run = identify_real(real, mass0, inertia0, max_iterations, False)
     theta, post = run.theta, run.posterior
