@@ -10,8 +10,8 @@ coefficient from ``pinquad.sim.effects``, and drag + wind together) and each see
    never read by estimators);
 3. put the CSV through the pipeline of ``python -m pinquad.offline --log``
    (``pinquad.pipeline.single.run_path``: read, check, identify, discover, judge) with
-   the Monte Carlo's options (``MC_OPTIONS``: regressor M-step, at most 100 E-steps, no
-   standard errors);
+   the Monte Carlo's options (``MC_OPTIONS``: ``offline --log``'s, without standard
+   errors);
 4. score: the names selected; the coefficients against the injected ones (relative
    error per coefficient, ``|c - c0| / |c0|``); mass and inertia after the refit against
    the truth; the held-out residual RMS per affected axis before and after.
@@ -50,7 +50,13 @@ from pinquad.discovery.calibrated import discovery_start
 from pinquad.discovery.discover import base_heldout_rms
 from pinquad.io.logs import write_log
 from pinquad.pipeline.identify import LogOptions
-from pinquad.pipeline.single import PipelineOptions, identify, read, run_path
+from pinquad.pipeline.single import (
+    LOG_MAX_ITERATIONS,
+    PipelineOptions,
+    identify,
+    read,
+    run_path,
+)
 from pinquad.sim import effects
 from pinquad.sim.control import design_gains
 from pinquad.sim.simulator import SimConfig, flight_log, simulate
@@ -80,12 +86,11 @@ scored."""
 PARAMS = ("mass", "I_xx", "I_yy", "I_zz")
 
 MC_OPTIONS = PipelineOptions(identification=LogOptions(
-    msteps=("regressor",), estep="rts", max_iterations=100, information=False))
-"""The pipeline's options for every flight of the Monte Carlo: the regressor M-step with the
-RTS E-step, at most 100 E-steps per EM run (``offline --log`` allows
-``pipeline.single.LOG_MAX_ITERATIONS``: a flight whose base EM needs more is scored
-unconverged, discovery not run), no standard errors (nothing here reads them), discovery
-with the default null calibration."""
+    msteps=("regressor",), estep="rts", max_iterations=LOG_MAX_ITERATIONS, information=False))
+"""The pipeline's options for every flight of the Monte Carlo: those of ``offline --log``
+(regressor M-step, RTS E-step, at most ``pipeline.single.LOG_MAX_ITERATIONS`` E-steps per
+EM run, discovery with the default null calibration) without standard errors, which
+nothing here reads and which select nothing."""
 
 
 def discovery_scenario(laps: int = 1):
