@@ -27,7 +27,7 @@ from pinquad.discovery.null import NullSettings, first_round_gains
 from pinquad.identification.identify import unconverged
 from pinquad.identification.search_range import outside_range
 from pinquad.models.ssm import Observations, Theta
-from pinquad.pipeline.identify import LogResult, input_reading, plausible_range
+from pinquad.pipeline.identify import LogResult
 
 
 def run_discovery(result: LogResult, null: NullSettings | None = None,
@@ -40,11 +40,11 @@ def run_discovery(result: LogResult, null: NullSettings | None = None,
         start = discovery_start(result.runs[0])
     except ValueError as exc:
         return DiscoveryOutcome(None, str(exc))
-    vrange = plausible_range(result.log)
+    vrange = result.plausible
     base = result.runs[0]
     if unconverged(base) is not None:
         return DiscoveryOutcome(None, not_run=unconverged(base))
-    actuation = input_reading(result.kind, result.log)
+    actuation = result.actuation
     bounds = None if vrange is None else (vrange.inertia_lo, vrange.inertia_hi)
     cfg = replace(discovery_config(result.kind, actuation), search=result.search)
     outcome = discover_calibrated(start, cfg, null, actuation, executor, bounds)

@@ -106,7 +106,10 @@ class LogResult:
     resampled with the thrust and torques its rotor speeds give), search: the range EM
     searched (``identification.search_range``; None: unbounded); vehicle_unnamed: a
     measured log that names no vehicle, judged against no vehicle's range (its note says
-    so). Discovery starts from ``discovery_start(runs[0])``."""
+    so); plausible: what the log's vehicle can physically be, the range every verdict
+    judges on (:func:`plausible_range`; None: no vehicle named and no guesses);
+    actuation: how the E-step's inputs acted between rows (:func:`input_reading`:
+    ``held`` or ``sampled``). Discovery starts from ``discovery_start(runs[0])``."""
 
     runs: tuple[Identification, ...]
     log: FlightLog
@@ -122,6 +125,8 @@ class LogResult:
     contents: str = ""
     search: VehicleRange | None = None
     vehicle_unnamed: bool = False
+    plausible: VehicleRange | None = None
+    actuation: str = "held"
 
 
 def torque_words(run: Identification) -> str:
@@ -334,9 +339,12 @@ def identify_log(log: FlightLog, options: LogOptions | None = None,
     check_log(log)  # units and impossible values, before any EM (pinquad.io.sanity)
     kind = log_kind(log)
     if kind == "simulated":
-        return _with_applied_wrench(log, options, executor)
-    # an export's thrust and torques are its rotor speeds' own: identified from the latter
-    return _measured(replace(log, thrust=None, torque=None), options, kind)
+        result = _with_applied_wrench(log, options, executor)
+    else:
+        # an export's thrust and torques are its rotor speeds' own: identified from the latter
+        result = _measured(replace(log, thrust=None, torque=None), options, kind)
+    return replace(result, plausible=plausible_range(result.log),
+                   actuation=input_reading(result.kind, result.log))
 
 
 def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:

@@ -27,7 +27,7 @@ from pinquad.identification.search_range import at_bound
 from pinquad.identification.verdict import EstimateVerdict, VerdictEvidence, judge
 from pinquad.identification.verdict_evidence import data_evidence
 from pinquad.models.full import FullQuadSSM
-from pinquad.pipeline.identify import LogResult, input_reading, plausible_range
+from pinquad.pipeline.identify import LogResult
 
 Array = NDArray[np.float64]
 
@@ -78,11 +78,6 @@ class Headline:
 def _band(run: Identification) -> tuple[float, float] | None:
     """The measured-flight M-step reads the inertia from its torque band only."""
     return None if run.measured is None else tuple(run.measured.band)
-
-
-def _actuation(result: LogResult) -> str:
-    """How the log's inputs acted between rows, as the E-step read them."""
-    return input_reading(result.kind, result.log)
 
 
 def run_budget(result: LogResult, run: Identification, values: Array | None = None,
@@ -155,7 +150,7 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
         theta = replace(start.theta, inertia=np.asarray(run.inertia))
         model = None if run.full is None else FullQuadSSM(start.obs, theta)
         ev = data_evidence(start.obs, theta, start.posterior.mean, _band(run), model,
-                           _actuation(result))
+                           result.actuation)
         ev = replace(ev, model_free_mass=balance_mass(start.obs, start.posterior.mean,
                                                        start.theta.gravity))
     if run is result.runs[0]:
@@ -168,7 +163,7 @@ def run_verdict(result: LogResult, run: Identification) -> EstimateVerdict:
     budget = run_budget(result, run)
     ev = with_budget(ev, budget, result)
     return judge(run.mass, run.inertia, budget.total, ev,
-                 plausible_range(result.log), products, missing_stderr=run.stderr_problem,
+                 result.plausible, products, missing_stderr=run.stderr_problem,
                  parts=budget.parts)
 
 
@@ -192,7 +187,7 @@ def _final(result: LogResult, found: DiscoveryResult, base: VehicleEstimate
     obs = corrected_observations(start.obs, found.posterior.mean, found.coefficients)
     model = model_factory(found.coefficients)(obs, theta)
     ev = replace(data_evidence(obs, theta, found.posterior.mean, _band(run), model,
-                               _actuation(result)),
+                               result.actuation),
                  input_alternative=result.input_alternative)
     if result.search is not None:
         ev = replace(ev, at_bound=tuple(at_bound(np.r_[found.mass, np.diag(found.inertia)],
@@ -220,7 +215,7 @@ def _final(result: LogResult, found: DiscoveryResult, base: VehicleEstimate
     budget = run_budget(result, run, np.r_[found.mass, np.diag(found.inertia)], statistical)
     stderr = budget.total
     ev = replace(with_budget(ev, budget, result), error_failures=failures)
-    verdict = judge(found.mass, found.inertia, stderr, ev, plausible_range(result.log),
+    verdict = judge(found.mass, found.inertia, stderr, ev, result.plausible,
                     missing_stderr=missing, parts=budget.parts)
     return VehicleEstimate(float(found.mass), np.asarray(found.inertia), None, np.asarray(stderr),
                            note,
