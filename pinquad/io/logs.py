@@ -194,13 +194,6 @@ def _nan3(n: int) -> Array:
     return np.full((n, 3), np.nan)
 
 
-def empty_log(t: Array, meta: LogMeta | None = None) -> FlightLog:
-    """A log with time stamps and no measurement."""
-    n = t.shape[0]
-    return FlightLog(t=t, position=_nan3(n), velocity=_nan3(n), euler=_nan3(n),
-                     gyro=_nan3(n), accel=_nan3(n), meta=meta or LogMeta())
-
-
 # ----------------------------------------------------------------------------- writing
 
 def log_columns(log: FlightLog) -> dict[str, Array]:
