@@ -65,7 +65,7 @@ def estimate(source: Path | FlightLog,
     params = np.r_[run.mass, np.diag(run.inertia)]
     stat = run.measured.se_stat if run.measured is not None else run.stderr
     gaps = sum(e.transitions for e in (() if run.measured is None else run.measured.exclusions)
-               if "log gap" in e.reason)
+               if e.kind == "log gaps")
     return params, np.asarray(run.stderr), np.asarray(stat), gaps
 
 

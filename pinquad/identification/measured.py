@@ -17,13 +17,27 @@ from pinquad.vehicle.actuators import ThrustCoefficient
 Array = NDArray[np.float64]
 
 
+EXCLUSION_KINDS = ("contact", "attitude", "faulty rpm", "log gaps", "no actuation")
+"""Why a measured flight's transitions are skipped: ground contact (with take-off and
+landing), an attitude near the Euler angles' singularity, implausible rotor readings,
+log gaps, bins with rows but no finite rotor speed."""
+
+
 @dataclass(frozen=True)
 class Exclusion:
-    """One reason for skipping transitions: reason (words) and transitions (count; a
-    transition may have several reasons)."""
+    """One reason for skipping transitions: kind (one of ``EXCLUSION_KINDS``), reason
+    (words), transitions (count; a transition may have several reasons) and detail (the
+    log gaps in words for kind ``log gaps``, else empty)."""
 
+    kind: str
     reason: str
     transitions: int
+    detail: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in EXCLUSION_KINDS:
+            raise ValueError(f"exclusion kind {self.kind!r}: expected one of "
+                             f"{', '.join(EXCLUSION_KINDS)}")
 
 
 @dataclass(frozen=True)

@@ -25,11 +25,10 @@ from numpy.typing import NDArray
 from pinquad.identification.em import EMSettings
 from pinquad.identification.fisher import observed_information, standard_errors
 from pinquad.identification.identify import Identification, em_from_guess, loglik_function
-from pinquad.identification.measured import MeasuredFit
+from pinquad.identification.measured import Exclusion, MeasuredFit
 from pinquad.models.ssm import Theta, corrected
 from pinquad.mstep.band import BandMStep
 from pinquad.mstep.protocol import MStep
-from pinquad.realdata.input_holes import GAP_REASON
 from pinquad.realdata.mass_balance import motor_split, quasi_static_mass
 from pinquad.realdata.observations import RealObservations
 from pinquad.realdata.rotor_inertia import yaw_band_stats
@@ -159,13 +158,12 @@ def identify_real(real: RealObservations, mass0: float, inertia0: Array,
         posterior=res.posterior, observations=obs, measured=fit)
 
 
-def failure_with_gaps(failure: str | None, exclusions: tuple) -> str | None:
+def failure_with_gaps(failure: str | None, exclusions: tuple[Exclusion, ...]) -> str | None:
     """EM's failure (None: none) with the log's gaps (``realdata.input_holes``): the
     smoother restarts after each (``models.ssm.restart_mask``), from a wide prior the
     first rows after it must pin down, the likeliest place for a filter to break."""
-    gaps = [e.reason for e in exclusions if e.reason.startswith(GAP_REASON) and e.transitions]
+    gaps = [e.detail for e in exclusions if e.kind == "log gaps" and e.transitions]
     if failure is None or not gaps:
         return failure
-    gap = gaps[0].removeprefix(GAP_REASON + ": ").removesuffix(" (resets for the E-step)")
-    return (f"{failure}; the log has {gap}, after which the smoother restarts from a "
+    return (f"{failure}; the log has {gaps[0]}, after which the smoother restarts from a "
             "wide prior (cut the log at the gap to see whether it is the cause)")

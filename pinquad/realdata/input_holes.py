@@ -42,10 +42,11 @@ class InputHoles:
     gaps: str
     interval: float
 
-    def exclusions(self) -> tuple[tuple[str, BoolArray], ...]:
-        """(reason, rows) of the transitions to exclude."""
-        return ((f"{GAP_REASON}: {self.gaps} (resets for the E-step)", self.gap),
-                ("bins with rows but no finite rotor speed", self.bad))
+    def exclusions(self) -> tuple[tuple[str, str, BoolArray], ...]:
+        """(kind, reason, rows) of the transitions to exclude (kinds as
+        ``identification.measured.EXCLUSION_KINDS``)."""
+        return (("log gaps", f"{GAP_REASON}: {self.gaps} (resets for the E-step)", self.gap),
+                ("no actuation", "bins with rows but no finite rotor speed", self.bad))
 
     def note(self, dt: float) -> str | None:
         """What was done with the bins without a row outside gaps, or None if none."""

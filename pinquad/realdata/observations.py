@@ -343,7 +343,7 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         ex = near.copy()
         ex[:-1] |= near[1:]
         exclusions.append(Exclusion(
-            f"ground contact, take-off or landing (height < {options.contact_height * 100:.0f} "
+            "contact", f"ground contact, take-off or landing (height < {options.contact_height * 100:.0f} "
             f"cm at < {options.contact_speed:g} m/s, or median rotor speed < "
             f"{options.flight_rpm:.0f} rev/min: {int(heuristic.sum())} steps; found from the "
             f"data by models.contact: {int(detected.sum())} steps, "
@@ -351,13 +351,14 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
             f"{options.contact_margin:g} s)", int(ex[:n_tr].sum())))
         exclude |= ex
     else:
-        exclusions.append(Exclusion("ground contact, take-off or landing: none (airborne "
-                                    "throughout: the logs start and end in flight)", 0))
+        exclusions.append(Exclusion("contact", "ground contact, take-off or landing: none "
+                                    "(airborne throughout: the logs start and end in flight)",
+                                    0))
 
     # an attitude near the Euler singularity, cut out as in models.sources.observations
     singular = near_euler_singularity(grid, euler)
     if singular.rows.any():
-        exclusions.append(Exclusion(singular.describe(),
+        exclusions.append(Exclusion("attitude", singular.describe(),
                                     int((singular.touching() & ~exclude)[:n_tr].sum())))
         exclude |= singular.touching()
 
@@ -367,19 +368,20 @@ def build_observations(raw: RawFlight, options: RealDataOptions | None = None,
         ex = bin_mean(t_src, untrusted_rows.astype(float), grid, dt, k)[:, 0] > 0
         flagged = ex
         exclusions.append(Exclusion(
-            f"implausible rotor readings ({report.n_flagged} of {log.n} samples flagged by "
+            "faulty rpm", f"implausible rotor readings ({report.n_flagged} of {log.n} samples flagged by "
             "faults.detect_actuation_faults" + (", not repaired" if options.faults == "exclude"
                                                  else "") + ")", int(ex[:n_tr].sum())))
         exclude |= ex
     elif report.n_flagged:
         exclusions.append(Exclusion(
-            f"implausible rotor readings: {report.n_flagged} of {log.n} samples flagged, all "
+            "faulty rpm", f"implausible rotor readings: {report.n_flagged} of {log.n} samples flagged, all "
             "rebuilt from PWM (none excluded)", 0))
 
     nan_in = np.isnan(inputs).any(axis=1)
     holes = input_holes(t_src, grid, dt, nan_in)  # log gaps judged on the log's own step
-    for reason, ex in holes.exclusions():
-        exclusions.append(Exclusion(reason, int((ex & ~exclude)[:n_tr].sum())))
+    for kind, reason, ex in holes.exclusions():
+        exclusions.append(Exclusion(kind, reason, int((ex & ~exclude)[:n_tr].sum()),
+                                    holes.gaps if kind == "log gaps" else ""))
         exclude |= ex
     # A bin whose every actuation sample was flagged implausible and not rebuilt (a rotor
     # read as stopped in flight) gets an interpolated input only so the E-step can pass

@@ -20,10 +20,7 @@ def _short_reasons(r: FlightRow) -> str:
     for e in r.fit.exclusions:
         if not e.transitions:
             continue
-        key = ("contact" if e.reason.startswith("ground") else
-               "faulty rpm" if e.reason.startswith("implausible") else
-               "log gaps" if e.reason.startswith("no actuation") else e.reason[:20])
-        words.append(f"{e.transitions} {key}")
+        words.append(f"{e.transitions} {e.kind}")
     return ", ".join(words) if words else "-"
 
 
