@@ -38,14 +38,14 @@ from pinquad.cli.common import (
 from pinquad.cli.file_vehicle import run_file_vehicle
 from pinquad.cli.help import HelpFormatter, non_negative_float, non_negative_int, positive_int
 from pinquad.cli.known_mass import run_known_mass
-from pinquad.core.execution import open_executor
+from pinquad.core.execution import open_executor, worker_pool
 from pinquad.core.params import PAPER_SCENARIO
 from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.null import NullSettings
 from pinquad.experiments.offline_mc import CycleJob, run_cycles
 from pinquad.io.runs import RunWriter, new_run_dir
 from pinquad.pipeline import LOG_MAX_ITERATIONS, PipelineOptions, read, run
-from pinquad.pipeline.identify import LogOptions, worker_pool
+from pinquad.pipeline.identify import LogOptions
 from pinquad.realdata.observation_options import FAULT_MODES
 from pinquad.report.offline import offline_tables, summarize, write_offline_run
 from pinquad.results.result import Result

@@ -223,3 +223,11 @@ def open_executor(backend: Backend, tasks: int | None = None) -> Iterator[Execut
             executor.shutdown(wait=False)
             raise
         executor.shutdown(wait=True)
+
+
+def worker_pool(jobs: int) -> contextlib.AbstractContextManager[Executor | None]:
+    """``jobs`` worker processes for one log's identification and discovery
+    (``pipeline.identify.identify_log``, ``pipeline.discover.run_discovery``), as a context
+    manager: the process pool of :func:`open_executor` (one BLAS thread per task, as on
+    every backend); None (no pool: all in this process) for jobs <= 1."""
+    return open_executor(Backend(jobs=jobs)) if jobs > 1 else contextlib.nullcontext()

@@ -116,7 +116,7 @@ def row_from_result(name: str, path: str, result: PipelineResult, seconds: float
     vehicle = str(meta.vehicle or "")
     stderr = np.asarray(final.stderr, dtype=float)
     return BatchRow(
-        name=name, path=path, status="trusted" if verdict.overall == TRUSTED else "not trusted",
+        name=name, path=path, status="trusted" if verdict.trusted else "not trusted",
         mass=float(final.mass), mass_se=_finite(stderr[0]),
         inertia_diag=tuple(float(v) for v in np.diag(np.asarray(final.inertia, dtype=float))),
         inertia_se=tuple(_finite(v) for v in stderr[1:4]),

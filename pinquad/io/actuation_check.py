@@ -23,10 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pinquad.io.declaration_check import check_declared_rotor_speed
+from pinquad.io.errors import Problem
 from pinquad.io.logs import FlightLog
 
 Array = NDArray[np.float64]
-Problem = tuple[str, str, str]
 
 ZERO_SHARE = 0.05
 """A reading below this share of the other channels' median is a rotor at rest."""

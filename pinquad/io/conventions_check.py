@@ -67,10 +67,10 @@ from pinquad.io.declared import (
     rotation_of_euler,
     rotation_of_quat,
 )
+from pinquad.io.errors import Problem
 from pinquad.io.logs import FlightLog
 
 Array = NDArray[np.float64]
-Problem = tuple[str, str, str]
 
 WINDOW_S = 0.2
 """Window [s] over which the gyro is integrated and compared with the attitude change

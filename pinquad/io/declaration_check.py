@@ -84,10 +84,10 @@ from pinquad.io.conventions_check import (
     torque_correlations,
 )
 from pinquad.io.declared import Conventions
+from pinquad.io.errors import Problem
 from pinquad.io.logs import FlightLog
 
 Array = NDArray[np.float64]
-Problem = tuple[str, str, str]
 
 BALANCE_S = 0.1
 """Grid [s] of the model-free mass's vertical accelerations."""

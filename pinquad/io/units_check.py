@@ -51,10 +51,10 @@ from pinquad.core.conventions import rotation_from_euler
 from pinquad.core.params import VEHICLES
 from pinquad.core.vehicle_file import VehicleFileError, VehicleSpec, is_vehicle_file, load_vehicle
 from pinquad.io.conventions_check import smooth
+from pinquad.io.errors import Problem
 from pinquad.io.logs import FlightLog
 
 Array = NDArray[np.float64]
-Problem = tuple[str, str, str]
 """(check, column(s), message) of one failed test."""
 
 WINDOW_S = 0.2

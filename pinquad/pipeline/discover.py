@@ -34,7 +34,7 @@ def run_discovery(result: LogResult, null: NullSettings | None = None,
                   executor: Executor | None = None) -> DiscoveryOutcome:
     """Effect discovery on the reported run (``discover_calibrated``) with the settings
     for the log's kind (``DISCOVERY_SETTINGS``); default ``NullSettings()``; executor
-    (``worker_pool``): where the null calibration's shadow flights are scored and the
+    (``core.execution.worker_pool``): where the null calibration's shadow flights are scored and the
     refit runs beside them (None: all in this process; the answer is the same)."""
     try:
         start = discovery_start(result.runs[0])

@@ -23,13 +23,11 @@ others: the paper's m0 = 0.001 kg, I0 = diag(1e-4, 2e-4, 1e-4) kg m^2).
 from __future__ import annotations
 
 from concurrent.futures import Executor
-from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pinquad.core.execution import Backend, open_executor
 from pinquad.core.vehicle_file import is_vehicle_file
 from pinquad.discovery.staged import staged_start
 from pinquad.estep.fast_smoother import smooth_quad
@@ -333,7 +331,7 @@ def identify_log(log: FlightLog, options: LogOptions | None = None,
     ``pinquad.io.sanity.ImplausibleLogError`` when its columns contradict physics (wrong
     units, impossible values), ValueError (with the log named) when the log cannot be
     identified as asked; numpy's LinAlgError when EM fails numerically. executor
-    (``worker_pool``): a log with thrust and torque columns fits its runs beyond the
+    (``core.execution.worker_pool``): a log with thrust and torque columns fits its runs beyond the
     reported one, and the input alternative, in its workers (the same answer)."""
     options = options or LogOptions()
     check_log(log)  # units and impossible values, before any EM (pinquad.io.sanity)
@@ -345,14 +343,6 @@ def identify_log(log: FlightLog, options: LogOptions | None = None,
         result = _measured(replace(log, thrust=None, torque=None), options, kind)
     return replace(result, plausible=plausible_range(result.log),
                    actuation=input_reading(result.kind, result.log))
-
-
-def worker_pool(jobs: int) -> AbstractContextManager[Executor | None]:
-    """``jobs`` worker processes for one log's identification and discovery
-    (``identify_log``, ``run_discovery``), as a context manager: the process pool of
-    ``core.execution`` (one BLAS thread per task, as on every backend); None (no pool:
-    all in this process) for jobs <= 1."""
-    return open_executor(Backend(jobs=jobs)) if jobs > 1 else nullcontext()
 
 
 def plausible_range(log: FlightLog) -> VehicleRange | None:
